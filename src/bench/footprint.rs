@@ -1,0 +1,7 @@
+//! `rigmon bench footprint` (placeholder until its owner fills it in).
+
+use super::BenchOptions;
+
+pub fn run(_opts: &BenchOptions) -> anyhow::Result<()> {
+    anyhow::bail!("rigmon bench footprint is not implemented yet")
+}

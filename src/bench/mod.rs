@@ -1,0 +1,31 @@
+//! `rigmon bench`: throughput and speed benchmarks that print ratios against a baseline
+//! measured in the same run. One file per benchmark; results go in the README with the
+//! machine they ran on (see [`machine_line`]).
+
+pub mod features;
+pub mod footprint;
+pub mod simulate;
+
+use std::path::PathBuf;
+
+/// Options shared by every benchmark.
+#[derive(Debug, Clone)]
+pub struct BenchOptions {
+    /// Rig file (each benchmark has a sensible default).
+    pub rig: Option<PathBuf>,
+    /// How long to measure, seconds of wall time (or of signal, as the benchmark says).
+    pub seconds: f64,
+    /// Print one JSON object instead of text.
+    pub json: bool,
+}
+
+/// One line naming the machine a benchmark ran on (CPU model, cores, build profile).
+pub fn machine_line() -> String {
+    let cpu = std::fs::read_to_string("/proc/cpuinfo")
+        .ok()
+        .and_then(|s| s.lines().find(|l| l.starts_with("model name")).map(|l| l.split(':').nth(1).unwrap_or("").trim().to_string()))
+        .unwrap_or_else(|| "unknown CPU".into());
+    let cores = std::thread::available_parallelism().map(|n| n.get()).unwrap_or(1);
+    let profile = if cfg!(debug_assertions) { "debug (use --release for real numbers)" } else { "release" };
+    format!("{cpu}, {cores} cores, {profile} build")
+}

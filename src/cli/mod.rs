@@ -1,0 +1,17 @@
+//! One module per subcommand: its clap arguments (`Args`) and `run`, wiring the library
+//! modules together. `main.rs` only parses and dispatches.
+
+pub mod bench;
+pub mod dataset;
+pub mod embed;
+pub mod emulate;
+pub mod evaluate;
+pub mod features;
+pub mod finetune;
+pub mod import;
+pub mod inspect;
+pub mod replay;
+pub mod run;
+pub mod simulate;
+pub mod train;
+pub mod watch;

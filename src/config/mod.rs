@@ -1,0 +1,371 @@
+//! Rig configuration (TOML): machine identity, bearing geometry, acquisition, channels, speed
+//! source and feature settings. Unknown keys are rejected with their name and line.
+//!
+//! The simulator's section lives in [`simulation`]; the daemon's own file in [`daemon`].
+
+pub mod daemon;
+pub mod simulation;
+
+use crate::bearing::BearingGeometry;
+use anyhow::{bail, Context, Result};
+use serde::{Deserialize, Serialize};
+use std::path::{Path, PathBuf};
+
+/// A whole rig file (`config/lut-rig.toml`, `config/cwru-de.toml`).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RigConfig {
+    pub machine: Machine,
+    pub bearing: BearingGeometry,
+    #[serde(default)]
+    pub acquisition: Acquisition,
+    /// Channels in the order they appear in WAV/CSV input (tacho included).
+    pub channels: Vec<ChannelConfig>,
+    pub speed: SpeedConfig,
+    #[serde(default)]
+    pub features: FeatureSettings,
+    /// Simulator description of this rig (optional; `rigmon simulate` needs it).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub simulation: Option<simulation::SimulationConfig>,
+    /// Set by `rigmon calibrate`: which calibration produced this file.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub calibration: Option<CalibrationStamp>,
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Machine {
+    /// Short id used in topics, file names and model metadata (e.g. "lut-rig").
+    pub id: String,
+    #[serde(default)]
+    pub description: String,
+    /// Asset and measurement point names for topics (`rigmon/<rig>/<asset>/<point>/...`).
+    #[serde(default = "default_asset")]
+    pub asset: String,
+    #[serde(default = "default_point")]
+    pub point: String,
+}
+
+fn default_asset() -> String {
+    "shaft".into()
+}
+fn default_point() -> String {
+    "nde".into()
+}
+
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Acquisition {
+    /// Sample rate in Hz; `None` means "taken from the recording" (e.g. CWRU files).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub sample_rate_hz: Option<f64>,
+}
+
+/// What a channel measures.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum ChannelKind {
+    Acceleration,
+    /// Analog tacho voltage (pulses per revolution from [`SpeedConfig`]).
+    Tacho,
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ChannelConfig {
+    /// Channel name (e.g. "vertical", "DE").
+    pub name: String,
+    pub kind: ChannelKind,
+    /// Measurement axis (axial, vertical, horizontal, radial, ...); free text.
+    #[serde(default)]
+    pub axis: String,
+    /// Engineering unit after scaling (m/s^2, g, V).
+    pub unit: String,
+    /// Raw value x sensitivity = value in `unit`.
+    #[serde(default = "one")]
+    pub sensitivity: f64,
+}
+
+fn one() -> f64 {
+    1.0
+}
+
+/// Where shaft speed and angle come from.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "source", rename_all = "snake_case", deny_unknown_fields)]
+pub enum SpeedConfig {
+    /// Analog tacho channel: threshold with hysteresis, sub-sample edge interpolation.
+    Tacho {
+        /// Name of the tacho channel in `channels`.
+        channel: String,
+        #[serde(default = "one_u32")]
+        pulses_per_rev: u32,
+        /// Switching threshold in the channel's unit (V).
+        #[serde(default = "default_threshold")]
+        threshold: f64,
+        /// Hysteresis half-width around the threshold.
+        #[serde(default = "default_hysteresis")]
+        hysteresis: f64,
+    },
+    /// Edge timestamps delivered by the source (DAQ adapters, MCAP tacho edges).
+    Edges {
+        #[serde(default = "one_u32")]
+        pulses_per_rev: u32,
+    },
+    /// A fixed, known speed.
+    Fixed { rpm: f64 },
+    /// The speed stored in the recording (e.g. CWRU's `X<nnn>RPM`); falls back to estimation.
+    Recording,
+    /// Estimate from the vibration itself by tracking the 1x line.
+    Estimate {
+        #[serde(default = "default_min_rpm")]
+        min_rpm: f64,
+        #[serde(default = "default_max_rpm")]
+        max_rpm: f64,
+    },
+}
+
+fn one_u32() -> u32 {
+    1
+}
+fn default_threshold() -> f64 {
+    2.5
+}
+fn default_hysteresis() -> f64 {
+    0.5
+}
+fn default_min_rpm() -> f64 {
+    300.0
+}
+fn default_max_rpm() -> f64 {
+    3600.0
+}
+
+/// The envelope-order-spectrum recipe (thesis section 4.2).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct FeatureSettings {
+    /// Low-pass cut-off before the envelope, Hz.
+    #[serde(default = "default_lowpass")]
+    pub lowpass_hz: f64,
+    /// Window length, s.
+    #[serde(default = "default_window")]
+    pub window_s: f64,
+    /// Hop between windows, s.
+    #[serde(default = "default_hop")]
+    pub hop_s: f64,
+    /// Width of one RMS bin in orders.
+    #[serde(default = "default_bin_width")]
+    pub bin_width_order: f64,
+    /// Highest order (the last bin ends here).
+    #[serde(default = "default_max_order")]
+    pub max_order: f64,
+    /// Channel (by name or axis) whose features feed the classifier.
+    #[serde(default = "default_axis")]
+    pub classifier_axis: String,
+}
+
+fn default_lowpass() -> f64 {
+    4000.0
+}
+fn default_window() -> f64 {
+    1.0
+}
+fn default_hop() -> f64 {
+    0.5
+}
+fn default_bin_width() -> f64 {
+    0.5
+}
+fn default_max_order() -> f64 {
+    50.0
+}
+fn default_axis() -> String {
+    "vertical".into()
+}
+
+impl Default for FeatureSettings {
+    fn default() -> Self {
+        FeatureSettings {
+            lowpass_hz: default_lowpass(),
+            window_s: default_window(),
+            hop_s: default_hop(),
+            bin_width_order: default_bin_width(),
+            max_order: default_max_order(),
+            classifier_axis: default_axis(),
+        }
+    }
+}
+
+impl FeatureSettings {
+    /// Number of RMS bins (100 for the default 0.5 .. 50 recipe).
+    pub fn n_bins(&self) -> usize {
+        (self.max_order / self.bin_width_order).round() as usize
+    }
+
+    /// Bin edges in orders: bin k covers (edges[k], edges[k+1]]; bin 0 ends at `bin_width`.
+    pub fn bin_edges(&self) -> Vec<f64> {
+        (0..=self.n_bins()).map(|k| k as f64 * self.bin_width_order).collect()
+    }
+}
+
+/// Which calibration produced a rig file; flows into model metadata.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct CalibrationStamp {
+    pub id: String,
+    #[serde(default)]
+    pub effects: Vec<toml::Table>,
+}
+
+impl RigConfig {
+    /// Read and validate a rig file. Errors name the file, the line and the key.
+    pub fn load(path: &Path) -> Result<RigConfig> {
+        let text = std::fs::read_to_string(path)
+            .with_context(|| format!("cannot read rig file {}", path.display()))?;
+        Self::parse(&text).with_context(|| format!("in rig file {}", path.display()))
+    }
+
+    /// Parse and validate rig TOML text.
+    pub fn parse(text: &str) -> Result<RigConfig> {
+        let rig: RigConfig = toml::from_str(text).map_err(|e| anyhow::anyhow!("{e}"))?;
+        rig.validate()?;
+        Ok(rig)
+    }
+
+    /// Consistency checks that serde cannot express.
+    pub fn validate(&self) -> Result<()> {
+        self.bearing.validate().map_err(anyhow::Error::msg)?;
+        if self.machine.id.is_empty() || self.machine.id.contains(['/', '*', '$', '#', '?', ' ']) {
+            bail!("machine.id = {:?}: must be non-empty and free of / * $ # ? and spaces (it becomes a Zenoh key)", self.machine.id);
+        }
+        if let Some(fs) = self.acquisition.sample_rate_hz {
+            if !(fs.is_finite() && fs > 0.0) {
+                bail!("acquisition.sample_rate_hz = {fs}: must be a positive number");
+            }
+        }
+        if self.acceleration_channels().next().is_none() {
+            bail!("channels: no channel of kind \"acceleration\"; add at least one");
+        }
+        let mut names: Vec<&str> = self.channels.iter().map(|c| c.name.as_str()).collect();
+        names.sort_unstable();
+        if let Some(w) = names.windows(2).find(|w| w[0] == w[1]) {
+            bail!("channels: the name {:?} is used twice; channel names must be unique", w[0]);
+        }
+        if let SpeedConfig::Tacho { channel, pulses_per_rev, .. } = &self.speed {
+            match self.channels.iter().find(|c| &c.name == channel) {
+                Some(c) if c.kind == ChannelKind::Tacho => {}
+                Some(_) => bail!("speed.channel = {channel:?} is not of kind \"tacho\""),
+                None => bail!("speed.channel = {channel:?} names no channel; the channels are {:?}", self.channel_names()),
+            }
+            if *pulses_per_rev == 0 {
+                bail!("speed.pulses_per_rev must be at least 1");
+            }
+        }
+        if let SpeedConfig::Fixed { rpm } = self.speed {
+            if !(rpm.is_finite() && rpm > 0.0) {
+                bail!("speed.rpm = {rpm}: must be a positive number");
+            }
+        }
+        let f = &self.features;
+        if !(f.window_s > 0.0 && f.hop_s > 0.0 && f.hop_s <= f.window_s) {
+            bail!("features: need 0 < hop_s <= window_s (got window_s = {}, hop_s = {})", f.window_s, f.hop_s);
+        }
+        if !(f.bin_width_order > 0.0 && f.max_order > f.bin_width_order) {
+            bail!("features: need 0 < bin_width_order < max_order");
+        }
+        let fit = f.max_order / f.bin_width_order;
+        if (fit - fit.round()).abs() > 1e-9 {
+            bail!("features.max_order ({}) must be a whole number of bins of width {}", f.max_order, f.bin_width_order);
+        }
+        if self.classifier_channel().is_none() {
+            bail!(
+                "features.classifier_axis = {:?} matches no acceleration channel by name or axis; the channels are {:?}",
+                f.classifier_axis,
+                self.channel_names()
+            );
+        }
+        Ok(())
+    }
+
+    pub fn channel_names(&self) -> Vec<&str> {
+        self.channels.iter().map(|c| c.name.as_str()).collect()
+    }
+
+    /// Acceleration channels in file order.
+    pub fn acceleration_channels(&self) -> impl Iterator<Item = &ChannelConfig> {
+        self.channels.iter().filter(|c| c.kind == ChannelKind::Acceleration)
+    }
+
+    /// The acceleration channel feeding the classifier (matched by name first, then axis).
+    pub fn classifier_channel(&self) -> Option<&ChannelConfig> {
+        let want = &self.features.classifier_axis;
+        self.acceleration_channels()
+            .find(|c| &c.name == want)
+            .or_else(|| self.acceleration_channels().find(|c| &c.axis == want))
+    }
+
+    /// Pulses per revolution of the tacho, whatever form it comes in.
+    pub fn pulses_per_rev(&self) -> u32 {
+        match self.speed {
+            SpeedConfig::Tacho { pulses_per_rev, .. } | SpeedConfig::Edges { pulses_per_rev } => pulses_per_rev,
+            _ => 1,
+        }
+    }
+}
+
+/// Resolve a path given in a config file relative to that file's folder.
+pub fn resolve_relative(base_file: &Path, p: &Path) -> PathBuf {
+    if p.is_absolute() {
+        p.to_path_buf()
+    } else {
+        base_file.parent().unwrap_or(Path::new(".")).join(p)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn shipped(name: &str) -> RigConfig {
+        let p = Path::new(env!("CARGO_MANIFEST_DIR")).join("config").join(name);
+        RigConfig::load(&p).unwrap()
+    }
+
+    #[test]
+    fn shipped_lut_rig_parses() {
+        let rig = shipped("lut-rig.toml");
+        assert_eq!(rig.machine.id, "lut-rig");
+        assert_eq!(rig.bearing.balls, 11);
+        assert_eq!(rig.acquisition.sample_rate_hz, Some(10_000.0));
+        assert_eq!(rig.channel_names(), ["axial", "vertical", "horizontal", "tacho"]);
+        assert_eq!(rig.classifier_channel().unwrap().name, "vertical");
+        assert_eq!(rig.features.n_bins(), 100);
+        assert_eq!(rig.features.bin_edges()[1], 0.5);
+    }
+
+    #[test]
+    fn shipped_cwru_parses() {
+        let rig = shipped("cwru-de.toml");
+        assert_eq!(rig.bearing.balls, 9);
+        assert_eq!(rig.acquisition.sample_rate_hz, None);
+        assert_eq!(rig.classifier_channel().unwrap().name, "DE");
+    }
+
+    #[test]
+    fn unknown_key_is_named_with_line() {
+        let text = std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("config/lut-rig.toml")).unwrap();
+        let bad = text.replacen("[features]", "[features]\nlowpas_hz = 3000", 1);
+        let err = format!("{:#}", RigConfig::parse(&bad).unwrap_err());
+        assert!(err.contains("lowpas_hz"), "{err}");
+        assert!(err.contains("line"), "{err}");
+    }
+
+    #[test]
+    fn tacho_must_name_a_tacho_channel() {
+        let text = std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("config/lut-rig.toml")).unwrap();
+        let bad = text.replacen("channel = \"tacho\"", "channel = \"tach\"", 1);
+        let err = format!("{:#}", RigConfig::parse(&bad).unwrap_err());
+        assert!(err.contains("\"tach\" names no channel"), "{err}");
+    }
+}

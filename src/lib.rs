@@ -1,0 +1,26 @@
+//! rigmon: on-line condition monitoring of rotating machinery.
+//!
+//! Data flows one way: [`acquire`] (sources) -> [`dsp`] (features) -> [`model`] (inference)
+//! -> [`health`] (state machine) -> [`publish`], [`record`] (sinks). [`sim`], [`train`] and
+//! [`calibrate`] sit beside the stream and produce models and calibrated rig files.
+//! Lower modules never import higher ones.
+
+pub mod acquire;
+pub mod bearing;
+pub mod bench;
+pub mod calibrate;
+pub mod cli;
+pub mod config;
+pub mod daemon;
+pub mod dsp;
+pub mod embed;
+pub mod evaluate;
+pub mod health;
+pub mod importers;
+pub mod model;
+pub mod plots;
+pub mod publish;
+pub mod record;
+pub mod recording;
+pub mod sim;
+pub mod train;

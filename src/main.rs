@@ -1,0 +1,75 @@
+//! rigmon command line: parse and dispatch; each subcommand lives in `rigmon::cli`.
+
+use clap::{Parser, Subcommand};
+use rigmon::cli;
+
+#[derive(Parser, Debug)]
+#[command(name = "rigmon", version, about = "Condition monitoring for rotating machinery: DAQ -> envelope order spectra -> ONNX classifier -> health on Zenoh")]
+struct Cli {
+    /// Log filter (e.g. info, debug, rigmon=debug); RUST_LOG works too.
+    #[arg(long, global = true, default_value = "info")]
+    log: String,
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand, Debug)]
+enum Command {
+    /// Convert a recording (CWRU/MFPT .mat, WAV, CSV) into a rigmon MCAP file.
+    Import(cli::import::Args),
+    /// Print envelope-order-spectrum features per window as JSON Lines.
+    Features(cli::features::Args),
+    /// Draw a recording's envelope order spectrum with fault-order markers (PNG).
+    Inspect(cli::inspect::Args),
+    /// Simulate the rig (rotor + ball bearing + defects) to MCAP or WAV.
+    Simulate(cli::simulate::Args),
+    /// Generate a labelled simulated dataset from a plan.
+    Dataset(cli::dataset::Args),
+    /// Train the classifier on a simulated dataset and export ONNX.
+    Train(cli::train::Args),
+    /// Retrain the output layer on a fraction of labelled measured recordings.
+    Finetune(cli::finetune::Args),
+    /// Score a model on labelled recordings, whole-record.
+    Evaluate(cli::evaluate::Args),
+    /// 2-D t-SNE/PCA picture of feature windows by class and domain.
+    Embed(cli::embed::Args),
+    /// Run the monitoring daemon from a config file.
+    Run(cli::run::Args),
+    /// Replay a recording through the monitoring pipeline.
+    Replay(cli::replay::Args),
+    /// Print health messages from the network, one line each.
+    Watch(cli::watch::Args),
+    /// Emulate a DAQ adapter (serial) streaming a recording.
+    Emulate(cli::emulate::Args),
+    /// Benchmarks with ratios against a baseline in the same run.
+    Bench(cli::bench::Args),
+}
+
+fn main() -> std::process::ExitCode {
+    let cli = Cli::parse();
+    let filter = std::env::var("RUST_LOG").unwrap_or_else(|_| cli.log.clone());
+    tracing_subscriber::fmt().with_env_filter(filter).with_writer(std::io::stderr).init();
+    let result = match cli.command {
+        Command::Import(a) => cli::import::run(a),
+        Command::Features(a) => cli::features::run(a),
+        Command::Inspect(a) => cli::inspect::run(a),
+        Command::Simulate(a) => cli::simulate::run(a),
+        Command::Dataset(a) => cli::dataset::run(a),
+        Command::Train(a) => cli::train::run(a),
+        Command::Finetune(a) => cli::finetune::run(a),
+        Command::Evaluate(a) => cli::evaluate::run(a),
+        Command::Embed(a) => cli::embed::run(a),
+        Command::Run(a) => cli::run::run(a),
+        Command::Replay(a) => cli::replay::run(a),
+        Command::Watch(a) => cli::watch::run(a),
+        Command::Emulate(a) => cli::emulate::run(a),
+        Command::Bench(a) => cli::bench::run(a),
+    };
+    match result {
+        Ok(()) => std::process::ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("error: {e:#}");
+            std::process::ExitCode::FAILURE
+        }
+    }
+}
