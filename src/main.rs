@@ -4,7 +4,11 @@ use clap::{Parser, Subcommand};
 use rigmon::cli;
 
 #[derive(Parser, Debug)]
-#[command(name = "rigmon", version, about = "Condition monitoring for rotating machinery: DAQ -> envelope order spectra -> ONNX classifier -> health on Zenoh")]
+#[command(
+    name = "rigmon",
+    version,
+    about = "Condition monitoring for rotating machinery: DAQ -> envelope order spectra -> ONNX classifier -> health on Zenoh"
+)]
 struct Cli {
     /// Log filter (e.g. info, debug, rigmon=debug); RUST_LOG works too.
     #[arg(long, global = true, default_value = "info")]
@@ -48,7 +52,10 @@ enum Command {
 fn main() -> std::process::ExitCode {
     let cli = Cli::parse();
     let filter = std::env::var("RUST_LOG").unwrap_or_else(|_| cli.log.clone());
-    tracing_subscriber::fmt().with_env_filter(filter).with_writer(std::io::stderr).init();
+    tracing_subscriber::fmt()
+        .with_env_filter(filter)
+        .with_writer(std::io::stderr)
+        .init();
     let result = match cli.command {
         Command::Import(a) => cli::import::run(a),
         Command::Features(a) => cli::features::run(a),

@@ -84,5 +84,10 @@ pub trait Source: Send {
     /// Sample rate the source delivers, Hz.
     fn sample_rate(&self) -> f64;
     /// Run until done or stopped.
-    fn run(self: Box<Self>, tx: BlockSender, stats: Arc<SourceStats>, stop: StopToken) -> anyhow::Result<()>;
+    fn run(
+        self: Box<Self>,
+        tx: BlockSender,
+        stats: Arc<SourceStats>,
+        stop: StopToken,
+    ) -> anyhow::Result<()>;
 }

@@ -31,7 +31,11 @@ pub struct Args {
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
-    let opts = BenchOptions { rig: args.rig, seconds: args.seconds, json: args.json };
+    let opts = BenchOptions {
+        rig: args.rig,
+        seconds: args.seconds,
+        json: args.json,
+    };
     match args.what {
         What::Features => bench::features::run(&opts),
         What::Simulate => bench::simulate::run(&opts),

@@ -205,7 +205,9 @@ impl FeatureSettings {
 
     /// Bin edges in orders: bin k covers (edges[k], edges[k+1]]; bin 0 ends at `bin_width`.
     pub fn bin_edges(&self) -> Vec<f64> {
-        (0..=self.n_bins()).map(|k| k as f64 * self.bin_width_order).collect()
+        (0..=self.n_bins())
+            .map(|k| k as f64 * self.bin_width_order)
+            .collect()
     }
 }
 
@@ -250,13 +252,24 @@ impl RigConfig {
         let mut names: Vec<&str> = self.channels.iter().map(|c| c.name.as_str()).collect();
         names.sort_unstable();
         if let Some(w) = names.windows(2).find(|w| w[0] == w[1]) {
-            bail!("channels: the name {:?} is used twice; channel names must be unique", w[0]);
+            bail!(
+                "channels: the name {:?} is used twice; channel names must be unique",
+                w[0]
+            );
         }
-        if let SpeedConfig::Tacho { channel, pulses_per_rev, .. } = &self.speed {
+        if let SpeedConfig::Tacho {
+            channel,
+            pulses_per_rev,
+            ..
+        } = &self.speed
+        {
             match self.channels.iter().find(|c| &c.name == channel) {
                 Some(c) if c.kind == ChannelKind::Tacho => {}
                 Some(_) => bail!("speed.channel = {channel:?} is not of kind \"tacho\""),
-                None => bail!("speed.channel = {channel:?} names no channel; the channels are {:?}", self.channel_names()),
+                None => bail!(
+                    "speed.channel = {channel:?} names no channel; the channels are {:?}",
+                    self.channel_names()
+                ),
             }
             if *pulses_per_rev == 0 {
                 bail!("speed.pulses_per_rev must be at least 1");
@@ -269,14 +282,22 @@ impl RigConfig {
         }
         let f = &self.features;
         if !(f.window_s > 0.0 && f.hop_s > 0.0 && f.hop_s <= f.window_s) {
-            bail!("features: need 0 < hop_s <= window_s (got window_s = {}, hop_s = {})", f.window_s, f.hop_s);
+            bail!(
+                "features: need 0 < hop_s <= window_s (got window_s = {}, hop_s = {})",
+                f.window_s,
+                f.hop_s
+            );
         }
         if !(f.bin_width_order > 0.0 && f.max_order > f.bin_width_order) {
             bail!("features: need 0 < bin_width_order < max_order");
         }
         let fit = f.max_order / f.bin_width_order;
         if (fit - fit.round()).abs() > 1e-9 {
-            bail!("features.max_order ({}) must be a whole number of bins of width {}", f.max_order, f.bin_width_order);
+            bail!(
+                "features.max_order ({}) must be a whole number of bins of width {}",
+                f.max_order,
+                f.bin_width_order
+            );
         }
         if self.classifier_channel().is_none() {
             bail!(
@@ -294,7 +315,9 @@ impl RigConfig {
 
     /// Acceleration channels in file order.
     pub fn acceleration_channels(&self) -> impl Iterator<Item = &ChannelConfig> {
-        self.channels.iter().filter(|c| c.kind == ChannelKind::Acceleration)
+        self.channels
+            .iter()
+            .filter(|c| c.kind == ChannelKind::Acceleration)
     }
 
     /// The acceleration channel feeding the classifier (matched by name first, then axis).
@@ -308,7 +331,9 @@ impl RigConfig {
     /// Pulses per revolution of the tacho, whatever form it comes in.
     pub fn pulses_per_rev(&self) -> u32 {
         match self.speed {
-            SpeedConfig::Tacho { pulses_per_rev, .. } | SpeedConfig::Edges { pulses_per_rev } => pulses_per_rev,
+            SpeedConfig::Tacho { pulses_per_rev, .. } | SpeedConfig::Edges { pulses_per_rev } => {
+                pulses_per_rev
+            }
             _ => 1,
         }
     }
@@ -328,7 +353,9 @@ mod tests {
     use super::*;
 
     fn shipped(name: &str) -> RigConfig {
-        let p = Path::new(env!("CARGO_MANIFEST_DIR")).join("config").join(name);
+        let p = Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("config")
+            .join(name);
         RigConfig::load(&p).unwrap()
     }
 
@@ -338,7 +365,10 @@ mod tests {
         assert_eq!(rig.machine.id, "lut-rig");
         assert_eq!(rig.bearing.balls, 11);
         assert_eq!(rig.acquisition.sample_rate_hz, Some(10_000.0));
-        assert_eq!(rig.channel_names(), ["axial", "vertical", "horizontal", "tacho"]);
+        assert_eq!(
+            rig.channel_names(),
+            ["axial", "vertical", "horizontal", "tacho"]
+        );
         assert_eq!(rig.classifier_channel().unwrap().name, "vertical");
         assert_eq!(rig.features.n_bins(), 100);
         assert_eq!(rig.features.bin_edges()[1], 0.5);
@@ -354,7 +384,10 @@ mod tests {
 
     #[test]
     fn unknown_key_is_named_with_line() {
-        let text = std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("config/lut-rig.toml")).unwrap();
+        let text = std::fs::read_to_string(
+            Path::new(env!("CARGO_MANIFEST_DIR")).join("config/lut-rig.toml"),
+        )
+        .unwrap();
         let bad = text.replacen("[features]", "[features]\nlowpas_hz = 3000", 1);
         let err = format!("{:#}", RigConfig::parse(&bad).unwrap_err());
         assert!(err.contains("lowpas_hz"), "{err}");
@@ -363,7 +396,10 @@ mod tests {
 
     #[test]
     fn tacho_must_name_a_tacho_channel() {
-        let text = std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("config/lut-rig.toml")).unwrap();
+        let text = std::fs::read_to_string(
+            Path::new(env!("CARGO_MANIFEST_DIR")).join("config/lut-rig.toml"),
+        )
+        .unwrap();
         let bad = text.replacen("channel = \"tacho\"", "channel = \"tach\"", 1);
         let err = format!("{:#}", RigConfig::parse(&bad).unwrap_err());
         assert!(err.contains("\"tach\" names no channel"), "{err}");

@@ -18,5 +18,8 @@ pub struct ImportOptions {
 /// Read any supported recording, chosen by content and extension.
 pub fn load(path: &Path, rig: &RigConfig, opts: &ImportOptions) -> Result<Recording> {
     let _ = (rig, opts);
-    bail!("{}: reading recordings is not implemented yet", path.display())
+    bail!(
+        "{}: reading recordings is not implemented yet",
+        path.display()
+    )
 }
