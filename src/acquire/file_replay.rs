@@ -273,7 +273,7 @@ impl FileReplay {
     }
 
     /// The block holding samples `[start, end)` of the recording, pass `pass` (for loops).
-    fn block(&self, start: usize, end: usize, pass: u64) -> SampleBlock {
+    pub(crate) fn block_at(&self, start: usize, end: usize, pass: u64) -> SampleBlock {
         let n = self.rec.len() as u64;
         let fs = self.rec.sample_rate;
         let channels = self
@@ -353,7 +353,7 @@ impl Source for FileReplay {
                     break 'outer;
                 }
                 let end = (start + self.block).min(n);
-                let block = self.block(start, end, pass);
+                let block = self.block_at(start, end, pass);
                 if let ReplaySpeed::Factor(x) = self.speed {
                     // A live DAQ delivers a block once its last sample has been taken.
                     let due = t0

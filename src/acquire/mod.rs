@@ -9,8 +9,11 @@
 pub mod assembler;
 pub mod audio;
 pub mod can;
+pub mod emulator;
 pub mod file_replay;
+pub mod layout;
 pub mod serial;
+pub mod serial_protocol;
 
 use crate::config::RigConfig;
 use serde::{Deserialize, Serialize};
@@ -176,11 +179,7 @@ impl SourceConfig {
 
 /// Sample rate a live source runs at: the source's own setting, else the rig's
 /// `acquisition.sample_rate_hz`; an error naming both places when neither is set.
-pub fn live_sample_rate(
-    own: Option<f64>,
-    rig: &RigConfig,
-    kind: &str,
-) -> anyhow::Result<f64> {
+pub fn live_sample_rate(own: Option<f64>, rig: &RigConfig, kind: &str) -> anyhow::Result<f64> {
     let fs = own.or(rig.acquisition.sample_rate_hz).ok_or_else(|| {
         anyhow::anyhow!(
             "{kind} source: no sample rate; set `sample_rate_hz` in the [source] section or `acquisition.sample_rate_hz` in the rig file"

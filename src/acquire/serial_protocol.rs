@@ -43,7 +43,8 @@ pub const MAX_EDGES: usize = 1024;
 /// Upper bound on the sample bytes (N·C·B) of one frame.
 pub const MAX_SAMPLE_BYTES: usize = 256 * 1024;
 /// Upper bound on a whole frame.
-pub const MAX_FRAME_BYTES: usize = HEADER_BYTES + 4 * MAX_CHANNELS + MAX_SAMPLE_BYTES + 8 * MAX_EDGES + 4;
+pub const MAX_FRAME_BYTES: usize =
+    HEADER_BYTES + 4 * MAX_CHANNELS + MAX_SAMPLE_BYTES + 8 * MAX_EDGES + 4;
 /// Fixed-point scale of edge positions (Q48.16).
 pub const EDGE_FRACTION: f64 = 65536.0;
 
@@ -170,7 +171,14 @@ impl FrameEncoder {
     /// Append one frame to `out`. `channels[c]` are values (raw × scale); integer formats
     /// round to the nearest step and clamp at full scale. `edges` are sample-clock positions
     /// (fractional samples).
-    pub fn encode(&self, out: &mut Vec<u8>, sequence: u32, first_sample: u64, channels: &[&[f32]], edges: &[f64]) -> Result<(), EncodeError> {
+    pub fn encode(
+        &self,
+        out: &mut Vec<u8>,
+        sequence: u32,
+        first_sample: u64,
+        channels: &[&[f32]],
+        edges: &[f64],
+    ) -> Result<(), EncodeError> {
         let c = channels.len();
         if c == 0 || c > MAX_CHANNELS {
             return Err(EncodeError::Channels(c));
@@ -214,8 +222,12 @@ impl FrameEncoder {
                 let v = ch[i];
                 match self.format {
                     SampleFormat::F32 => out.extend_from_slice(&(v / scale).to_le_bytes()),
-                    SampleFormat::I16 => out.extend_from_slice(&(quantise(v, scale, 32767.0) as i16).to_le_bytes()),
-                    SampleFormat::I24 => out.extend_from_slice(&quantise(v, scale, 8_388_607.0).to_le_bytes()[..3]),
+                    SampleFormat::I16 => {
+                        out.extend_from_slice(&(quantise(v, scale, 32767.0) as i16).to_le_bytes())
+                    }
+                    SampleFormat::I24 => {
+                        out.extend_from_slice(&quantise(v, scale, 8_388_607.0).to_le_bytes()[..3])
+                    }
                 }
             }
         }
@@ -283,7 +295,16 @@ enum Header {
     Bad,
     Version,
     /// A sound header: total frame length and its fields.
-    Good { total: usize, format: SampleFormat, c: usize, n: usize, e: usize, sequence: u32, first_sample: u64, sample_rate: f32 },
+    Good {
+        total: usize,
+        format: SampleFormat,
+        c: usize,
+        n: usize,
+        e: usize,
+        sequence: u32,
+        first_sample: u64,
+        sample_rate: f32,
+    },
 }
 
 impl Decoder {
@@ -302,7 +323,9 @@ impl Decoder {
 
     /// Append received bytes.
     pub fn feed(&mut self, data: &[u8]) {
-        if self.pos > 0 && (self.pos >= self.buf.len() / 2 || self.buf.len() + data.len() > 2 * MAX_FRAME_BYTES) {
+        if self.pos > 0
+            && (self.pos >= self.buf.len() / 2 || self.buf.len() + data.len() > 2 * MAX_FRAME_BYTES)
+        {
             self.buf.drain(..self.pos);
             self.pos = 0;
         }
@@ -338,7 +361,10 @@ impl Decoder {
             let Some(at) = find_sync(avail) else {
                 // Keep a possible partial sync word at the end.
                 let keep = avail.len().min(SYNC.len() - 1);
-                let keep = (1..=keep).rev().find(|&k| avail[avail.len() - k..] == SYNC[..k]).unwrap_or(0);
+                let keep = (1..=keep)
+                    .rev()
+                    .find(|&k| avail[avail.len() - k..] == SYNC[..k])
+                    .unwrap_or(0);
                 let drop = avail.len() - keep;
                 self.counters.skipped_bytes += drop as u64;
                 self.pos += drop;
@@ -359,7 +385,16 @@ impl Decoder {
                     self.counters.unsupported_version += 1;
                     self.skip_one();
                 }
-                Header::Good { total, format, c, n, e, sequence, first_sample, sample_rate } => {
+                Header::Good {
+                    total,
+                    format,
+                    c,
+                    n,
+                    e,
+                    sequence,
+                    first_sample,
+                    sample_rate,
+                } => {
                     if avail.len() < total {
                         return None;
                     }
@@ -370,7 +405,8 @@ impl Decoder {
                         self.skip_one();
                         continue;
                     }
-                    let out = decode_body(frame, format, c, n, e, sequence, first_sample, sample_rate);
+                    let out =
+                        decode_body(frame, format, c, n, e, sequence, first_sample, sample_rate);
                     self.pos += total;
                     self.account(&out);
                     return Some(out);
@@ -427,22 +463,49 @@ fn parse_header(h: &[u8]) -> Header {
     if h[4] != VERSION {
         return Header::Version;
     }
-    let Some(format) = SampleFormat::from_code(h[5]) else { return Header::Bad };
+    let Some(format) = SampleFormat::from_code(h[5]) else {
+        return Header::Bad;
+    };
     let c = h[6] as usize;
     let n = u16_at(h, 8) as usize;
     let e = u16_at(h, 10) as usize;
     let sample_rate = f32_at(h, 24);
     let sample_bytes = n * c * format.bytes();
-    if !(1..=MAX_CHANNELS).contains(&c) || !(1..=MAX_SAMPLES).contains(&n) || e > MAX_EDGES || sample_bytes > MAX_SAMPLE_BYTES || !(sample_rate.is_finite() && sample_rate > 0.0) {
+    if !(1..=MAX_CHANNELS).contains(&c)
+        || !(1..=MAX_SAMPLES).contains(&n)
+        || e > MAX_EDGES
+        || sample_bytes > MAX_SAMPLE_BYTES
+        || !(sample_rate.is_finite() && sample_rate > 0.0)
+    {
         return Header::Bad;
     }
     let total = HEADER_BYTES + 4 * c + sample_bytes + 8 * e + 4;
-    Header::Good { total, format, c, n, e, sequence: u32_at(h, 12), first_sample: u64_at(h, 16), sample_rate }
+    Header::Good {
+        total,
+        format,
+        c,
+        n,
+        e,
+        sequence: u32_at(h, 12),
+        first_sample: u64_at(h, 16),
+        sample_rate,
+    }
 }
 
 #[allow(clippy::too_many_arguments)]
-fn decode_body(frame: &[u8], format: SampleFormat, c: usize, n: usize, e: usize, sequence: u32, first_sample: u64, sample_rate: f32) -> Frame {
-    let scales: Vec<f32> = (0..c).map(|k| f32_at(frame, HEADER_BYTES + 4 * k)).collect();
+fn decode_body(
+    frame: &[u8],
+    format: SampleFormat,
+    c: usize,
+    n: usize,
+    e: usize,
+    sequence: u32,
+    first_sample: u64,
+    sample_rate: f32,
+) -> Frame {
+    let scales: Vec<f32> = (0..c)
+        .map(|k| f32_at(frame, HEADER_BYTES + 4 * k))
+        .collect();
     let mut channels: Vec<Vec<f32>> = (0..c).map(|_| Vec::with_capacity(n)).collect();
     let b = format.bytes();
     let data = &frame[HEADER_BYTES + 4 * c..HEADER_BYTES + 4 * c + n * c * b];
@@ -450,14 +513,26 @@ fn decode_body(frame: &[u8], format: SampleFormat, c: usize, n: usize, e: usize,
         let ch = k % c;
         let v = match format {
             SampleFormat::I16 => i16::from_le_bytes([raw[0], raw[1]]) as f32 * scales[ch],
-            SampleFormat::I24 => (i32::from_le_bytes([0, raw[0], raw[1], raw[2]]) >> 8) as f32 * scales[ch],
+            SampleFormat::I24 => {
+                (i32::from_le_bytes([0, raw[0], raw[1], raw[2]]) >> 8) as f32 * scales[ch]
+            }
             SampleFormat::F32 => f32::from_le_bytes([raw[0], raw[1], raw[2], raw[3]]) * scales[ch],
         };
         channels[ch].push(v);
     }
     let eo = HEADER_BYTES + 4 * c + n * c * b;
-    let edges = (0..e).map(|k| u64_at(frame, eo + 8 * k) as f64 / EDGE_FRACTION).collect();
-    Frame { sequence, first_sample, sample_rate, format, scales, channels, edges }
+    let edges = (0..e)
+        .map(|k| u64_at(frame, eo + 8 * k) as f64 / EDGE_FRACTION)
+        .collect();
+    Frame {
+        sequence,
+        first_sample,
+        sample_rate,
+        format,
+        scales,
+        channels,
+        edges,
+    }
 }
 
 #[cfg(test)]
@@ -466,11 +541,22 @@ mod tests {
     use rand::{Rng, SeedableRng};
 
     fn enc(format: SampleFormat, scales: Vec<f32>) -> FrameEncoder {
-        FrameEncoder { sample_rate: 10_000.0, format, scales, flags: 0 }
+        FrameEncoder {
+            sample_rate: 10_000.0,
+            format,
+            scales,
+            flags: 0,
+        }
     }
 
     fn signal(c: usize, n: usize, first: u64) -> Vec<Vec<f32>> {
-        (0..c).map(|ch| (0..n).map(|i| ((first as usize + i) as f32 * 0.37 + ch as f32).sin() * 3.0).collect()).collect()
+        (0..c)
+            .map(|ch| {
+                (0..n)
+                    .map(|i| ((first as usize + i) as f32 * 0.37 + ch as f32).sin() * 3.0)
+                    .collect()
+            })
+            .collect()
     }
 
     fn frames(e: &FrameEncoder, count: usize, n: usize) -> (Vec<u8>, Vec<Vec<Vec<f32>>>) {
@@ -479,7 +565,14 @@ mod tests {
         for k in 0..count {
             let s = signal(e.scales.len(), n, (k * n) as u64);
             let refs: Vec<&[f32]> = s.iter().map(Vec::as_slice).collect();
-            e.encode(&mut out, k as u32, (k * n) as u64, &refs, &[(k * n) as f64 + 0.25]).unwrap();
+            e.encode(
+                &mut out,
+                k as u32,
+                (k * n) as u64,
+                &refs,
+                &[(k * n) as f64 + 0.25],
+            )
+            .unwrap();
             sent.push(s);
         }
         (out, sent)
@@ -505,12 +598,21 @@ mod tests {
             assert_eq!(f.channels, sent[k]);
             assert_eq!(f.edges, [k as f64 * 100.0 + 0.25]);
         }
-        assert_eq!(*d.counters(), DecoderCounters { frames: 3, ..Default::default() });
+        assert_eq!(
+            *d.counters(),
+            DecoderCounters {
+                frames: 3,
+                ..Default::default()
+            }
+        );
     }
 
     #[test]
     fn integer_formats_are_within_half_a_step() {
-        for (format, full) in [(SampleFormat::I16, 32767.0f32), (SampleFormat::I24, 8_388_607.0)] {
+        for (format, full) in [
+            (SampleFormat::I16, 32767.0f32),
+            (SampleFormat::I24, 8_388_607.0),
+        ] {
             let scale = 3.0 / full;
             let e = enc(format, vec![scale, scale]);
             let (bytes, sent) = frames(&e, 2, 50);
@@ -520,7 +622,10 @@ mod tests {
             assert_eq!(got.len(), 2, "{format}");
             for (f, s) in got.iter().zip(&sent) {
                 for (a, b) in f.channels.iter().flatten().zip(s.iter().flatten()) {
-                    assert!((a - b).abs() <= scale * 0.5 + 1e-6 * b.abs(), "{format}: {a} vs {b}");
+                    assert!(
+                        (a - b).abs() <= scale * 0.5 + 1e-6 * b.abs(),
+                        "{format}: {a} vs {b}"
+                    );
                 }
             }
             // Negative full scale survives the 24-bit sign extension.
@@ -529,7 +634,11 @@ mod tests {
             let mut d = Decoder::new();
             d.feed(&out);
             let f = d.next_frame().unwrap();
-            assert!((f.channels[0][0] + 3.0).abs() < 1e-4 && (f.channels[1][0] - 3.0).abs() < 1e-4, "{format} {:?}", f.channels);
+            assert!(
+                (f.channels[0][0] + 3.0).abs() < 1e-4 && (f.channels[1][0] - 3.0).abs() < 1e-4,
+                "{format} {:?}",
+                f.channels
+            );
         }
     }
 
@@ -565,9 +674,15 @@ mod tests {
         let mut d = Decoder::new();
         d.feed(&bytes);
         let got = decode_all(&mut d);
-        assert_eq!(got.iter().map(|f| f.sequence).collect::<Vec<_>>(), [0, 1, 2, 4, 5, 6, 8, 9]);
+        assert_eq!(
+            got.iter().map(|f| f.sequence).collect::<Vec<_>>(),
+            [0, 1, 2, 4, 5, 6, 8, 9]
+        );
         let c = d.counters();
-        assert_eq!((c.crc_errors, c.bad_headers, c.sequence_gaps, c.samples_lost), (1, 1, 2, 80));
+        assert_eq!(
+            (c.crc_errors, c.bad_headers, c.sequence_gaps, c.samples_lost),
+            (1, 1, 2, 80)
+        );
         assert_eq!(c.bad_frames(), 2);
     }
 
@@ -581,7 +696,10 @@ mod tests {
         let mut d = Decoder::new();
         d.feed(&stream);
         let got = decode_all(&mut d);
-        assert_eq!(got.iter().map(|f| f.sequence).collect::<Vec<_>>(), [0, 2, 3]);
+        assert_eq!(
+            got.iter().map(|f| f.sequence).collect::<Vec<_>>(),
+            [0, 2, 3]
+        );
         assert_eq!(d.counters().crc_errors, 1);
         assert_eq!(d.counters().samples_lost, 30);
     }
@@ -606,7 +724,16 @@ mod tests {
         d.feed(&h);
         assert!(d.next_frame().is_none());
         assert_eq!(d.counters().bad_headers, 1);
-        assert!(matches!(enc(SampleFormat::F32, vec![1.0; 64]).encode(&mut Vec::new(), 0, 0, &vec![&[0.0f32; 4096][..]; 64], &[]), Err(EncodeError::TooLarge(_))));
+        assert!(matches!(
+            enc(SampleFormat::F32, vec![1.0; 64]).encode(
+                &mut Vec::new(),
+                0,
+                0,
+                &vec![&[0.0f32; 4096][..]; 64],
+                &[]
+            ),
+            Err(EncodeError::TooLarge(_))
+        ));
     }
 
     #[test]
