@@ -43,3 +43,5 @@ pub fn ensure_font() -> Result<()> {
         Err(e) => bail!("{e}"),
     }
 }
+
+pub mod spectrum;
