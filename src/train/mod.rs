@@ -5,6 +5,7 @@
 //! recordings ([`finetune`]).
 
 pub mod dataset;
+pub mod featurise;
 pub mod finetune;
 pub mod fit;
 pub mod split;
