@@ -130,7 +130,7 @@ pub fn run(args: Args) -> Result<()> {
         report.epochs_run, report.best_epoch, report.novelty_threshold
     );
     println!(
-        "validation (simulated, held-out recordings):\n{}",
+        "validation (held-out recordings):\n{}",
         crate::evaluate::summary(&ev)
     );
     println!("tract vs in-memory max difference: {max_diff:.2e}");

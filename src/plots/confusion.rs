@@ -24,15 +24,11 @@ pub fn draw(path: &Path, cm: &Confusion, title: &str) -> Result<()> {
         font(20).color(&BLACK),
     ))
     .map_err(|e| err(&e))?;
+    root.draw(&Text::new("", (left, top - 28), font(16).color(&BLACK)))
+        .map_err(|e| err(&e))?;
     root.draw(&Text::new(
-        "predicted",
-        (left + cell * k as i32 / 2 - 40, top - 28),
-        font(16).color(&BLACK),
-    ))
-    .map_err(|e| err(&e))?;
-    root.draw(&Text::new(
-        "true",
-        (10, top + cell * k as i32 / 2),
+        "true \\ predicted",
+        (10, top - 28),
         font(16).color(&BLACK),
     ))
     .map_err(|e| err(&e))?;
