@@ -40,3 +40,5 @@ pub fn ensure_font() -> Result<()> {
         Err(e) => bail!("{e}"),
     }
 }
+
+pub mod spectrum;
