@@ -1,9 +1,20 @@
 //! Importers: read recordings from CWRU/MFPT `.mat`, WAV, CSV and rigmon MCAP into a
 //! [`Recording`](crate::recording::Recording).
+//!
+//! [`load`] picks the format by content (magic bytes) and then by extension. Every importer
+//! maps the file's channels onto the rig file's channels, applies sensitivities, settles the
+//! sample rate by one rule ([`resolve_sample_rate`]) and refuses non-finite samples, naming the
+//! file, the channel and the sample index.
+
+pub mod csv;
+pub mod cwru;
+pub mod mat5;
+pub mod mfpt;
+pub mod wav;
 
 use crate::config::RigConfig;
-use crate::recording::Recording;
-use anyhow::{bail, Result};
+use crate::recording::{Recording, Tacho};
+use anyhow::{bail, Context, Result};
 use std::path::Path;
 
 /// Options a user may give on the command line to override what a file or rig says.
@@ -15,11 +26,248 @@ pub struct ImportOptions {
     pub rpm: Option<f64>,
 }
 
+/// Metadata key holding the rig id a recording was imported with.
+pub const META_RIG_ID: &str = "rig_id";
+/// Metadata key holding the rig file (TOML text) a recording was imported with.
+pub const META_RIG_CONFIG: &str = "rig_config";
+
+/// The formats [`load`] understands.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Format {
+    Mat,
+    Wav,
+    Csv,
+    Mcap,
+}
+
+/// Decide the format from the first bytes, then from the extension.
+pub fn detect_format(path: &Path, head: &[u8]) -> Result<Format> {
+    if head.starts_with(b"MATLAB") {
+        return Ok(Format::Mat);
+    }
+    if head.starts_with(b"\x89MCAP") {
+        return Ok(Format::Mcap);
+    }
+    if head.starts_with(b"RIFF") || head.starts_with(b"RIFX") || head.starts_with(b"RF64") {
+        return Ok(Format::Wav);
+    }
+    let ext = path
+        .extension()
+        .and_then(|e| e.to_str())
+        .unwrap_or("")
+        .to_ascii_lowercase();
+    match ext.as_str() {
+        "mat" => Ok(Format::Mat),
+        "wav" => Ok(Format::Wav),
+        "mcap" => Ok(Format::Mcap),
+        "csv" | "txt" | "tsv" => Ok(Format::Csv),
+        _ => bail!(
+            "{}: unknown recording format (not MAT v5, WAV or MCAP by content, extension {:?}); \
+             supported: .mat (CWRU/MFPT), .wav, .csv, .mcap",
+            path.display(),
+            ext
+        ),
+    }
+}
+
 /// Read any supported recording, chosen by content and extension.
+///
+/// Non-MCAP inputs get `rig_id` and `rig_config` (the rig TOML) in their metadata, so an MCAP
+/// written from them records which rig they were read with; MCAP inputs keep what they carry.
 pub fn load(path: &Path, rig: &RigConfig, opts: &ImportOptions) -> Result<Recording> {
-    let _ = (rig, opts);
-    bail!(
-        "{}: reading recordings is not implemented yet",
-        path.display()
-    )
+    check_options(opts)?;
+    let meta =
+        std::fs::metadata(path).with_context(|| format!("{}: cannot open", path.display()))?;
+    if meta.len() == 0 {
+        bail!("{}: the file is empty (0 bytes)", path.display());
+    }
+    let mut head = [0u8; 8];
+    let n = {
+        use std::io::Read;
+        let mut f = std::fs::File::open(path)
+            .with_context(|| format!("{}: cannot open", path.display()))?;
+        f.read(&mut head)
+            .with_context(|| format!("{}: cannot read", path.display()))?
+    };
+    let format = detect_format(path, &head[..n])?;
+    let mut rec = match format {
+        Format::Mat => {
+            let mat = mat5::read(path)?;
+            if mfpt::is_mfpt(&mat) {
+                mfpt::from_mat(path, &mat, rig, opts)?
+            } else if cwru::is_cwru(&mat) {
+                cwru::from_mat(path, &mat, rig, opts)?
+            } else {
+                bail!(
+                    "{}: missing variable: neither CWRU variables (X<nnn>_DE_time, X<nnn>_FE_time, X<nnn>_BA_time, \
+                     X<nnn>RPM) nor an MFPT struct `bearing` (fields gs, sr, rate, load) found; the file holds: {}",
+                    path.display(),
+                    mat.summary()
+                )
+            }
+        }
+        Format::Wav => wav::load(path, rig, opts)?,
+        Format::Csv => csv::load(path, rig, opts)?,
+        Format::Mcap => {
+            let mut rec = crate::recording::mcap_layout::read_recording(path)?;
+            if let Some(fs) = opts.sample_rate {
+                if (fs - rec.sample_rate).abs() > 1e-3 * rec.sample_rate {
+                    rec.provenance.notes.push(format!(
+                        "sample rate {fs} Hz from --sample-rate overrides the file's {} Hz",
+                        rec.sample_rate
+                    ));
+                    rec.sample_rate = fs;
+                }
+            }
+            if let Some(rpm) = opts.rpm {
+                rec.rpm = Some(rpm);
+                rec.provenance.notes.push(format!("rpm {rpm} from --rpm"));
+            }
+            check_finite(path, &rec)?;
+            return Ok(rec);
+        }
+    };
+    if rec.is_empty() {
+        bail!("{}: the recording holds no samples", path.display());
+    }
+    check_finite(path, &rec)?;
+    rec.metadata
+        .insert(META_RIG_ID.into(), rig.machine.id.clone());
+    if let Ok(text) = toml::to_string(rig) {
+        rec.metadata.insert(META_RIG_CONFIG.into(), text);
+    }
+    Ok(rec)
+}
+
+fn check_options(opts: &ImportOptions) -> Result<()> {
+    if let Some(fs) = opts.sample_rate {
+        if !(fs.is_finite() && fs > 0.0) {
+            bail!("--sample-rate {fs}: must be a positive number of Hz");
+        }
+    }
+    if let Some(rpm) = opts.rpm {
+        if !(rpm.is_finite() && rpm > 0.0) {
+            bail!("--rpm {rpm}: must be a positive number");
+        }
+    }
+    Ok(())
+}
+
+/// Settle the sample rate by one rule for every importer:
+/// `--sample-rate` wins; otherwise the rate the file implies (`file_rate`, with `what` saying
+/// where it comes from: "WAV header", "time column", "CWRU catalogue"...) and the rig's
+/// `acquisition.sample_rate_hz` must agree (0.1 %) when both exist; else whichever exists;
+/// else an error saying to pass `--sample-rate`. Returns the rate and a provenance note.
+pub fn resolve_sample_rate(
+    path: &Path,
+    file_rate: Option<(f64, String)>,
+    rig: &RigConfig,
+    opts: &ImportOptions,
+) -> Result<(f64, String)> {
+    if let Some(fs) = opts.sample_rate {
+        let note = match &file_rate {
+            Some((f, what)) if (f - fs).abs() > 1e-3 * fs => {
+                format!("sample rate {fs} Hz from --sample-rate (overrides {f} Hz from the {what})")
+            }
+            _ => format!("sample rate {fs} Hz from --sample-rate"),
+        };
+        return Ok((fs, note));
+    }
+    let rig_rate = rig.acquisition.sample_rate_hz;
+    match (file_rate, rig_rate) {
+        (Some((f, what)), Some(g)) => {
+            if !(f.is_finite() && f > 0.0) {
+                bail!(
+                    "{}: the {what} gives an invalid sample rate ({f} Hz); pass --sample-rate HZ",
+                    path.display()
+                );
+            }
+            if (f - g).abs() > 1e-3 * g {
+                bail!(
+                    "{}: sample-rate mismatch: the {what} says {f} Hz but the rig file says acquisition.sample_rate_hz = {g} Hz; \
+                     pass --sample-rate HZ to say which is right, or fix the rig file",
+                    path.display()
+                );
+            }
+            Ok((
+                f,
+                format!("sample rate {f} Hz from the {what} (agrees with the rig file)"),
+            ))
+        }
+        (Some((f, what)), None) => {
+            if !(f.is_finite() && f > 0.0) {
+                bail!(
+                    "{}: the {what} gives an invalid sample rate ({f} Hz); pass --sample-rate HZ",
+                    path.display()
+                );
+            }
+            Ok((f, format!("sample rate {f} Hz from the {what}")))
+        }
+        (None, Some(g)) => Ok((g, format!("sample rate {g} Hz from the rig file"))),
+        (None, None) => bail!(
+            "{}: the sample rate is unknown: the file does not store it and the rig file has no \
+             acquisition.sample_rate_hz; pass --sample-rate HZ",
+            path.display()
+        ),
+    }
+}
+
+/// Refuse NaN/Inf samples, naming the channel and the sample index.
+pub fn check_finite(path: &Path, rec: &Recording) -> Result<()> {
+    for ch in &rec.channels {
+        if let Some(i) = ch.samples.iter().position(|x| !x.is_finite()) {
+            bail!(
+                "{}: channel {:?}: sample {i} (t = {:.6} s) is {}; recordings must hold finite numbers only",
+                path.display(),
+                ch.name,
+                i as f64 / rec.sample_rate,
+                ch.samples[i]
+            );
+        }
+    }
+    match &rec.tacho {
+        Some(Tacho::Analog { samples, .. }) => {
+            if let Some(i) = samples.iter().position(|x| !x.is_finite()) {
+                bail!(
+                    "{}: tacho channel: sample {i} (t = {:.6} s) is {}; recordings must hold finite numbers only",
+                    path.display(),
+                    i as f64 / rec.sample_rate,
+                    samples[i]
+                );
+            }
+        }
+        Some(Tacho::Edges { times_s }) => {
+            if let Some(i) = times_s.iter().position(|x| !x.is_finite()) {
+                bail!(
+                    "{}: tacho edge {i} is {}; edge times must be finite",
+                    path.display(),
+                    times_s[i]
+                );
+            }
+        }
+        None => {}
+    }
+    Ok(())
+}
+
+/// The rig's classifier channel must be among the imported channels.
+pub(crate) fn check_classifier_channel(
+    path: &Path,
+    rig: &RigConfig,
+    rec: &Recording,
+    what_missing: &str,
+) -> Result<()> {
+    if let Some(c) = rig.classifier_channel() {
+        if rec.channel(&c.name).is_none() {
+            bail!(
+                "{}: missing {what_missing} for rig channel {:?}, which feeds the classifier (features.classifier_axis = {:?}); \
+                 the file provides {:?}",
+                path.display(),
+                c.name,
+                rig.features.classifier_axis,
+                rec.channels.iter().map(|c| c.name.as_str()).collect::<Vec<_>>()
+            );
+        }
+    }
+    Ok(())
 }

@@ -1,0 +1,1112 @@
+//! A hand-written MATLAB level-5 MAT-file reader (the format of CWRU and MFPT files).
+//!
+//! Reads numeric arrays (double, single, all integer classes, logical), char arrays, structs
+//! (nested, struct arrays) and cell arrays, zlib-compressed elements (`miCOMPRESSED`, MAT v7)
+//! and both byte orders. Every length is checked against the bytes that remain, nesting depth
+//! is bounded and decompression is capped, so hostile input gives an error, never a panic or an
+//! unbounded allocation. Sparse, object and function arrays are skipped (reported as
+//! [`MatValue::Unsupported`]). MAT v4 and v7.3 (HDF5) files are recognised and refused with a
+//! message saying how to re-save them.
+
+use std::fmt;
+use std::io::Read;
+
+/// Largest decompressed size of one `miCOMPRESSED` element (bytes).
+pub const MAX_DECOMPRESSED: usize = 1 << 30;
+/// Deflate cannot expand data by more than ~1032:1; anything beyond is a bomb.
+const MAX_DEFLATE_RATIO: usize = 1032;
+/// Deepest nesting of structs/cells accepted.
+const MAX_DEPTH: usize = 32;
+
+// Data types (miXXX).
+const MI_INT8: u32 = 1;
+const MI_UINT8: u32 = 2;
+const MI_INT16: u32 = 3;
+const MI_UINT16: u32 = 4;
+const MI_INT32: u32 = 5;
+const MI_UINT32: u32 = 6;
+const MI_SINGLE: u32 = 7;
+const MI_DOUBLE: u32 = 9;
+const MI_INT64: u32 = 12;
+const MI_UINT64: u32 = 13;
+const MI_MATRIX: u32 = 14;
+const MI_COMPRESSED: u32 = 15;
+const MI_UTF8: u32 = 16;
+const MI_UTF16: u32 = 17;
+const MI_UTF32: u32 = 18;
+
+/// Array classes (mxXXX_CLASS).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum MatClass {
+    Cell,
+    Struct,
+    Object,
+    Char,
+    Sparse,
+    Double,
+    Single,
+    Int8,
+    UInt8,
+    Int16,
+    UInt16,
+    Int32,
+    UInt32,
+    Int64,
+    UInt64,
+    Function,
+    Opaque,
+    Unknown(u8),
+}
+
+impl MatClass {
+    fn from_u8(c: u8) -> MatClass {
+        use MatClass::*;
+        match c {
+            1 => Cell,
+            2 => Struct,
+            3 => Object,
+            4 => Char,
+            5 => Sparse,
+            6 => Double,
+            7 => Single,
+            8 => Int8,
+            9 => UInt8,
+            10 => Int16,
+            11 => UInt16,
+            12 => Int32,
+            13 => UInt32,
+            14 => Int64,
+            15 => UInt64,
+            16 => Function,
+            17 => Opaque,
+            other => Unknown(other),
+        }
+    }
+
+    /// MATLAB's name for the class ("double", "struct", ...).
+    pub fn name(&self) -> String {
+        use MatClass::*;
+        match self {
+            Cell => "cell".into(),
+            Struct => "struct".into(),
+            Object => "object".into(),
+            Char => "char".into(),
+            Sparse => "sparse".into(),
+            Double => "double".into(),
+            Single => "single".into(),
+            Int8 => "int8".into(),
+            UInt8 => "uint8".into(),
+            Int16 => "int16".into(),
+            UInt16 => "uint16".into(),
+            Int32 => "int32".into(),
+            UInt32 => "uint32".into(),
+            Int64 => "int64".into(),
+            UInt64 => "uint64".into(),
+            Function => "function handle".into(),
+            Opaque => "opaque".into(),
+            Unknown(c) => format!("class {c}"),
+        }
+    }
+
+    fn is_numeric(&self) -> bool {
+        use MatClass::*;
+        matches!(
+            self,
+            Double | Single | Int8 | UInt8 | Int16 | UInt16 | Int32 | UInt32 | Int64 | UInt64
+        )
+    }
+}
+
+/// The value of one MAT variable (or struct field / cell element).
+#[derive(Debug, Clone, PartialEq)]
+pub enum MatValue {
+    /// A numeric or logical array; values converted to f64, column-major.
+    Numeric {
+        class: MatClass,
+        dims: Vec<usize>,
+        real: Vec<f64>,
+        /// Imaginary part of a complex array.
+        imag: Option<Vec<f64>>,
+        logical: bool,
+    },
+    /// A char array; rows joined with '\n'.
+    Char { dims: Vec<usize>, text: String },
+    /// A struct (array): field names and, per field, one value per element (column-major).
+    Struct {
+        dims: Vec<usize>,
+        fields: Vec<(String, Vec<MatValue>)>,
+    },
+    /// A cell array, column-major.
+    Cell {
+        dims: Vec<usize>,
+        cells: Vec<MatValue>,
+    },
+    /// Sparse, object, function handle...: present but not decoded.
+    Unsupported { class: MatClass, dims: Vec<usize> },
+}
+
+impl MatValue {
+    pub fn dims(&self) -> &[usize] {
+        match self {
+            MatValue::Numeric { dims, .. }
+            | MatValue::Char { dims, .. }
+            | MatValue::Struct { dims, .. }
+            | MatValue::Cell { dims, .. }
+            | MatValue::Unsupported { dims, .. } => dims,
+        }
+    }
+
+    pub fn class_name(&self) -> String {
+        match self {
+            MatValue::Numeric { class, logical, .. } => {
+                if *logical {
+                    "logical".into()
+                } else {
+                    class.name()
+                }
+            }
+            MatValue::Char { .. } => "char".into(),
+            MatValue::Struct { .. } => "struct".into(),
+            MatValue::Cell { .. } => "cell".into(),
+            MatValue::Unsupported { class, .. } => class.name(),
+        }
+    }
+
+    /// "243938x1 double", for messages.
+    pub fn describe(&self) -> String {
+        let dims: Vec<String> = self.dims().iter().map(|d| d.to_string()).collect();
+        format!("{} {}", dims.join("x"), self.class_name())
+    }
+
+    /// A field of a 1x1 struct.
+    pub fn field(&self, name: &str) -> Option<&MatValue> {
+        match self {
+            MatValue::Struct { fields, .. } => fields
+                .iter()
+                .find(|(n, _)| n == name)
+                .and_then(|(_, v)| v.first()),
+            _ => None,
+        }
+    }
+
+    /// Field names of a struct (empty for other values).
+    pub fn field_names(&self) -> Vec<&str> {
+        match self {
+            MatValue::Struct { fields, .. } => fields.iter().map(|(n, _)| n.as_str()).collect(),
+            _ => Vec::new(),
+        }
+    }
+
+    /// The real values of a numeric array whose dims are all 1 but one (a row or column
+    /// vector, or a scalar); `None` for matrices and non-numeric values.
+    pub fn as_vector(&self) -> Option<&[f64]> {
+        match self {
+            MatValue::Numeric { dims, real, .. }
+                if dims.iter().filter(|&&d| d != 1).count() <= 1 =>
+            {
+                Some(real)
+            }
+            _ => None,
+        }
+    }
+
+    /// The single real value of a numeric 1x1 array.
+    pub fn as_scalar(&self) -> Option<f64> {
+        match self {
+            MatValue::Numeric { real, .. } if real.len() == 1 => Some(real[0]),
+            _ => None,
+        }
+    }
+}
+
+/// One top-level variable.
+#[derive(Debug, Clone, PartialEq)]
+pub struct MatVar {
+    pub name: String,
+    pub value: MatValue,
+}
+
+/// A parsed MAT file.
+#[derive(Debug, Clone, PartialEq)]
+pub struct MatFile {
+    /// The 116-byte descriptive text of the header ("MATLAB 5.0 MAT-file, Platform: ...").
+    pub header_text: String,
+    pub big_endian: bool,
+    pub vars: Vec<MatVar>,
+}
+
+impl MatFile {
+    pub fn get(&self, name: &str) -> Option<&MatValue> {
+        self.vars.iter().find(|v| v.name == name).map(|v| &v.value)
+    }
+
+    /// "X097_DE_time (243938x1 double), X097RPM (1x1 double)", for messages.
+    pub fn summary(&self) -> String {
+        if self.vars.is_empty() {
+            return "no variables".into();
+        }
+        self.vars
+            .iter()
+            .map(|v| format!("{} ({})", v.name, v.value.describe()))
+            .collect::<Vec<_>>()
+            .join(", ")
+    }
+}
+
+/// A parse error with the byte offset where it happened.
+#[derive(Debug, Clone, PartialEq)]
+pub struct MatError {
+    /// Byte offset in the file (for errors inside a compressed element: the offset of that
+    /// element, and `msg` says so).
+    pub offset: usize,
+    pub msg: String,
+}
+
+impl fmt::Display for MatError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "MAT file at byte {}: {}", self.offset, self.msg)
+    }
+}
+
+impl std::error::Error for MatError {}
+
+type R<T> = Result<T, MatError>;
+
+fn err<T>(offset: usize, msg: impl Into<String>) -> R<T> {
+    Err(MatError {
+        offset,
+        msg: msg.into(),
+    })
+}
+
+/// Parse a whole MAT v5 file held in memory.
+pub fn parse(bytes: &[u8]) -> R<MatFile> {
+    if bytes.is_empty() {
+        return err(0, "the file is empty (0 bytes)");
+    }
+    if bytes.len() < 128 {
+        if bytes.starts_with(b"MATLAB") {
+            return err(
+                bytes.len(),
+                format!(
+                    "truncated: the 128-byte MAT header is cut short after {} bytes",
+                    bytes.len()
+                ),
+            );
+        }
+        return err(
+            0,
+            format!(
+                "not a MAT v5 file: {} bytes, shorter than the 128-byte header",
+                bytes.len()
+            ),
+        );
+    }
+    let header_text = String::from_utf8_lossy(&bytes[..116])
+        .trim_end_matches([' ', '\0'])
+        .to_string();
+    let big_endian = match &bytes[126..128] {
+        b"IM" => false,
+        b"MI" => true,
+        _ => {
+            return err(
+                126,
+                if bytes.starts_with(b"MATLAB") {
+                    "bad endian indicator (expected \"IM\" or \"MI\"); the header is damaged"
+                        .to_string()
+                } else {
+                    "not a MAT v5 file (no \"MATLAB 5.0\" header; MAT v4 files are not supported: re-save with save(..., '-v7'))".to_string()
+                },
+            )
+        }
+    };
+    let c = Cursor {
+        base: 0,
+        big_endian,
+    };
+    let version = c.u16(bytes, 124)?;
+    if version == 0x0200 || header_text.starts_with("MATLAB 7.3") {
+        return err(
+            124,
+            "MAT v7.3 (HDF5) files are not supported; re-save with save(..., '-v7')",
+        );
+    }
+    if version != 0x0100 {
+        return err(
+            124,
+            format!("unknown MAT version 0x{version:04x} (expected 0x0100)"),
+        );
+    }
+    let mut vars = Vec::new();
+    let mut off = 128;
+    while off < bytes.len() {
+        if bytes.len() - off < 8 {
+            // Trailing padding shorter than a tag: only zeros are acceptable.
+            if bytes[off..].iter().all(|&b| b == 0) {
+                break;
+            }
+            return err(
+                off,
+                format!(
+                    "truncated: {} stray bytes where an 8-byte element tag should start",
+                    bytes.len() - off
+                ),
+            );
+        }
+        let tag = c.tag(bytes, off)?;
+        if tag.small {
+            // A small element at top level carries no variable; skip it.
+            off += 8;
+            continue;
+        }
+        let data_start = off + 8;
+        let remaining = bytes.len() - data_start;
+        if tag.len > remaining {
+            return err(
+                off,
+                format!(
+                    "truncated: element declares {} bytes but only {} remain (the file was cut short?)",
+                    tag.len, remaining
+                ),
+            );
+        }
+        let body = &bytes[data_start..data_start + tag.len];
+        match tag.ty {
+            MI_MATRIX => {
+                let cur = Cursor {
+                    base: data_start,
+                    big_endian,
+                };
+                if let Some(v) = cur.matrix(body, 0, true)? {
+                    vars.push(v);
+                }
+                off = data_start + pad8(tag.len);
+            }
+            MI_COMPRESSED => {
+                let cap = MAX_DECOMPRESSED.min(tag.len.saturating_mul(MAX_DEFLATE_RATIO).max(1024));
+                let mut out = Vec::new();
+                let mut dec = flate2::read::ZlibDecoder::new(body).take(cap as u64 + 1);
+                if let Err(e) = dec.read_to_end(&mut out) {
+                    return err(
+                        off,
+                        format!(
+                            "compressed element ({} bytes) does not decompress: {e}",
+                            tag.len
+                        ),
+                    );
+                }
+                if out.len() > cap {
+                    return err(off, format!("compressed element expands beyond {cap} bytes; refusing (limit {MAX_DECOMPRESSED})"));
+                }
+                let inner = Cursor {
+                    base: off,
+                    big_endian,
+                };
+                let t = inner.tag(&out, 0).map_err(|e| MatError {
+                    offset: off,
+                    msg: format!("inside the compressed element: {}", e.msg),
+                })?;
+                if t.ty != MI_MATRIX || t.small {
+                    return err(
+                        off,
+                        format!(
+                            "compressed element holds data type {} instead of a matrix",
+                            t.ty
+                        ),
+                    );
+                }
+                if t.len > out.len() - 8 {
+                    return err(
+                        off,
+                        format!("inside the compressed element: matrix declares {} bytes but {} were decompressed (truncated?)", t.len, out.len() - 8),
+                    );
+                }
+                // Offsets inside decompressed data are reported relative to the element.
+                let inner = Cursor {
+                    base: off,
+                    big_endian,
+                };
+                match inner.matrix(&out[8..8 + t.len], 0, true) {
+                    Ok(Some(v)) => vars.push(v),
+                    Ok(None) => {}
+                    Err(e) => {
+                        return err(
+                            off,
+                            format!(
+                                "inside the compressed element (at decompressed byte {}): {}",
+                                e.offset - off + 8,
+                                e.msg
+                            ),
+                        )
+                    }
+                }
+                // Compressed elements are not padded; tolerate writers that pad anyway.
+                off = data_start + tag.len;
+            }
+            other => {
+                // Unknown top-level data: skip it.
+                let _ = other;
+                off = data_start + pad8(tag.len);
+            }
+        }
+    }
+    Ok(MatFile {
+        header_text,
+        big_endian,
+        vars,
+    })
+}
+
+fn pad8(n: usize) -> usize {
+    n.div_ceil(8) * 8
+}
+
+struct Tag {
+    ty: u32,
+    /// Payload length in bytes.
+    len: usize,
+    /// Small data element: payload in the 4 bytes after the 4-byte tag.
+    small: bool,
+}
+
+/// Reads numbers in the file's byte order; `base` converts slice offsets into file offsets.
+#[derive(Clone, Copy)]
+struct Cursor {
+    base: usize,
+    big_endian: bool,
+}
+
+impl Cursor {
+    fn bytes<'a>(&self, buf: &'a [u8], at: usize, n: usize) -> R<&'a [u8]> {
+        match at.checked_add(n) {
+            Some(end) if end <= buf.len() => Ok(&buf[at..end]),
+            _ => err(
+                self.base + at,
+                format!(
+                    "truncated: need {n} bytes but only {} remain",
+                    buf.len().saturating_sub(at)
+                ),
+            ),
+        }
+    }
+
+    fn u16(&self, buf: &[u8], at: usize) -> R<u16> {
+        let b: [u8; 2] = self.bytes(buf, at, 2)?.try_into().unwrap();
+        Ok(if self.big_endian {
+            u16::from_be_bytes(b)
+        } else {
+            u16::from_le_bytes(b)
+        })
+    }
+
+    fn u32(&self, buf: &[u8], at: usize) -> R<u32> {
+        let b: [u8; 4] = self.bytes(buf, at, 4)?.try_into().unwrap();
+        Ok(if self.big_endian {
+            u32::from_be_bytes(b)
+        } else {
+            u32::from_le_bytes(b)
+        })
+    }
+
+    fn tag(&self, buf: &[u8], at: usize) -> R<Tag> {
+        let first = self.u32(buf, at)?;
+        let (hi, lo) = (first >> 16, first & 0xffff);
+        if hi != 0 {
+            // Small data element: upper half = byte count (<= 4), lower half = type.
+            if hi > 4 {
+                return err(
+                    self.base + at,
+                    format!("small data element claims {hi} bytes (at most 4 fit)"),
+                );
+            }
+            self.bytes(buf, at, 8)?;
+            return Ok(Tag {
+                ty: lo,
+                len: hi as usize,
+                small: true,
+            });
+        }
+        let len = self.u32(buf, at + 4)? as usize;
+        Ok(Tag {
+            ty: lo,
+            len,
+            small: false,
+        })
+    }
+
+    /// Read one data element starting at `at`; returns (type, payload, offset of the next
+    /// element). The payload is checked to lie inside `buf`.
+    fn element<'a>(&self, buf: &'a [u8], at: usize) -> R<(u32, &'a [u8], usize)> {
+        let tag = self.tag(buf, at)?;
+        if tag.small {
+            let data = self.bytes(buf, at + 4, tag.len)?;
+            return Ok((tag.ty, data, at + 8));
+        }
+        let start = at + 8;
+        let remaining = buf.len().saturating_sub(start);
+        if tag.len > remaining {
+            return err(
+                self.base + at,
+                format!("truncated: data element of type {} declares {} bytes but only {remaining} remain", tag.ty, tag.len),
+            );
+        }
+        let next = (start + pad8(tag.len)).min(buf.len());
+        Ok((tag.ty, &buf[start..start + tag.len], next))
+    }
+
+    /// Parse the body of a miMATRIX element. `named` is false for struct fields and cell
+    /// elements (their name is empty). Returns `None` for an empty placeholder matrix (a
+    /// miMATRIX of 0 bytes, used for empty struct fields).
+    fn matrix(&self, body: &[u8], depth: usize, named: bool) -> R<Option<MatVar>> {
+        if depth > MAX_DEPTH {
+            return err(
+                self.base,
+                format!("structs/cells nested deeper than {MAX_DEPTH} levels"),
+            );
+        }
+        if body.is_empty() {
+            return Ok(if named {
+                None
+            } else {
+                Some(MatVar {
+                    name: String::new(),
+                    value: MatValue::Numeric {
+                        class: MatClass::Double,
+                        dims: vec![0, 0],
+                        real: vec![],
+                        imag: None,
+                        logical: false,
+                    },
+                })
+            });
+        }
+        // Array flags.
+        let (ty, flags, mut at) = self.element(body, 0)?;
+        if ty != MI_UINT32 || flags.len() < 8 {
+            return err(
+                self.base,
+                format!(
+                    "matrix: expected array flags (uint32 x2), got type {ty} with {} bytes",
+                    flags.len()
+                ),
+            );
+        }
+        let f0 = self.u32(flags, 0)?;
+        let class = MatClass::from_u8((f0 & 0xff) as u8);
+        let complex = f0 & 0x0800 != 0;
+        let logical = f0 & 0x0200 != 0;
+        // Dimensions.
+        let (ty, dim_bytes, next) = self.element(body, at)?;
+        if ty != MI_INT32 || dim_bytes.len() < 8 || dim_bytes.len() % 4 != 0 {
+            return err(
+                self.base + at,
+                format!(
+                    "matrix: expected dimensions (int32 x n >= 2), got type {ty} with {} bytes",
+                    dim_bytes.len()
+                ),
+            );
+        }
+        let mut dims = Vec::with_capacity(dim_bytes.len() / 4);
+        let mut count: usize = 1;
+        for k in 0..dim_bytes.len() / 4 {
+            let d = self.u32(dim_bytes, 4 * k)? as i32;
+            if d < 0 {
+                return err(self.base + at, format!("matrix: negative dimension {d}"));
+            }
+            dims.push(d as usize);
+            count = match count.checked_mul(d as usize) {
+                Some(c) => c,
+                None => return err(self.base + at, "matrix: dimensions overflow"),
+            };
+        }
+        at = next;
+        // Name.
+        let (ty, name_bytes, next) = self.element(body, at)?;
+        if ty != MI_INT8 && ty != MI_UINT8 && ty != MI_UTF8 {
+            return err(
+                self.base + at,
+                format!("matrix: expected the array name (int8), got type {ty}"),
+            );
+        }
+        let name = String::from_utf8_lossy(name_bytes)
+            .trim_end_matches('\0')
+            .to_string();
+        at = next;
+        let value = match class {
+            c if c.is_numeric() => {
+                let (ty, data, next) = self.element(body, at)?;
+                let real = self.numbers(data, ty, self.base + at)?;
+                if real.len() != count {
+                    return err(
+                        self.base + at,
+                        format!("variable {name:?}: dimensions {dims:?} say {count} values but the data holds {}", real.len()),
+                    );
+                }
+                let imag = if complex {
+                    let (ty, data, _) = self.element(body, next)?;
+                    let im = self.numbers(data, ty, self.base + next)?;
+                    if im.len() != count {
+                        return err(self.base + next, format!("variable {name:?}: imaginary part holds {} values, expected {count}", im.len()));
+                    }
+                    Some(im)
+                } else {
+                    None
+                };
+                MatValue::Numeric {
+                    class: c,
+                    dims,
+                    real,
+                    imag,
+                    logical,
+                }
+            }
+            MatClass::Char => {
+                let (ty, data, _) = self.element(body, at)?;
+                let units: Vec<u32> = match ty {
+                    MI_UTF8 => String::from_utf8_lossy(data)
+                        .chars()
+                        .map(|c| c as u32)
+                        .collect(),
+                    MI_UTF16 | MI_UINT16 | MI_INT16 => {
+                        let v = self.numbers(data, MI_UINT16, self.base + at)?;
+                        let u: Vec<u16> = v.iter().map(|&x| x as u16).collect();
+                        char::decode_utf16(u)
+                            .map(|r| r.map_or(0xFFFD, |c| c as u32))
+                            .collect()
+                    }
+                    _ => self
+                        .numbers(data, ty, self.base + at)?
+                        .iter()
+                        .map(|&x| x as u32)
+                        .collect(),
+                };
+                let rows = dims.first().copied().unwrap_or(0);
+                let text = if rows <= 1 || units.len() != count {
+                    units
+                        .iter()
+                        .map(|&u| char::from_u32(u).unwrap_or('\u{FFFD}'))
+                        .collect()
+                } else {
+                    let cols = count / rows;
+                    (0..rows)
+                        .map(|r| {
+                            (0..cols)
+                                .map(|c| char::from_u32(units[c * rows + r]).unwrap_or('\u{FFFD}'))
+                                .collect::<String>()
+                        })
+                        .collect::<Vec<_>>()
+                        .join("\n")
+                };
+                MatValue::Char { dims, text }
+            }
+            MatClass::Struct | MatClass::Object => {
+                if class == MatClass::Object {
+                    // Class name element precedes the field names.
+                    let (_, _, next) = self.element(body, at)?;
+                    at = next;
+                }
+                let (ty, len_bytes, next) = self.element(body, at)?;
+                if ty != MI_INT32 || len_bytes.len() != 4 {
+                    return err(
+                        self.base + at,
+                        "struct: expected the field-name length (int32)",
+                    );
+                }
+                let name_len = self.u32(len_bytes, 0)? as usize;
+                at = next;
+                let (ty, names, next) = self.element(body, at)?;
+                if ty != MI_INT8 && ty != MI_UINT8 {
+                    return err(
+                        self.base + at,
+                        format!("struct: expected field names (int8), got type {ty}"),
+                    );
+                }
+                if name_len == 0 && !names.is_empty() {
+                    return err(
+                        self.base + at,
+                        "struct: field-name length is 0 but names are present",
+                    );
+                }
+                let n_fields = if name_len == 0 {
+                    0
+                } else {
+                    names.len() / name_len
+                };
+                let field_names: Vec<String> = (0..n_fields)
+                    .map(|k| {
+                        String::from_utf8_lossy(&names[k * name_len..(k + 1) * name_len])
+                            .trim_end_matches('\0')
+                            .to_string()
+                    })
+                    .collect();
+                at = next;
+                // Each element x field needs at least an 8-byte tag: bound before allocating.
+                let needed = count.checked_mul(n_fields).and_then(|n| n.checked_mul(8));
+                if n_fields > 0 && needed.is_none_or(|n| n > body.len() - at.min(body.len())) {
+                    return err(
+                        self.base + at,
+                        format!("struct {name:?}: {count} elements x {n_fields} fields cannot fit in the {} bytes left", body.len() - at.min(body.len())),
+                    );
+                }
+                let mut fields: Vec<(String, Vec<MatValue>)> = field_names
+                    .into_iter()
+                    .map(|n| (n, Vec::with_capacity(count)))
+                    .collect();
+                for _ in 0..count {
+                    for field in fields.iter_mut() {
+                        let v = self.sub_matrix(body, &mut at, depth)?;
+                        field.1.push(v);
+                    }
+                }
+                if class == MatClass::Object {
+                    MatValue::Unsupported { class, dims }
+                } else {
+                    MatValue::Struct { dims, fields }
+                }
+            }
+            MatClass::Cell => {
+                let needed = count.checked_mul(8);
+                if needed.is_none_or(|n| n > body.len() - at.min(body.len())) {
+                    return err(
+                        self.base + at,
+                        format!("cell {name:?}: {count} elements cannot fit in the bytes left"),
+                    );
+                }
+                let mut cells = Vec::with_capacity(count);
+                for _ in 0..count {
+                    cells.push(self.sub_matrix(body, &mut at, depth)?);
+                }
+                MatValue::Cell { dims, cells }
+            }
+            other => MatValue::Unsupported { class: other, dims },
+        };
+        Ok(Some(MatVar { name, value }))
+    }
+
+    /// A nested miMATRIX (struct field, cell element) at `*at` inside `body`.
+    fn sub_matrix(&self, body: &[u8], at: &mut usize, depth: usize) -> R<MatValue> {
+        let (ty, data, next) = self.element(body, *at)?;
+        if ty != MI_MATRIX {
+            return err(
+                self.base + *at,
+                format!("expected a nested matrix (type 14), got type {ty}"),
+            );
+        }
+        let inner = Cursor {
+            base: self.base + *at + 8,
+            big_endian: self.big_endian,
+        };
+        let v = inner.matrix(data, depth + 1, false)?;
+        *at = next;
+        Ok(v.expect("unnamed matrices always yield a value").value)
+    }
+
+    /// Decode a numeric data element of type `ty` to f64.
+    fn numbers(&self, data: &[u8], ty: u32, offset: usize) -> R<Vec<f64>> {
+        let size = match ty {
+            MI_INT8 | MI_UINT8 | MI_UTF8 => 1,
+            MI_INT16 | MI_UINT16 | MI_UTF16 => 2,
+            MI_INT32 | MI_UINT32 | MI_SINGLE | MI_UTF32 => 4,
+            MI_DOUBLE | MI_INT64 | MI_UINT64 => 8,
+            _ => return err(offset, format!("unsupported numeric data type {ty}")),
+        };
+        if data.len() % size != 0 {
+            return err(
+                offset,
+                format!(
+                    "data of type {ty}: {} bytes is not a whole number of {size}-byte values",
+                    data.len()
+                ),
+            );
+        }
+        let be = self.big_endian;
+        macro_rules! conv {
+            ($t:ty, $n:expr) => {
+                data.chunks_exact($n)
+                    .map(|c| {
+                        let b: [u8; $n] = c.try_into().unwrap();
+                        (if be {
+                            <$t>::from_be_bytes(b)
+                        } else {
+                            <$t>::from_le_bytes(b)
+                        }) as f64
+                    })
+                    .collect()
+            };
+        }
+        Ok(match ty {
+            MI_INT8 => data.iter().map(|&b| b as i8 as f64).collect(),
+            MI_UINT8 | MI_UTF8 => data.iter().map(|&b| b as f64).collect(),
+            MI_INT16 => conv!(i16, 2),
+            MI_UINT16 | MI_UTF16 => conv!(u16, 2),
+            MI_INT32 => conv!(i32, 4),
+            MI_UINT32 | MI_UTF32 => conv!(u32, 4),
+            MI_SINGLE => conv!(f32, 4),
+            MI_DOUBLE => conv!(f64, 8),
+            MI_INT64 => conv!(i64, 8),
+            MI_UINT64 => conv!(u64, 8),
+            _ => unreachable!(),
+        })
+    }
+}
+
+/// Read and parse a MAT file; errors name the file.
+pub fn read(path: &std::path::Path) -> anyhow::Result<MatFile> {
+    let bytes =
+        std::fs::read(path).map_err(|e| anyhow::anyhow!("{}: cannot read: {e}", path.display()))?;
+    parse(&bytes).map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))
+}
+
+/// Builds MAT v5 files byte by byte: used by tests (and handy for fixtures). Little or big
+/// endian, optionally wrapping each variable in a zlib `miCOMPRESSED` element.
+pub mod writer {
+    use std::io::Write;
+
+    /// A value to write.
+    #[derive(Debug, Clone)]
+    pub enum W {
+        /// Column-major doubles with dims.
+        Double(Vec<usize>, Vec<f64>),
+        /// Column-major singles with dims.
+        Single(Vec<usize>, Vec<f32>),
+        Int16(Vec<usize>, Vec<i16>),
+        Int32(Vec<usize>, Vec<i32>),
+        UInt8(Vec<usize>, Vec<u8>),
+        /// A 1xN char array (UTF-16).
+        Char(String),
+        /// A 1x1 struct with named fields.
+        Struct(Vec<(String, W)>),
+    }
+
+    /// A MAT file under construction.
+    pub struct MatBuilder {
+        pub big_endian: bool,
+        pub out: Vec<u8>,
+    }
+
+    impl MatBuilder {
+        pub fn new(big_endian: bool) -> Self {
+            let mut out = Vec::new();
+            let mut text =
+                b"MATLAB 5.0 MAT-file, Platform: rigmon test, Created by rigmon".to_vec();
+            text.resize(116, b' ');
+            out.extend_from_slice(&text);
+            out.extend_from_slice(&[0u8; 8]);
+            if big_endian {
+                out.extend_from_slice(&0x0100u16.to_be_bytes());
+                out.extend_from_slice(b"MI");
+            } else {
+                out.extend_from_slice(&0x0100u16.to_le_bytes());
+                out.extend_from_slice(b"IM");
+            }
+            MatBuilder { big_endian, out }
+        }
+
+        fn u32(&self, v: u32) -> [u8; 4] {
+            if self.big_endian {
+                v.to_be_bytes()
+            } else {
+                v.to_le_bytes()
+            }
+        }
+
+        /// Append a top-level variable, optionally compressed.
+        pub fn var(&mut self, name: &str, value: &W, compressed: bool) -> &mut Self {
+            let m = self.matrix(name, value);
+            if compressed {
+                let mut enc =
+                    flate2::write::ZlibEncoder::new(Vec::new(), flate2::Compression::default());
+                enc.write_all(&m).unwrap();
+                let z = enc.finish().unwrap();
+                let (a, b) = (self.u32(15), self.u32(z.len() as u32));
+                self.out.extend_from_slice(&a);
+                self.out.extend_from_slice(&b);
+                self.out.extend_from_slice(&z);
+            } else {
+                self.out.extend_from_slice(&m);
+            }
+            self
+        }
+
+        fn element(&self, ty: u32, data: &[u8]) -> Vec<u8> {
+            let mut e = Vec::new();
+            e.extend_from_slice(&self.u32(ty));
+            e.extend_from_slice(&self.u32(data.len() as u32));
+            e.extend_from_slice(data);
+            while e.len() % 8 != 0 {
+                e.push(0);
+            }
+            e
+        }
+
+        /// A full miMATRIX element (tag included).
+        pub fn matrix(&self, name: &str, value: &W) -> Vec<u8> {
+            let be = self.big_endian;
+            macro_rules! bytes {
+                ($v:expr) => {
+                    $v.iter()
+                        .flat_map(|x| {
+                            if be {
+                                x.to_be_bytes().to_vec()
+                            } else {
+                                x.to_le_bytes().to_vec()
+                            }
+                        })
+                        .collect::<Vec<u8>>()
+                };
+            }
+            let (class, dims, payload): (u32, Vec<usize>, Vec<u8>) = match value {
+                W::Double(d, v) => (6, d.clone(), self.element(9, &bytes!(v))),
+                W::Single(d, v) => (7, d.clone(), self.element(7, &bytes!(v))),
+                W::Int16(d, v) => (10, d.clone(), self.element(3, &bytes!(v))),
+                W::Int32(d, v) => (12, d.clone(), self.element(5, &bytes!(v))),
+                W::UInt8(d, v) => (9, d.clone(), self.element(2, v)),
+                W::Char(s) => {
+                    let u: Vec<u16> = s.encode_utf16().collect();
+                    (4, vec![1, u.len()], self.element(4, &bytes!(u)))
+                }
+                W::Struct(fields) => {
+                    let name_len = fields
+                        .iter()
+                        .map(|(n, _)| n.len() + 1)
+                        .max()
+                        .unwrap_or(1)
+                        .max(8);
+                    let mut p = self.element(5, &self.u32(name_len as u32));
+                    let mut names = Vec::new();
+                    for (n, _) in fields {
+                        let mut b = n.as_bytes().to_vec();
+                        b.resize(name_len, 0);
+                        names.extend_from_slice(&b);
+                    }
+                    p.extend_from_slice(&self.element(1, &names));
+                    for (_, v) in fields {
+                        p.extend_from_slice(&self.matrix("", v));
+                    }
+                    (2, vec![1, 1], p)
+                }
+            };
+            let mut body = Vec::new();
+            let mut flags = Vec::new();
+            flags.extend_from_slice(&self.u32(class));
+            flags.extend_from_slice(&self.u32(0));
+            body.extend_from_slice(&self.element(6, &flags));
+            let dims_b: Vec<u8> = dims.iter().flat_map(|&d| self.u32(d as u32)).collect();
+            body.extend_from_slice(&self.element(5, &dims_b));
+            body.extend_from_slice(&self.element(1, name.as_bytes()));
+            body.extend_from_slice(&payload);
+            self.element(14, &body)
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::writer::{MatBuilder, W};
+    use super::*;
+
+    fn sample_file(be: bool, compressed: bool) -> Vec<u8> {
+        let mut b = MatBuilder::new(be);
+        b.var(
+            "x",
+            &W::Double(vec![3, 1], vec![1.5, -2.0, 3.25]),
+            compressed,
+        )
+        .var("s", &W::Single(vec![1, 2], vec![0.5, 7.0]), compressed)
+        .var("i", &W::Int16(vec![2, 2], vec![1, -2, 3, -4]), compressed)
+        .var("txt", &W::Char("héllo".into()), compressed)
+        .var(
+            "bearing",
+            &W::Struct(vec![
+                ("gs".into(), W::Double(vec![2, 1], vec![0.1, 0.2])),
+                ("sr".into(), W::Int32(vec![1, 1], vec![48828])),
+                (
+                    "inner".into(),
+                    W::Struct(vec![("deep".into(), W::UInt8(vec![1, 1], vec![9]))]),
+                ),
+            ]),
+            compressed,
+        );
+        b.out
+    }
+
+    fn check(f: &MatFile) {
+        assert_eq!(f.get("x").unwrap().as_vector().unwrap(), &[1.5, -2.0, 3.25]);
+        assert_eq!(f.get("s").unwrap().as_vector().unwrap(), &[0.5, 7.0]);
+        let i = f.get("i").unwrap();
+        assert_eq!(i.dims(), &[2, 2]);
+        assert!(i.as_vector().is_none(), "a 2x2 matrix is not a vector");
+        assert!(matches!(f.get("txt").unwrap(), MatValue::Char { text, .. } if text == "héllo"));
+        let b = f.get("bearing").unwrap();
+        assert_eq!(b.field_names(), ["gs", "sr", "inner"]);
+        assert_eq!(b.field("gs").unwrap().as_vector().unwrap(), &[0.1, 0.2]);
+        assert_eq!(b.field("sr").unwrap().as_scalar(), Some(48828.0));
+        assert_eq!(
+            b.field("inner").unwrap().field("deep").unwrap().as_scalar(),
+            Some(9.0)
+        );
+    }
+
+    #[test]
+    fn reads_all_kinds_both_endians_plain_and_compressed() {
+        for be in [false, true] {
+            for z in [false, true] {
+                let f = parse(&sample_file(be, z)).unwrap_or_else(|e| panic!("be={be} z={z}: {e}"));
+                assert_eq!(f.big_endian, be);
+                check(&f);
+            }
+        }
+    }
+
+    #[test]
+    fn every_truncation_is_an_error_not_a_panic() {
+        for z in [false, true] {
+            let bytes = sample_file(false, z);
+            for cut in 0..bytes.len() {
+                // Cutting inside trailing padding of the last element may still parse; all
+                // other cuts must fail cleanly.
+                let _ = parse(&bytes[..cut]);
+            }
+            assert!(parse(&bytes[..bytes.len() - 20]).is_err());
+        }
+    }
+
+    #[test]
+    fn hostile_lengths_are_refused() {
+        // Flip every byte of the file to 0xff one at a time: never panic.
+        let bytes = sample_file(false, false);
+        for k in 128..bytes.len() {
+            let mut b = bytes.clone();
+            b[k] = 0xff;
+            let _ = parse(&b);
+            b[k] = 0x7f;
+            let _ = parse(&b);
+        }
+        // A struct claiming 2^31 x 2^31 elements.
+        let mut b = MatBuilder::new(false);
+        b.var(
+            "s",
+            &W::Struct(vec![("a".into(), W::Double(vec![1, 1], vec![1.0]))]),
+            false,
+        );
+        let mut bytes = b.out;
+        // dims element follows the flags element: tag(8)+flags(8+8) -> dims data at 128+8+16+8
+        let dims_at = 128 + 8 + 16 + 8;
+        bytes[dims_at..dims_at + 8]
+            .copy_from_slice(&[0xff, 0xff, 0xff, 0x7f, 0xff, 0xff, 0xff, 0x7f]);
+        let e = parse(&bytes).unwrap_err();
+        assert!(
+            e.msg.contains("cannot fit") || e.msg.contains("overflow"),
+            "{e}"
+        );
+    }
+
+    #[test]
+    fn empty_and_foreign_files() {
+        assert!(parse(b"").unwrap_err().msg.contains("empty"));
+        assert!(parse(b"hello").unwrap_err().msg.contains("not a MAT"));
+        let mut v73 = MatBuilder::new(false).out;
+        v73[124..126].copy_from_slice(&0x0200u16.to_le_bytes());
+        assert!(parse(&v73).unwrap_err().msg.contains("7.3"));
+    }
+}

@@ -1,0 +1,109 @@
+//! MFPT-style bearing data (`.mat`): a struct `bearing` with fields `gs` (the signal, a
+//! vector in g), `sr` (sample rate, Hz), `rate` (shaft rate, Hz) and `load`.
+//!
+//! The one signal becomes the rig's classifier channel (name, axis, unit and sensitivity from
+//! the rig file).
+
+use super::mat5::{MatFile, MatValue};
+use super::{cwru::vector, resolve_sample_rate, ImportOptions};
+use crate::config::RigConfig;
+use crate::recording::{Channel, Provenance, Recording};
+use anyhow::{bail, Result};
+use std::collections::BTreeMap;
+use std::path::Path;
+
+/// Does this MAT file look like an MFPT recording (a struct named `bearing`)?
+pub fn is_mfpt(mat: &MatFile) -> bool {
+    matches!(mat.get("bearing"), Some(MatValue::Struct { .. }))
+}
+
+fn scalar(path: &Path, bearing: &MatValue, field: &str) -> Result<Option<f64>> {
+    match bearing.field(field) {
+        None => Ok(None),
+        Some(v) => match v.as_scalar() {
+            Some(x) => Ok(Some(x)),
+            None => bail!(
+                "{}: wrong shape: bearing.{field} is {}; expected a single number (1x1)",
+                path.display(),
+                v.describe()
+            ),
+        },
+    }
+}
+
+/// Build a [`Recording`] from a parsed MFPT MAT file.
+pub fn from_mat(
+    path: &Path,
+    mat: &MatFile,
+    rig: &RigConfig,
+    opts: &ImportOptions,
+) -> Result<Recording> {
+    let p = path.display();
+    let bearing = mat.get("bearing").expect("is_mfpt checked");
+    if let MatValue::Struct { dims, .. } = bearing {
+        if dims.iter().product::<usize>() != 1 {
+            bail!(
+                "{p}: wrong shape: bearing is a {} struct array; expected a single (1x1) struct",
+                bearing.describe()
+            );
+        }
+    }
+    let Some(gs) = bearing.field("gs") else {
+        bail!("{p}: missing variable: the struct `bearing` has no field `gs` (the signal); its fields are {:?}", bearing.field_names());
+    };
+    let signal = vector(path, "bearing.gs", gs)?;
+    let mut notes = Vec::new();
+    let sr = scalar(path, bearing, "sr")?;
+    if sr.is_none() {
+        notes.push("no bearing.sr in the file".to_string());
+    }
+    let (sample_rate, note) = resolve_sample_rate(
+        path,
+        sr.map(|f| (f, "field bearing.sr".to_string())),
+        rig,
+        opts,
+    )?;
+    notes.push(note);
+    let rate = scalar(path, bearing, "rate")?;
+    let rpm = match (opts.rpm, rate) {
+        (Some(r), _) => {
+            notes.push(format!("rpm {r} from --rpm"));
+            Some(r)
+        }
+        (None, Some(hz)) if hz.is_finite() && hz > 0.0 => Some(hz * 60.0),
+        (None, Some(hz)) => {
+            bail!("{p}: bearing.rate = {hz} is not a valid shaft rate (Hz); pass --rpm R")
+        }
+        (None, None) => {
+            notes.push("no bearing.rate in the file: speed unknown (pass --rpm R)".to_string());
+            None
+        }
+    };
+    let Some(cfg) = rig.classifier_channel() else {
+        bail!("{p}: the rig file has no classifier channel to put the MFPT signal on");
+    };
+    notes.push(format!("bearing.gs mapped to rig channel {}", cfg.name));
+    let mut metadata = BTreeMap::new();
+    if let Some(load) = scalar(path, bearing, "load")? {
+        metadata.insert("load".to_string(), load.to_string());
+    }
+    let k = cfg.sensitivity;
+    Ok(Recording {
+        sample_rate,
+        start_time_ns: 0,
+        channels: vec![Channel {
+            name: cfg.name.clone(),
+            axis: cfg.axis.clone(),
+            unit: cfg.unit.clone(),
+            samples: signal.iter().map(|&x| (x * k) as f32).collect(),
+        }],
+        tacho: None,
+        rpm,
+        provenance: Provenance {
+            source_path: path.display().to_string(),
+            format: "mfpt-mat".into(),
+            notes,
+        },
+        metadata,
+    })
+}
