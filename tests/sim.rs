@@ -230,3 +230,94 @@ fn cwru_rig_simulates_in_g_at_12khz() {
         "CWRU BPFI peak {f}"
     );
 }
+
+/// The product's own feature pipeline (tacho -> order tracking -> envelope order spectrum ->
+/// 0.5-order RMS bins) sees the simulated faults in the right bins and the right speed.
+#[test]
+fn dsp_features_see_the_fault_orders() {
+    let r = rig("lut-rig.toml");
+    let o = sim::model_fault_orders(&r, r.simulation.as_ref().unwrap());
+    let bw = r.features.bin_width_order;
+    let bin = |order: f64| ((order / bw).ceil() as usize).saturating_sub(1);
+    for fr in [9.8, 19.8] {
+        let mut ratio = std::collections::BTreeMap::new();
+        for (faults, order) in [
+            (vec![], o.bpfo),
+            (vec![Fault::OuterRace], o.bpfo),
+            (vec![Fault::InnerRace], o.bpfi),
+        ] {
+            let rec = sim::simulate(&r, &Scenario::constant(&faults, fr * 60.0, 3.0, 8)).unwrap();
+            let wins = rigmon::dsp::extract_recording(&rec, &r).unwrap();
+            assert!(wins.len() >= 3, "{} windows", wins.len());
+            for w in &wins {
+                assert!(
+                    (w.rpm / (fr * 60.0) - 1.0).abs() < 0.005,
+                    "tacho speed {} rpm vs {}",
+                    w.rpm,
+                    fr * 60.0
+                );
+            }
+            let f = wins[1].classifier_features(&r);
+            let mut sorted = f.to_vec();
+            sorted.sort_by(f32::total_cmp);
+            let med = sorted[sorted.len() / 2] as f64;
+            let k = bin(order);
+            ratio.insert(format!("{faults:?}"), f[k] as f64 / med);
+        }
+        eprintln!("{fr} Hz: fault-bin / median-bin ratios {ratio:?}");
+        assert!(ratio["[OuterRace]"] > 5.0, "OR bin at {fr} Hz: {ratio:?}");
+        assert!(ratio["[InnerRace]"] > 3.5, "IR bin at {fr} Hz: {ratio:?}");
+        assert!(ratio["[]"] < 2.5, "healthy BPFO bin at {fr} Hz: {ratio:?}");
+    }
+}
+
+/// `rigmon dataset`'s engine: MCAP files + labels.csv, labels and plan parameters in the
+/// MCAP metadata, read back by the importers' reader.
+#[test]
+fn dataset_writes_mcap_and_labels() {
+    let r = rig("lut-rig.toml");
+    let plan = sim::plan::Plan::parse(
+        r#"
+name = "tiny"
+seed = 5
+seconds = 0.5
+[random]
+defect_width_mm = [0.3, 0.6]
+[[case]]
+faults = "outer_race"
+rpm = 1188
+recordings = 2
+[[case]]
+faults = "healthy"
+rpm = 588
+recordings = 1
+[[case]]
+faults = "inner_race,ball"
+recordings = 1
+profile = { kind = "ramp", from_rpm = 600.0, to_rpm = 900.0, seconds = 0.5 }
+"#,
+    )
+    .unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let s = sim::dataset::generate(&r, &plan, dir.path(), "mcap", Some(2), false).unwrap();
+    assert_eq!(s.recordings, 4);
+    let csv = std::fs::read_to_string(dir.path().join("labels.csv")).unwrap();
+    let lines: Vec<&str> = csv.lines().collect();
+    assert_eq!(lines[0], "path,label");
+    assert_eq!(lines.len(), 5, "{csv}");
+    for line in &lines[1..] {
+        let (path, label) = line.split_once(',').unwrap();
+        let rec = rigmon::recording::mcap_layout::read_recording(&dir.path().join(path)).unwrap();
+        assert_eq!(rec.label(), Some(label), "{path}");
+        assert_eq!(rec.metadata["plan"], "tiny");
+        assert_eq!(rec.len(), 5000);
+        if label == "outer_race" {
+            let w: f64 = rec.metadata["defect_width_mm"].parse().unwrap();
+            assert!((0.3..=0.6).contains(&w), "{w}");
+        }
+        if label == "inner_race" {
+            assert_eq!(rec.metadata["faults"], "inner_race,ball");
+            assert!(rec.metadata["speed_profile"].starts_with("ramp"));
+        }
+    }
+}

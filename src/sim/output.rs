@@ -15,7 +15,8 @@ pub fn write(path: &Path, rec: &Recording, rig: &RigConfig) -> Result<()> {
         .map(str::to_ascii_lowercase)
         .as_deref()
     {
-        Some("mcap") => write_mcap(path, rec),
+        Some("mcap") => crate::recording::mcap_layout::write_recording(path, rec)
+            .with_context(|| format!("writing {}", path.display())),
         Some("wav") => write_wav(path, rec, rig),
         _ => bail!("output {}: use a .mcap or .wav file name", path.display()),
     }
@@ -60,9 +61,4 @@ pub fn write_wav(path: &Path, rec: &Recording, rig: &RigConfig) -> Result<()> {
     w.finalize()
         .with_context(|| format!("writing {}", path.display()))?;
     Ok(())
-}
-
-/// MCAP through the importers' layout (pending merge of wt/importers).
-pub fn write_mcap(path: &Path, _rec: &Recording) -> Result<()> {
-    bail!("MCAP output ({}) needs recording::mcap_layout::write_recording (not merged yet); write .wav meanwhile", path.display())
 }
