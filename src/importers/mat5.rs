@@ -727,11 +727,7 @@ impl Cursor {
                         "struct: field-name length is 0 but names are present",
                     );
                 }
-                let n_fields = if name_len == 0 {
-                    0
-                } else {
-                    names.len() / name_len
-                };
+                let n_fields = names.len().checked_div(name_len).unwrap_or(0);
                 let field_names: Vec<String> = (0..n_fields)
                     .map(|k| {
                         String::from_utf8_lossy(&names[k * name_len..(k + 1) * name_len])
