@@ -1100,6 +1100,35 @@ mod tests {
     }
 
     #[test]
+    fn random_mutations_never_panic() {
+        let mut x: u64 = 0x9E37_79B9_7F4A_7C15;
+        let mut next = || {
+            x ^= x << 13;
+            x ^= x >> 7;
+            x ^= x << 17;
+            x
+        };
+        for z in [false, true] {
+            for be in [false, true] {
+                let base = sample_file(be, z);
+                for _ in 0..1500 {
+                    let mut b = base.clone();
+                    for _ in 0..1 + next() % 4 {
+                        let k = 120 + (next() as usize) % (b.len() - 120);
+                        b[k] = next() as u8;
+                    }
+                    let cut = if next() % 4 == 0 {
+                        (next() as usize) % b.len()
+                    } else {
+                        b.len()
+                    };
+                    let _ = parse(&b[..cut]);
+                }
+            }
+        }
+    }
+
+    #[test]
     fn empty_and_foreign_files() {
         assert!(parse(b"").unwrap_err().msg.contains("empty"));
         assert!(parse(b"hello").unwrap_err().msg.contains("not a MAT"));
