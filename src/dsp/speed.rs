@@ -214,13 +214,13 @@ impl SpeedTrack {
         }
     }
 
-    /// True when `[t0, t1]` reaches more than one pulse interval beyond the measured pulses.
+    /// True when `[t0, t1]` reaches more than 1.5 pulse intervals beyond the measured pulses.
     pub fn extrapolates(&self, t0: f64, t1: f64) -> bool {
         match &self.kind {
             Kind::Constant { .. } => false,
             Kind::Knots { t, .. } => {
                 let n = t.len();
-                t0 < t[0] - (t[1] - t[0]) || t1 > t[n - 1] + (t[n - 1] - t[n - 2])
+                t0 < t[0] - 1.5 * (t[1] - t[0]) || t1 > t[n - 1] + 1.5 * (t[n - 1] - t[n - 2])
             }
         }
     }
@@ -443,8 +443,28 @@ fn repair_pulses(raw: &[f64]) -> (Vec<f64>, Vec<Repair>) {
         let ratio = di / reference;
         if ratio > 1.5 {
             let k = ratio.round().max(2.0) as usize;
+            // place the missing pulses on a cubic t(pulse) that joins the neighbouring
+            // intervals smoothly (follows a speed ramp across the gap)
+            let even = di / k as f64;
+            let ok = |d: f64| (d / reference - 1.0).abs() < 0.5;
+            let s0 = if i > 0 && ok(dk[i - 1]) {
+                dk[i - 1]
+            } else {
+                even
+            };
+            let s1 = if i + 1 < dk.len() && ok(dk[i + 1]) {
+                dk[i + 1]
+            } else {
+                even
+            };
             for j in 1..k {
-                let t = kept[i] + di * j as f64 / k as f64;
+                let s = j as f64 / k as f64;
+                let (s2, s3) = (s * s, s * s * s);
+                let kk = k as f64;
+                let t = (2.0 * s3 - 3.0 * s2 + 1.0) * kept[i]
+                    + (s3 - 2.0 * s2 + s) * kk * s0
+                    + (-2.0 * s3 + 3.0 * s2) * kept[i + 1]
+                    + (s3 - s2) * kk * s1;
                 out.push(t);
                 repairs.push(Repair::Inserted(t));
             }

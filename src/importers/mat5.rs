@@ -857,9 +857,11 @@ pub fn read(path: &std::path::Path) -> anyhow::Result<MatFile> {
     parse(&bytes).map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))
 }
 
-/// Builds MAT v5 files byte by byte: used by tests (and handy for fixtures). Little or big
-/// endian, optionally wrapping each variable in a zlib `miCOMPRESSED` element.
-pub mod writer {
+/// Builds MAT v5 files byte by byte for the unit tests. Little or big endian, optionally
+/// wrapping each variable in a zlib `miCOMPRESSED` element. (The integration tests build their
+/// files with separate code, so a shared misunderstanding cannot hide.)
+#[cfg(test)]
+mod writer {
     use std::io::Write;
 
     /// A value to write.
