@@ -41,9 +41,9 @@ impl Mahalanobis {
                 *m += v as f64;
             }
         }
-        for c in 0..n_classes {
-            if count[c] > 0 {
-                mu.row_mut(c).mapv_inplace(|v| v / count[c] as f64);
+        for (mut row, &n_c) in mu.rows_mut().into_iter().zip(&count) {
+            if n_c > 0 {
+                row.mapv_inplace(|v| v / n_c as f64);
             }
         }
         let mut cov = Array2::<f64>::zeros((k, k));

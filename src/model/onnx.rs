@@ -143,7 +143,7 @@ impl OnnxClassifier {
             .0;
         let label = self.meta.labels.get(class).cloned().unwrap_or_default();
         Ok(Prediction {
-            unknown: !(novelty <= self.meta.novelty_threshold),
+            unknown: novelty.is_nan() || novelty > self.meta.novelty_threshold,
             probs,
             class,
             label,

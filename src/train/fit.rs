@@ -73,7 +73,7 @@ pub fn score_records(
                 unknown: out
                     .novelty
                     .iter()
-                    .map(|&s| !(s <= model.novelty.threshold))
+                    .map(|&s| s.is_nan() || s > model.novelty.threshold)
                     .collect(),
                 rpm: r.rpm,
             })
