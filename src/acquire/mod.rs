@@ -1,9 +1,30 @@
 //! Sources: where samples come from (MCAP replay, serial DAQ adapter, CAN adapter, sound
 //! card). Every source runs on its own thread, pushes [`SampleBlock`]s on the sample clock
 //! into a bounded channel, and counts what went wrong in [`SourceStats`] instead of failing.
+//!
+//! [`SourceConfig`] is the `[source]` section of the daemon's configuration: a table tagged
+//! by `type` (`file`, `serial`, `can`, `audio`); [`SourceConfig::build`] checks it against
+//! the rig and returns a ready [`Source`], or an error that says what to fix.
 
+pub mod assembler;
+pub mod audio;
+pub mod can;
+pub mod emulator;
+pub mod file_replay;
+pub mod layout;
+pub mod serial;
+pub mod serial_protocol;
+
+use crate::config::RigConfig;
+use serde::{Deserialize, Serialize};
+use std::path::Path;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::sync::mpsc::TrySendError;
 use std::sync::Arc;
+use std::time::Duration;
+
+pub use assembler::BlockAssembler;
+pub use file_replay::{FileReplay, FileSourceConfig, ReplaySpeed};
 
 /// A block of consecutive samples from a source, on the source's sample clock.
 #[derive(Debug, Clone, PartialEq)]
@@ -90,4 +111,204 @@ pub trait Source: Send {
         stats: Arc<SourceStats>,
         stop: StopToken,
     ) -> anyhow::Result<()>;
+    /// A nominal shaft speed the source knows before any sample arrives (a recording's stored
+    /// rpm, e.g. CWRU's `X<nnn>RPM`), for `speed.source = "recording"`.
+    fn nominal_rpm(&self) -> Option<f64> {
+        None
+    }
+    /// Rig acceleration channels this source cannot deliver: their vectors in every block
+    /// are NaN (e.g. a CWRU file without the `BA` channel). Consumers should skip them
+    /// rather than flag them.
+    fn absent_channels(&self) -> Vec<String> {
+        Vec::new()
+    }
+}
+
+/// The `[source]` section of the daemon configuration, tagged by `type`.
+///
+/// ```toml
+/// [source]
+/// type = "file"            # or "serial", "can", "audio"
+/// path = "replay/outer_race_19.8hz.mcap"
+/// speed = 1.0              # real-time factor, or "max"
+/// loop = true
+/// ```
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "type", rename_all = "snake_case")]
+pub enum SourceConfig {
+    /// Replay of a recording (MCAP, CWRU/MFPT .mat, WAV, CSV).
+    File(FileSourceConfig),
+    /// The serial DAQ adapter ([`serial_protocol`]).
+    Serial(serial::SerialSourceConfig),
+    /// The CAN adapter ([`can_protocol`]; needs the `can` feature).
+    Can(can::CanSourceConfig),
+    /// A sound card (needs the `audio` feature).
+    Audio(audio::AudioSourceConfig),
+}
+
+impl SourceConfig {
+    /// Check the configuration against the rig and open the source. The error says which
+    /// source could not start, why, and what to do about it.
+    pub fn build(&self, rig: &RigConfig) -> anyhow::Result<Box<dyn Source>> {
+        match self {
+            SourceConfig::File(c) => Ok(Box::new(c.build(rig)?)),
+            SourceConfig::Serial(c) => c.build(rig),
+            SourceConfig::Can(c) => c.build(rig),
+            SourceConfig::Audio(c) => c.build(rig),
+        }
+    }
+
+    /// Make relative paths in the section relative to the folder of the file it was read
+    /// from (`base_file`), as every path in a rigmon config is.
+    pub fn resolve_paths(&mut self, base_file: &Path) {
+        if let SourceConfig::File(c) = self {
+            c.path = crate::config::resolve_relative(base_file, &c.path);
+        }
+    }
+
+    /// The `type` tag (`file`, `serial`, `can`, `audio`).
+    pub fn kind(&self) -> &'static str {
+        match self {
+            SourceConfig::File(_) => "file",
+            SourceConfig::Serial(_) => "serial",
+            SourceConfig::Can(_) => "can",
+            SourceConfig::Audio(_) => "audio",
+        }
+    }
+}
+
+/// Sample rate a live source runs at: the source's own setting, else the rig's
+/// `acquisition.sample_rate_hz`; an error naming both places when neither is set.
+pub fn live_sample_rate(own: Option<f64>, rig: &RigConfig, kind: &str) -> anyhow::Result<f64> {
+    let fs = own.or(rig.acquisition.sample_rate_hz).ok_or_else(|| {
+        anyhow::anyhow!(
+            "{kind} source: no sample rate; set `sample_rate_hz` in the [source] section or `acquisition.sample_rate_hz` in the rig file"
+        )
+    })?;
+    if !(fs.is_finite() && fs > 0.0) {
+        anyhow::bail!("{kind} source: sample_rate_hz = {fs} must be a positive number");
+    }
+    Ok(fs)
+}
+
+/// Send a block, waiting while the channel is full (for sources that must not lose data,
+/// like file replay). Returns `false` when the receiver is gone or `stop` was set.
+pub fn send_block(tx: &BlockSender, mut block: SampleBlock, stop: &StopToken) -> bool {
+    loop {
+        match tx.try_send(block) {
+            Ok(()) => return true,
+            Err(TrySendError::Disconnected(_)) => return false,
+            Err(TrySendError::Full(b)) => {
+                if stop.is_stopped() {
+                    return false;
+                }
+                block = b;
+                std::thread::sleep(Duration::from_millis(1));
+            }
+        }
+    }
+}
+
+/// Offer a block from a live source: if the consumer has fallen behind and the channel is
+/// full, the block is dropped and its samples counted as lost (the next block's
+/// `first_sample` jumps, so the pipeline sees the gap too). Returns `false` when the
+/// receiver is gone.
+pub fn offer_block(tx: &BlockSender, block: SampleBlock, stats: &SourceStats) -> bool {
+    let n = block.len() as u64;
+    match tx.try_send(block) {
+        Ok(()) => {
+            SourceStats::add(&stats.blocks, 1);
+            SourceStats::add(&stats.samples, n);
+            true
+        }
+        Err(TrySendError::Full(_)) => {
+            SourceStats::add(&stats.samples_lost, n);
+            true
+        }
+        Err(TrySendError::Disconnected(_)) => false,
+    }
+}
+
+/// Sleep up to `d`, waking early when `stop` is set. Returns `false` if stopped.
+pub fn sleep_unless_stopped(d: Duration, stop: &StopToken) -> bool {
+    let end = std::time::Instant::now() + d;
+    loop {
+        if stop.is_stopped() {
+            return false;
+        }
+        let now = std::time::Instant::now();
+        if now >= end {
+            return true;
+        }
+        std::thread::sleep((end - now).min(Duration::from_millis(20)));
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[derive(Debug, Deserialize)]
+    #[serde(deny_unknown_fields)]
+    struct Doc {
+        source: SourceConfig,
+    }
+
+    fn parse(t: &str) -> Result<SourceConfig, String> {
+        toml::from_str::<Doc>(t)
+            .map(|d| d.source)
+            .map_err(|e| e.to_string())
+    }
+
+    #[test]
+    fn every_source_type_parses_with_defaults() {
+        let f = parse("[source]\ntype = \"file\"\npath = \"replay/healthy.mcap\"\nspeed = \"max\"\nloop = true").unwrap();
+        let SourceConfig::File(f) = f else { panic!() };
+        assert_eq!(
+            (f.speed, f.looping, f.block_ms),
+            (ReplaySpeed::Max, true, 100.0)
+        );
+        let s = parse("[source]\ntype = \"serial\"\nport = \"/dev/ttyUSB0\"").unwrap();
+        assert_eq!(s.kind(), "serial");
+        let SourceConfig::Serial(s) = s else { panic!() };
+        assert_eq!(s.baud, 921_600);
+        let c = parse("[source]\ntype = \"can\"\ninterface = \"can0\"\nfd = true").unwrap();
+        let SourceConfig::Can(c) = c else { panic!() };
+        assert!(c.fd);
+        let a = parse(
+            "[source]\ntype = \"audio\"\ndevice = \"rigcap\"\nmap = { vertical = 0, tacho = 1 }",
+        )
+        .unwrap();
+        let SourceConfig::Audio(a) = a else { panic!() };
+        assert_eq!(a.map["tacho"], 1);
+    }
+
+    #[test]
+    fn unknown_keys_and_types_are_rejected_by_name() {
+        let e = parse("[source]\ntype = \"file\"\npath = \"x.mcap\"\nspeeed = 2").unwrap_err();
+        assert!(e.contains("speeed"), "{e}");
+        let e = parse("[source]\ntype = \"serial\"\nport = \"/dev/ttyUSB0\"\nbaudrate = 9600")
+            .unwrap_err();
+        assert!(e.contains("baudrate"), "{e}");
+        let e = parse("[source]\ntype = \"dewesoft\"").unwrap_err();
+        assert!(e.contains("dewesoft"), "{e}");
+    }
+
+    #[test]
+    fn relative_paths_resolve_against_the_config_file() {
+        let mut s = parse("[source]\ntype = \"file\"\npath = \"replay/a.mcap\"").unwrap();
+        s.resolve_paths(Path::new("/etc/rigmon/rigmon.toml"));
+        let SourceConfig::File(f) = s else { panic!() };
+        assert_eq!(f.path, Path::new("/etc/rigmon/replay/a.mcap"));
+    }
+
+    #[test]
+    fn a_file_that_cannot_be_read_says_which() {
+        let rig =
+            RigConfig::load(&Path::new(env!("CARGO_MANIFEST_DIR")).join("config/lut-rig.toml"))
+                .unwrap();
+        let s = parse("[source]\ntype = \"file\"\npath = \"/nonexistent/run.mcap\"").unwrap();
+        let e = format!("{:#}", s.build(&rig).err().unwrap());
+        assert!(e.contains("/nonexistent/run.mcap"), "{e}");
+    }
 }
