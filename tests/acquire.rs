@@ -623,13 +623,20 @@ fn audio_child() {
     let blocks = collect_until(&rx, Duration::from_secs(20), |got| got >= 5000);
     stop.stop();
     h.join().unwrap().unwrap();
-    assert_eq!(blocks[0].first_sample, 0);
-    let mut i = 0;
+    // The file device has no clock: it delivers as fast as it can, so under heavy load the
+    // source may drop chunks. Whatever arrives must sit at its place on the sample clock,
+    // and every gap must be counted as lost.
+    let (mut next, mut gaps, mut checked) = (0u64, 0u64, 0);
     for b in &blocks {
-        assert_eq!(b.first_sample, i as u64, "contiguous");
+        assert!(
+            b.first_sample >= next,
+            "blocks overlap at {}",
+            b.first_sample
+        );
+        gaps += b.first_sample - next;
         for k in 0..b.len() {
-            if i < 5000 {
-                let f = audio_frame(i);
+            let i = b.first_sample as usize + k;
+            if i < 10_000 {
                 let got = [
                     b.channels[1][k],
                     b.channels[2][k],
@@ -637,13 +644,23 @@ fn audio_child() {
                     b.tacho_analog.as_ref().unwrap()[k],
                 ];
                 assert_eq!(
-                    got, f,
+                    got,
+                    audio_frame(i),
                     "sample {i}: rig order axial, vertical, horizontal from in2, in0, in1"
                 );
+                checked += 1;
             }
-            i += 1;
         }
+        next = b.first_sample + b.len() as u64;
     }
-    assert!(i >= 5000);
-    assert_eq!(stats.samples_lost.load(Ordering::Relaxed), 0);
+    let lost = stats.samples_lost.load(Ordering::Relaxed);
+    eprintln!("audio: {checked} samples checked, {lost} lost");
+    assert!(
+        checked >= 2000,
+        "only {checked} samples of the file arrived ({lost} lost)"
+    );
+    assert_eq!(
+        gaps, lost,
+        "every gap on the sample clock is counted as lost"
+    );
 }
