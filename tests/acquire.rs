@@ -620,13 +620,15 @@ fn audio_child() {
     let src = cfg.build(&rig("lut-rig.toml")).unwrap();
     assert!(src.describe().contains("rigcap"), "{}", src.describe());
     let (rx, stats, stop, h) = spawn(src, 64);
-    let blocks = collect_until(&rx, Duration::from_secs(20), |got| got >= 5000);
+    let mut blocks = collect_until(&rx, Duration::from_secs(20), |got| got >= 5000);
     stop.stop();
     h.join().unwrap().unwrap();
-    // The file device has no clock: it delivers as fast as it can, so under heavy load the
-    // source may drop chunks. Whatever arrives must sit at its place on the sample clock,
-    // and every gap must be counted as lost.
-    let (mut next, mut gaps, mut checked) = (0u64, 0u64, 0);
+    blocks.extend(rx.try_iter());
+    // The file device has no clock: it delivers as fast as it can. Whatever the source
+    // could not take is counted lost, and after an overrun or a reopen the file restarts.
+    // The first run from sample 0 up to the first gap must be the file, sample for sample.
+    assert_eq!(blocks[0].first_sample, 0);
+    let (mut next, mut gaps, mut checked, mut in_first_run) = (0u64, 0u64, 0, true);
     for b in &blocks {
         assert!(
             b.first_sample >= next,
@@ -634,9 +636,10 @@ fn audio_child() {
             b.first_sample
         );
         gaps += b.first_sample - next;
+        in_first_run &= b.first_sample == next;
         for k in 0..b.len() {
             let i = b.first_sample as usize + k;
-            if i < 10_000 {
+            if in_first_run && i < 10_000 {
                 let got = [
                     b.channels[1][k],
                     b.channels[2][k],
@@ -654,13 +657,12 @@ fn audio_child() {
         next = b.first_sample + b.len() as u64;
     }
     let lost = stats.samples_lost.load(Ordering::Relaxed);
-    eprintln!("audio: {checked} samples checked, {lost} lost");
     assert!(
-        checked >= 2000,
-        "only {checked} samples of the file arrived ({lost} lost)"
+        checked >= 5000,
+        "only {checked} samples of the file arrived in order ({lost} lost)"
     );
-    assert_eq!(
-        gaps, lost,
-        "every gap on the sample clock is counted as lost"
+    assert!(
+        gaps <= lost,
+        "every gap on the sample clock is counted as lost: gaps {gaps}, lost {lost}"
     );
 }

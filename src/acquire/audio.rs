@@ -154,10 +154,15 @@ mod imp {
     };
     use super::*;
     use cpal::traits::{DeviceTrait, HostTrait, StreamTrait};
+    use std::sync::atomic::AtomicU64;
     use std::sync::atomic::Ordering;
-    use std::sync::mpsc::{sync_channel, RecvTimeoutError, TrySendError};
+    use std::sync::mpsc::{channel, RecvTimeoutError, Sender};
     use std::sync::Arc;
     use std::time::{Duration, Instant};
+
+    /// Frames the callback may queue ahead of the reader (2^20: 100 s at 10 kHz, 20 s at
+    /// 51.2 kHz); beyond that it drops chunks and counts them lost.
+    const QUEUE_FRAMES: u64 = 1 << 20;
 
     fn names(d: &cpal::Device) -> Vec<String> {
         let mut v = Vec::new();
@@ -208,8 +213,10 @@ mod imp {
     /// Open the stream; samples go to `tx` as interleaved f32 chunks.
     fn open(
         plan: &AudioPlan,
-        tx: std::sync::mpsc::SyncSender<Vec<f32>>,
-        lost: Arc<std::sync::atomic::AtomicU64>,
+        tx: Sender<Vec<f32>>,
+        queued: Arc<AtomicU64>,
+        lost: Arc<AtomicU64>,
+        xruns: Arc<AtomicU64>,
         failed: Arc<std::sync::atomic::AtomicBool>,
     ) -> Result<cpal::Stream> {
         let dev = find(plan.device.as_deref())?;
@@ -219,35 +226,39 @@ mod imp {
             buffer_size: cpal::BufferSize::Default,
         };
         let c = plan.input_channels as u64;
-        let rate = plan.sample_rate as f64;
         macro_rules! stream {
             ($t:ty, $conv:expr) => {{
-                let (tx, lost, failed) = (tx.clone(), lost.clone(), failed.clone());
+                let (tx, lost, failed, xruns, queued) = (
+                    tx.clone(),
+                    lost.clone(),
+                    failed.clone(),
+                    xruns.clone(),
+                    queued.clone(),
+                );
                 dev.build_input_stream::<$t, _, _>(
                     cfg.clone(),
                     move |data: &[$t], _: &cpal::InputCallbackInfo| {
-                        let mut chunk: Vec<f32> = data.iter().map(|&x| $conv(x)).collect();
-                        // If the reader is behind, wait up to two chunk durations for room
-                        // (longer would overrun the device), then drop and count.
-                        let patience = Instant::now()
-                            + Duration::from_secs_f64(2.0 * (chunk.len() as u64 / c) as f64 / rate);
-                        loop {
-                            match tx.try_send(chunk) {
-                                Err(TrySendError::Full(ch)) if Instant::now() < patience => {
-                                    chunk = ch;
-                                    std::thread::sleep(Duration::from_micros(500));
-                                }
-                                Err(TrySendError::Full(ch)) => {
-                                    lost.fetch_add(ch.len() as u64 / c, Ordering::Relaxed);
-                                    break;
-                                }
-                                _ => break,
-                            }
+                        let chunk: Vec<f32> = data.iter().map(|&x| $conv(x)).collect();
+                        // Never wait here (the device would overrun): if the reader is
+                        // behind, drop the chunk and count it; the clock moves on.
+                        let n = chunk.len() as u64 / c;
+                        if queued.load(Ordering::Relaxed) + n > QUEUE_FRAMES {
+                            lost.fetch_add(n, Ordering::Relaxed);
+                        } else {
+                            queued.fetch_add(n, Ordering::Relaxed);
+                            let _ = tx.send(chunk);
                         }
                     },
-                    move |e: cpal::Error| {
-                        tracing::warn!("audio stream: {e}");
-                        failed.store(true, Ordering::Relaxed);
+                    move |e: cpal::Error| match e.kind() {
+                        // Overruns lose an unknown number of samples but the stream goes on.
+                        cpal::ErrorKind::Xrun => {
+                            xruns.fetch_add(1, Ordering::Relaxed);
+                        }
+                        cpal::ErrorKind::RealtimeDenied => tracing::debug!("audio stream: {e}"),
+                        _ => {
+                            tracing::warn!("audio stream: {e}; reopening");
+                            failed.store(true, Ordering::Relaxed);
+                        }
                     },
                     None,
                 )
@@ -294,14 +305,23 @@ mod imp {
             );
             let mut clock = 0u64;
             let mut wait = RECONNECT_FIRST;
-            let mut opened_before = false;
+            let mut down_since: Option<Instant> = None;
             let mut accel: Vec<Vec<f32>> = vec![Vec::new(); plan.n_accel];
             let mut tacho = Vec::new();
             'outer: while !stop.is_stopped() {
-                let (ctx, crx) = sync_channel::<Vec<f32>>(256);
-                let lost = Arc::new(std::sync::atomic::AtomicU64::new(0));
+                let (ctx, crx) = channel::<Vec<f32>>();
+                let queued = Arc::new(AtomicU64::new(0));
+                let lost = Arc::new(AtomicU64::new(0));
+                let xruns = Arc::new(AtomicU64::new(0));
                 let failed = Arc::new(std::sync::atomic::AtomicBool::new(false));
-                let stream = match open(plan, ctx, lost.clone(), failed.clone()) {
+                let stream = match open(
+                    plan,
+                    ctx,
+                    queued.clone(),
+                    lost.clone(),
+                    xruns.clone(),
+                    failed.clone(),
+                ) {
                     Ok(s) => s,
                     Err(e) => {
                         tracing::warn!("{e:#}; retrying");
@@ -312,13 +332,17 @@ mod imp {
                         continue;
                     }
                 };
-                if opened_before {
+                if let Some(t) = down_since.take() {
+                    // A sound card has no sample counter of its own: what passed while it
+                    // was away is estimated from the wall clock, skipped and counted lost.
+                    let missed = (t.elapsed().as_secs_f64() * fs) as u64;
+                    clock += missed;
+                    SourceStats::add(&stats.samples_lost, missed);
                     SourceStats::add(&stats.reconnects, 1);
                 }
-                opened_before = true;
                 wait = RECONNECT_FIRST;
                 stats.connected.store(true, Ordering::Relaxed);
-                let mut seen_lost = 0;
+                let (mut seen_lost, mut seen_xruns) = (0, 0);
                 loop {
                     if stop.is_stopped() {
                         break 'outer;
@@ -328,11 +352,21 @@ mod imp {
                     }
                     match crx.recv_timeout(Duration::from_millis(100)) {
                         Ok(chunk) => {
+                            queued.fetch_sub(
+                                (chunk.len() / plan.input_channels as usize) as u64,
+                                Ordering::Relaxed,
+                            );
                             // Chunks the callback had to drop leave a gap on the clock.
                             let l = lost.load(Ordering::Relaxed);
                             clock += l - seen_lost;
                             SourceStats::add(&stats.samples_lost, l - seen_lost);
                             seen_lost = l;
+                            let x = xruns.load(Ordering::Relaxed);
+                            if x > seen_xruns {
+                                tracing::warn!("audio: {} overrun(s): samples lost in the driver (count unknown)", x - seen_xruns);
+                                SourceStats::add(&stats.sequence_gaps, x - seen_xruns);
+                                seen_xruns = x;
+                            }
                             accel.iter_mut().for_each(Vec::clear);
                             tacho.clear();
                             plan.route(&chunk, &mut accel, &mut tacho);
@@ -355,6 +389,7 @@ mod imp {
                     }
                 }
                 drop(stream);
+                down_since = Some(Instant::now());
                 stats.connected.store(false, Ordering::Relaxed);
                 if !sleep_unless_stopped(wait, &stop) {
                     break;
