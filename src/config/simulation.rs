@@ -289,6 +289,10 @@ pub struct StructureConfig {
     pub noise_rms_m_s2: f64,
     /// DAQ resolution (quantisation step) in m/s^2, rounded to a power of two; 0 = none.
     pub adc_resolution_m_s2: f64,
+    /// Electrical line frequency for interference pick-up, Hz (not locked to shaft speed).
+    pub line_hz: f64,
+    /// Interference amplitude (m/s^2) at 1x, 2x, ... the line frequency; empty = off.
+    pub line_amplitudes_m_s2: Vec<f64>,
 }
 
 impl Default for StructureConfig {
@@ -314,6 +318,8 @@ impl Default for StructureConfig {
             ],
             noise_rms_m_s2: 0.3,
             adc_resolution_m_s2: 0.0,
+            line_hz: 50.0,
+            line_amplitudes_m_s2: Vec::new(),
         }
     }
 }
