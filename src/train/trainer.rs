@@ -63,7 +63,7 @@ impl Default for TrainConfig {
             weight_decay: 1e-4,
             dropout: 0.2,
             hidden: vec![128, 128, 128],
-            augment: 0.5,
+            augment: 2.0,
             floor: Preprocess::DEFAULT_FLOOR,
         }
     }
