@@ -1,9 +1,108 @@
-//! `rigmon features` (placeholder until its owner fills it in).
+//! `rigmon features <recording> --rig <toml>`: envelope-order-spectrum features per window,
+//! as JSON Lines (`--json`) or a short text table.
+
+use crate::config::RigConfig;
+use crate::dsp::{self, FeatureWindow, SpeedTrack};
+use crate::importers::{self, ImportOptions};
+use anyhow::{Context, Result};
+use serde::Serialize;
+use std::io::Write;
+use std::path::PathBuf;
 
 /// Arguments of `rigmon features`.
 #[derive(clap::Args, Debug)]
-pub struct Args {}
+pub struct Args {
+    /// Recording: rigmon .mcap, CWRU/MFPT .mat, .wav or .csv.
+    pub recording: PathBuf,
+    /// Rig file (channels, speed source, feature recipe).
+    #[arg(long)]
+    pub rig: PathBuf,
+    /// Sample rate in Hz, when the file does not say.
+    #[arg(long)]
+    pub sample_rate: Option<f64>,
+    /// Use this constant speed (rpm) instead of the rig's speed source.
+    #[arg(long)]
+    pub rpm: Option<f64>,
+    /// Print one JSON object per window (JSON Lines).
+    #[arg(long)]
+    pub json: bool,
+}
 
-pub fn run(_args: Args) -> anyhow::Result<()> {
-    anyhow::bail!("rigmon features is not implemented yet")
+/// One JSON line: the window plus the bin layout.
+#[derive(Serialize)]
+struct Line<'a> {
+    #[serde(flatten)]
+    window: &'a FeatureWindow,
+    bin_width: f64,
+    max_order: f64,
+}
+
+pub fn run(args: Args) -> Result<()> {
+    let rig = RigConfig::load(&args.rig)?;
+    let opts = ImportOptions {
+        sample_rate: args.sample_rate,
+        rpm: args.rpm,
+    };
+    let rec = importers::load(&args.recording, &rig, &opts)?;
+    let windows = match args.rpm {
+        Some(rpm) => dsp::extract_with_speed(&rec, &rig, &SpeedTrack::fixed(rpm)?)?,
+        None => dsp::extract_recording(&rec, &rig)?,
+    }
+    .into_iter();
+    let stdout = std::io::stdout();
+    let mut out = std::io::BufWriter::new(stdout.lock());
+    let classifier = rig
+        .classifier_channel()
+        .map(|c| c.name.clone())
+        .unwrap_or_default();
+    if !args.json {
+        writeln!(
+            out,
+            "{:>8} {:>8} {:>8} {:>9}  {:<24} quality",
+            "t_start",
+            "t_end",
+            "rpm",
+            "source",
+            format!("top bins ({classifier})")
+        )?;
+    }
+    for w in windows {
+        if args.json {
+            serde_json::to_writer(
+                &mut out,
+                &Line {
+                    window: &w,
+                    bin_width: rig.features.bin_width_order,
+                    max_order: rig.features.max_order,
+                },
+            )?;
+            writeln!(out)?;
+        } else {
+            let f = w.classifier_features(&rig);
+            let mut idx: Vec<usize> = (0..f.len()).collect();
+            idx.sort_by(|&a, &b| f[b].total_cmp(&f[a]));
+            let top: Vec<String> = idx
+                .iter()
+                .take(3)
+                .map(|&k| format!("{:.1}", (k as f64 + 0.5) * rig.features.bin_width_order))
+                .collect();
+            let flags = w.quality.flags();
+            writeln!(
+                out,
+                "{:>8.3} {:>8.3} {:>8.1} {:>9}  {:<24} {}",
+                w.t_start,
+                w.t_end,
+                w.rpm,
+                w.speed_source,
+                top.join(" "),
+                if flags.is_empty() {
+                    "ok".to_string()
+                } else {
+                    flags.join(",")
+                }
+            )?;
+        }
+    }
+    out.flush().context("writing to stdout")?;
+    Ok(())
 }

@@ -46,11 +46,11 @@ pub fn load(path: &Path, rig: &RigConfig, opts: &ImportOptions) -> Result<Record
     let mut map: Vec<Option<usize>> = Vec::with_capacity(names.len()); // column -> rig channel index
     for (c, name) in names.iter().enumerate() {
         if TIME_COLUMNS.iter().any(|t| t.eq_ignore_ascii_case(name)) {
-            if time_col.is_some() {
+            if let Some(tc) = time_col {
                 bail!(
                     "{p}: line {}: two time columns ({:?} and {name:?})",
                     header_idx + 1,
-                    names[time_col.unwrap()]
+                    names[tc]
                 );
             }
             time_col = Some(c);

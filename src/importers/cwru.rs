@@ -185,6 +185,20 @@ pub fn from_mat(
             samples: samples.iter().map(|&x| (x * k) as f32).collect(),
         });
     }
+    if let Some(c) = rig.classifier_channel() {
+        if let Some(pos) = POSITIONS.iter().find(|q| q.eq_ignore_ascii_case(&c.name)) {
+            let var = format!("X{number:03}_{pos}_time");
+            if mat.get(&var).is_none() {
+                bail!(
+                    "{p}: missing variable {var}: rig channel {} feeds the classifier (features.classifier_axis = {:?}); \
+                     the file holds: {}",
+                    c.name,
+                    rig.features.classifier_axis,
+                    mat.summary()
+                );
+            }
+        }
+    }
     if channels.is_empty() {
         bail!(
             "{p}: missing variable: none of {} found for the rig's channels; the file holds: {}",

@@ -131,12 +131,17 @@ pub fn load(path: &Path, rig: &RigConfig, opts: &ImportOptions) -> Result<Record
         bail!("{}: the recording holds no samples", path.display());
     }
     check_finite(path, &rec)?;
-    rec.metadata
-        .insert(META_RIG_ID.into(), rig.machine.id.clone());
-    if let Ok(text) = toml::to_string(rig) {
-        rec.metadata.insert(META_RIG_CONFIG.into(), text);
-    }
+    stamp_rig(&mut rec.metadata, rig);
     Ok(rec)
+}
+
+/// Record which rig a recording belongs to: `rig_id` and `rig_config` (the rig as TOML) in its
+/// metadata (the simulator and the recording sink can use this too).
+pub fn stamp_rig(metadata: &mut std::collections::BTreeMap<String, String>, rig: &RigConfig) {
+    metadata.insert(META_RIG_ID.into(), rig.machine.id.clone());
+    if let Ok(text) = toml::to_string(rig) {
+        metadata.insert(META_RIG_CONFIG.into(), text);
+    }
 }
 
 fn check_options(opts: &ImportOptions) -> Result<()> {

@@ -1,1 +1,17 @@
-//! (placeholder: filled in by its owner)
+//! The classifier: in-memory network ([`mlp`]), in-graph normalisation ([`preprocess`]),
+//! novelty detector ([`novelty`]), the trained bundle ([`classifier`]), its metadata
+//! ([`meta`]), the ONNX writer/reader ([`export`]) and tract inference ([`onnx`]).
+
+pub mod classifier;
+pub mod export;
+pub mod meta;
+pub mod mlp;
+pub mod novelty;
+pub mod onnx;
+pub mod preprocess;
+
+pub use meta::ModelMeta;
+pub use onnx::{OnnxClassifier, Prediction};
+
+/// The class labels a rigmon classifier may use, in canonical output order.
+pub const ALL_LABELS: [&str; 4] = ["healthy", "outer_race", "inner_race", "ball"];

@@ -1,5 +1,8 @@
 //! PNG pictures (plotters): shared set-up such as the font. One file per kind of picture.
 
+pub mod confusion;
+pub mod embedding;
+
 use anyhow::{bail, Result};
 use std::sync::OnceLock;
 
@@ -40,3 +43,5 @@ pub fn ensure_font() -> Result<()> {
         Err(e) => bail!("{e}"),
     }
 }
+
+pub mod spectrum;

@@ -25,8 +25,8 @@
 //!
 //! Message log/publish time = start_time_ns + first_sample / sample_rate_hz in ns.
 //!
-//! Reading tolerates a file cut short (kill -9): every complete chunk is used, the rest is
-//! dropped and a provenance note says so. Gaps on the sample clock (lost blocks) are filled
+//! Reading tolerates a file cut short (kill -9) or damaged: every complete chunk whose CRC
+//! checks is used, reading stops at the first bad one, and a provenance note says so. Gaps on the sample clock (lost blocks) are filled
 //! with zeros and noted.
 
 use super::{Channel, Provenance, Recording, Tacho};
@@ -71,6 +71,10 @@ offset  type    field\n\
 8       f64     sample_rate_hz\n\
 16      u32     n                number of edges\n\
 20      f64[n]  times_s          edge times, seconds since the recording start\n";
+
+/// Largest record (or decompressed chunk) the reader accepts, bytes: a damaged length field
+/// gives an error instead of a huge allocation.
+const MAX_RECORD_BYTES: usize = 1 << 30;
 
 /// Samples per message when [`write_recording`] splits a recording into blocks: about 0.1 s.
 fn default_block_len(sample_rate: f64) -> usize {
@@ -333,7 +337,7 @@ impl<W: Write + Seek> RecordingWriter<W> {
             bail!("write_block: block of {n} samples is too long");
         }
         if n > 0 {
-            for k in 0..channels.len() {
+            for (k, samples) in channels.iter().enumerate() {
                 let id = self.accel_ids[k];
                 let unit = std::mem::take(&mut self.units[k]);
                 encode_block(
@@ -341,7 +345,7 @@ impl<W: Write + Seek> RecordingWriter<W> {
                     first_sample,
                     self.sample_rate,
                     &unit,
-                    channels[k],
+                    samples,
                 );
                 self.units[k] = unit;
                 let h = self.header(id, first_sample);
@@ -597,12 +601,32 @@ pub fn read_recording_bytes(bytes: &[u8]) -> Result<Recording> {
     let mut edges: Vec<f64> = Vec::new();
     let mut cut_short: Option<String> = None;
     let mut seen_footer = false;
-    let reader = mcap::read::ChunkFlattener::new_with_options(
-        bytes,
-        mcap::read::Options::IgnoreEndMagic.into(),
-    )?;
-    for rec in reader {
-        let rec = match rec {
+    // The sans-io reader, with every chunk decompressed and its CRC checked before any of its
+    // records is used: a chunk cut short (or damaged) contributes nothing.
+    let mut reader = mcap::sans_io::LinearReader::new_with_options(
+        mcap::sans_io::LinearReaderOptions::default()
+            .with_skip_end_magic(true)
+            .with_validate_chunk_crcs(true)
+            .with_prevalidate_chunk_crcs(true)
+            .with_record_length_limit(MAX_RECORD_BYTES),
+    );
+    let mut rest = bytes;
+    while let Some(event) = reader.next_event() {
+        let (opcode, data) = match event {
+            Ok(mcap::sans_io::LinearReadEvent::ReadRequest(need)) => {
+                let len = need.min(rest.len());
+                reader.insert(len).copy_from_slice(&rest[..len]);
+                reader.notify_read(len);
+                rest = &rest[len..];
+                continue;
+            }
+            Ok(mcap::sans_io::LinearReadEvent::Record { opcode, data }) => (opcode, data),
+            Err(e) => {
+                cut_short = Some(e.to_string());
+                break;
+            }
+        };
+        let rec = match mcap::parse_record(opcode, data) {
             Ok(r) => r,
             Err(e) => {
                 cut_short = Some(e.to_string());
@@ -672,7 +696,7 @@ pub fn read_recording_bytes(bytes: &[u8]) -> Result<Recording> {
     let labels = metadata.get(LABELS_METADATA).cloned().unwrap_or_default();
     if let Some(e) = &cut_short {
         provenance.notes.push(format!(
-            "MCAP file cut short ({e}); read up to its last complete chunk"
+            "MCAP file cut short or damaged ({e}); read up to its last complete, intact chunk"
         ));
     } else if !seen_footer {
         provenance

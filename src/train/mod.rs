@@ -1,1 +1,12 @@
-//! (placeholder: filled in by its owner)
+//! Training beside the stream: manifests and featurised recordings ([`dataset`],
+//! [`featurise`]), splits by
+//! recording ([`split`]), the optimiser loop ([`trainer`]), and turning a training run into a
+//! complete model with novelty calibration and metadata ([`fit`]); fine-tuning on measured
+//! recordings ([`finetune`]).
+
+pub mod dataset;
+pub mod featurise;
+pub mod finetune;
+pub mod fit;
+pub mod split;
+pub mod trainer;

@@ -1,0 +1,188 @@
+//! The feature pipeline (thesis section 4.2): per window and channel, low-pass + Hilbert
+//! envelope, computed order tracking, order power spectrum, RMS per `bin_width_order` bin from
+//! 0 to `max_order` (100 values per channel for the default recipe). Plans and buffers are
+//! made once in [`FeaturePipeline::new`]; a window allocates only its returned
+//! [`FeatureWindow`].
+
+use crate::config::{RigConfig, SpeedConfig};
+use crate::dsp::envelope::Envelope;
+use crate::dsp::order_spectrum::OrderFft;
+use crate::dsp::order_tracking::OrderTracker;
+use crate::dsp::quality::{scan, Quality};
+use crate::dsp::speed::SpeedTrack;
+use anyhow::{bail, Result};
+use serde::{Deserialize, Serialize};
+use std::collections::BTreeMap;
+
+/// Features of one window.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct FeatureWindow {
+    /// Window start and end, s since the first sample of the recording/stream.
+    pub t_start: f64,
+    pub t_end: f64,
+    /// Mean shaft speed over the window.
+    pub rpm: f64,
+    /// Where the speed came from: tacho, edges, fixed, recording, estimate.
+    pub speed_source: String,
+    pub quality: Quality,
+    /// Channel name -> RMS per order bin (bin k covers (k*w, (k+1)*w] orders).
+    pub features: BTreeMap<String, Vec<f32>>,
+}
+
+impl FeatureWindow {
+    /// The classifier channel's features (empty if this window lacks that channel).
+    pub fn classifier_features(&self, rig: &RigConfig) -> &[f32] {
+        rig.classifier_channel()
+            .and_then(|c| self.features.get(&c.name))
+            .map(Vec::as_slice)
+            .unwrap_or(&[])
+    }
+}
+
+/// Envelope-order-spectrum features for fixed-length windows at one sample rate.
+pub struct FeaturePipeline {
+    sample_rate: f64,
+    len: usize,
+    bin_width: f64,
+    n_bins: usize,
+    max_order: f64,
+    lowpass_hz: f64,
+    rpm_limits: Option<(f64, f64)>,
+    envelope: Envelope,
+    tracker: OrderTracker,
+    fft: OrderFft,
+    env: Vec<f32>,
+    angle: Vec<f32>,
+}
+
+impl FeaturePipeline {
+    /// Plan the pipeline for the rig's feature settings at `sample_rate`.
+    pub fn new(rig: &RigConfig, sample_rate: f64) -> Result<Self> {
+        let f = &rig.features;
+        if !(sample_rate.is_finite() && sample_rate > 0.0) {
+            bail!("sample rate {sample_rate} Hz: must be a positive number");
+        }
+        let len = (f.window_s * sample_rate).round() as usize;
+        if len < 64 {
+            bail!("features.window_s = {} s at {sample_rate} Hz gives {len} samples; need at least 64", f.window_s);
+        }
+        let rpm_limits = match rig.speed {
+            SpeedConfig::Estimate { min_rpm, max_rpm } => Some((min_rpm, max_rpm)),
+            _ => None,
+        };
+        let tracker = OrderTracker::new(len, sample_rate, f.max_order);
+        let max_count = 4 * len;
+        Ok(FeaturePipeline {
+            sample_rate,
+            len,
+            bin_width: f.bin_width_order,
+            n_bins: f.n_bins(),
+            max_order: f.max_order,
+            lowpass_hz: f.lowpass_hz,
+            rpm_limits,
+            envelope: Envelope::new(len, sample_rate, f.lowpass_hz),
+            tracker,
+            fft: OrderFft::new(2),
+            env: vec![0.0; len],
+            angle: Vec::with_capacity(max_count),
+        })
+    }
+
+    /// Samples per window (window_s x sample rate).
+    pub fn window_len(&self) -> usize {
+        self.len
+    }
+
+    pub fn sample_rate(&self) -> f64 {
+        self.sample_rate
+    }
+
+    /// Features of the window starting at `t_start` (s, same clock as `speed`). Every channel
+    /// slice must hold exactly [`window_len`](Self::window_len) samples. NaN/Inf samples are
+    /// an error naming the channel and sample; other problems become quality flags.
+    pub fn process_window(
+        &mut self,
+        t_start: f64,
+        channels: &[(&str, &[f32])],
+        speed: &SpeedTrack,
+    ) -> Result<FeatureWindow> {
+        let t_end = t_start + self.len as f64 / self.sample_rate;
+        let mut quality = Quality::default();
+        for (name, x) in channels {
+            if x.len() != self.len {
+                bail!(
+                    "channel {name:?}: the window at t = {t_start:.3} s has {} samples, the pipeline expects {} (features.window_s x {} Hz)",
+                    x.len(),
+                    self.len,
+                    self.sample_rate
+                );
+            }
+            let s = scan(x, self.sample_rate);
+            if let Some(i) = s.non_finite {
+                bail!(
+                    "channel {name:?}: sample {i} of the window at t = {t_start:.3} s (t = {:.4} s) is {}; features cannot be computed from NaN/Inf — repair or drop the input",
+                    t_start + i as f64 / self.sample_rate,
+                    x[i]
+                );
+            }
+            let name = name.to_string();
+            if s.flat {
+                quality.flat.push(name);
+            } else {
+                if s.clipped {
+                    quality.clipped.push(name.clone());
+                }
+                if s.dropout {
+                    quality.dropout.push(name);
+                }
+            }
+        }
+        let info = self.tracker.prepare(t_start, speed)?;
+        let (ins, rem) = speed.repairs_between(t_start, t_end);
+        quality.missing_pulses = ins;
+        quality.extra_pulses = rem;
+        quality.speed_extrapolated = speed.extrapolates(t_start, t_end);
+        let rpm = speed.mean_rpm(t_start, t_end);
+        let top_hz = (self.lowpass_hz).min(self.sample_rate / 2.0);
+        quality.speed_out_of_range = info.revolutions < 1.0 / self.bin_width
+            || self.max_order * info.f_max > top_hz
+            || self.rpm_limits.is_some_and(|(lo, hi)| rpm < lo || rpm > hi);
+        let count = info.count;
+        if self.angle.len() < count {
+            self.angle.resize(count, 0.0);
+        }
+        let spr = self.tracker.samples_per_rev();
+        let mut features = BTreeMap::new();
+        for (name, x) in channels {
+            self.envelope.process(x, &mut self.env);
+            self.tracker.resample(&self.env, &mut self.angle[..count]);
+            let (step, lines) = self.fft.power(&self.angle[..count], spr);
+            let mut out = vec![0.0f32; self.n_bins];
+            band_rms(lines, step, self.bin_width, &mut out);
+            features.insert(name.to_string(), out);
+        }
+        Ok(FeatureWindow {
+            t_start,
+            t_end,
+            rpm,
+            speed_source: speed.source().to_string(),
+            quality,
+            features,
+        })
+    }
+}
+
+/// Sum power lines into bins (k*w, (k+1)*w] and take the square root (band RMS).
+pub fn band_rms(lines: &[f32], order_step: f64, bin_width: f64, out: &mut [f32]) {
+    let per = bin_width / order_step;
+    for (k, o) in out.iter_mut().enumerate() {
+        let first = ((k as f64 * per + 1e-9).floor() as usize) + 1;
+        let last = (((k + 1) as f64 * per + 1e-9).floor() as usize).min(lines.len() - 1);
+        let s: f32 = if first <= last {
+            lines[first..=last].iter().sum()
+        } else {
+            0.0
+        };
+        *o = s.sqrt();
+    }
+}

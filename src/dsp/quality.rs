@@ -1,0 +1,171 @@
+//! Signal-quality flags attached to every feature window: clipping, flat (dead) sensor,
+//! NaN/Inf samples, dropouts, repaired tacho pulses and speed out of range. The checks are
+//! cheap single passes over the window; the flags travel with the features so that the
+//! health stage can ignore or down-weight a doubtful window.
+
+use serde::{Deserialize, Serialize};
+
+/// Quality flags of one window (or of a whole recording).
+///
+/// Per-channel problems list the channel names; counts and booleans cover the speed reference.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct Quality {
+    /// Channels whose peaks sit flat at their extreme value (3+ identical samples): clipped.
+    pub clipped: Vec<String>,
+    /// Channels with no signal at all (peak-to-peak zero): dead or disconnected sensor.
+    pub flat: Vec<String>,
+    /// Channels containing NaN or Inf samples.
+    pub non_finite: Vec<String>,
+    /// Channels with a run of identical samples longer than 10 ms inside a live signal.
+    pub dropout: Vec<String>,
+    /// Tacho pulses that were missing and were inserted by the speed track.
+    pub missing_pulses: u32,
+    /// Spurious tacho pulses that were removed by the speed track.
+    pub extra_pulses: u32,
+    /// Shaft speed outside what the recipe can resolve (too few revolutions per window, or the
+    /// highest order above the low-pass cut-off) or outside the configured rpm range.
+    pub speed_out_of_range: bool,
+    /// The window reaches beyond the tacho pulses; speed there is extrapolated.
+    pub speed_extrapolated: bool,
+}
+
+impl Quality {
+    /// True when no flag is raised.
+    pub fn is_clean(&self) -> bool {
+        self.flags().is_empty()
+    }
+
+    /// Raised flags as short strings, e.g. `clipped:vertical`, `missing_pulses:2`.
+    pub fn flags(&self) -> Vec<String> {
+        let mut out = Vec::new();
+        for (name, list) in [
+            ("clipped", &self.clipped),
+            ("flat", &self.flat),
+            ("non_finite", &self.non_finite),
+            ("dropout", &self.dropout),
+        ] {
+            out.extend(list.iter().map(|c| format!("{name}:{c}")));
+        }
+        if self.missing_pulses > 0 {
+            out.push(format!("missing_pulses:{}", self.missing_pulses));
+        }
+        if self.extra_pulses > 0 {
+            out.push(format!("extra_pulses:{}", self.extra_pulses));
+        }
+        if self.speed_out_of_range {
+            out.push("speed_out_of_range".into());
+        }
+        if self.speed_extrapolated {
+            out.push("speed_extrapolated".into());
+        }
+        out
+    }
+
+    /// Check one channel's samples and raise its flags. `sample_rate` sets the dropout length.
+    pub fn check_channel(&mut self, name: &str, samples: &[f32], sample_rate: f64) {
+        let s = scan(samples, sample_rate);
+        if s.non_finite.is_some() {
+            self.non_finite.push(name.to_string());
+            return;
+        }
+        if s.flat {
+            self.flat.push(name.to_string());
+            return;
+        }
+        if s.clipped {
+            self.clipped.push(name.to_string());
+        }
+        if s.dropout {
+            self.dropout.push(name.to_string());
+        }
+    }
+}
+
+/// Result of one pass over a channel.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct ChannelScan {
+    /// Index of the first NaN/Inf sample.
+    pub non_finite: Option<usize>,
+    pub flat: bool,
+    pub clipped: bool,
+    pub dropout: bool,
+}
+
+/// Minimum run of identical samples at the extreme value that counts as clipping.
+const CLIP_RUN: usize = 3;
+
+/// Scan a channel once: first non-finite sample, flat, clipped, dropout.
+pub fn scan(samples: &[f32], sample_rate: f64) -> ChannelScan {
+    let mut out = ChannelScan::default();
+    if let Some(i) = samples.iter().position(|x| !x.is_finite()) {
+        out.non_finite = Some(i);
+        return out;
+    }
+    if samples.is_empty() {
+        out.flat = true;
+        return out;
+    }
+    let (mut lo, mut hi) = (f32::INFINITY, f32::NEG_INFINITY);
+    for &x in samples {
+        lo = lo.min(x);
+        hi = hi.max(x);
+    }
+    if hi - lo <= 0.0 {
+        out.flat = true;
+        return out;
+    }
+    let dropout_run = ((0.010 * sample_rate).round() as usize).max(8);
+    let (mut run, mut prev) = (1usize, samples[0]);
+    for &x in &samples[1..] {
+        if x == prev {
+            run += 1;
+            if run >= CLIP_RUN && (x == hi || x == lo) {
+                out.clipped = true;
+            }
+            if run >= dropout_run {
+                out.dropout = true;
+            }
+        } else {
+            run = 1;
+            prev = x;
+        }
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn sine(n: usize) -> Vec<f32> {
+        (0..n).map(|i| (i as f32 * 0.05).sin()).collect()
+    }
+
+    #[test]
+    fn clean_sine_raises_nothing() {
+        let mut q = Quality::default();
+        q.check_channel("v", &sine(10_000), 10_000.0);
+        assert!(q.is_clean(), "{:?}", q.flags());
+    }
+
+    #[test]
+    fn each_fault_is_flagged() {
+        let mut q = Quality::default();
+        let clipped: Vec<f32> = sine(10_000).iter().map(|x| x.clamp(-0.8, 0.8)).collect();
+        q.check_channel("c", &clipped, 10_000.0);
+        q.check_channel("f", &[0.25; 1000], 10_000.0);
+        let mut nan = sine(1000);
+        nan[17] = f32::NAN;
+        q.check_channel("n", &nan, 10_000.0);
+        let mut drop = sine(10_000);
+        drop[5000..5200].iter_mut().for_each(|x| *x = 0.0);
+        q.check_channel("d", &drop, 10_000.0);
+        assert_eq!(q.clipped, ["c"]);
+        assert_eq!(q.flat, ["f"]);
+        assert_eq!(q.non_finite, ["n"]);
+        assert_eq!(q.dropout, ["d"]);
+        assert_eq!(scan(&nan, 1.0).non_finite, Some(17));
+        assert!(q.flags().contains(&"dropout:d".to_string()));
+    }
+}

@@ -1,0 +1,395 @@
+//! ONNX writer and reader for [`TrainedModel`] (via the `tract_onnx::pb` protobuf types):
+//! opset 13, IR version 8, input `features` `[N, n_bins]` (raw RMS bins), outputs
+//! `probabilities` `[N, classes]` and `novelty` `[N]`, all normalisation inside the graph,
+//! metadata in `metadata_props`. The reader only understands graphs this writer made
+//! (fine-tuning reads a shipped model back to retrain its output layer).
+
+use super::classifier::TrainedModel;
+use super::meta::ModelMeta;
+use super::mlp::{Dense, Mlp};
+use super::novelty::Mahalanobis;
+use super::preprocess::{Preprocess, TINY};
+use anyhow::{bail, Context, Result};
+use ndarray::{Array1, Array2};
+use prost::Message;
+use std::collections::BTreeMap;
+use std::path::Path;
+use tract_onnx::pb;
+
+/// ONNX IR version written.
+pub const IR_VERSION: i64 = 8;
+/// Default-domain opset written.
+pub const OPSET: i64 = 13;
+/// Graph input name.
+pub const INPUT: &str = "features";
+/// Graph output names.
+pub const OUT_PROBS: &str = "probabilities";
+pub const OUT_NOVELTY: &str = "novelty";
+
+fn f32_tensor(name: &str, dims: &[usize], data: impl IntoIterator<Item = f32>) -> pb::TensorProto {
+    let raw: Vec<u8> = data.into_iter().flat_map(|v| v.to_le_bytes()).collect();
+    pb::TensorProto {
+        name: name.into(),
+        dims: dims.iter().map(|&d| d as i64).collect(),
+        data_type: pb::tensor_proto::DataType::Float as i32,
+        raw_data: raw,
+        ..Default::default()
+    }
+}
+
+fn i64_tensor(name: &str, data: &[i64]) -> pb::TensorProto {
+    pb::TensorProto {
+        name: name.into(),
+        dims: vec![data.len() as i64],
+        data_type: pb::tensor_proto::DataType::Int64 as i32,
+        raw_data: data.iter().flat_map(|v| v.to_le_bytes()).collect(),
+        ..Default::default()
+    }
+}
+
+fn attr_int(name: &str, v: i64) -> pb::AttributeProto {
+    pb::AttributeProto {
+        name: name.into(),
+        r#type: pb::attribute_proto::AttributeType::Int as i32,
+        i: v,
+        ..Default::default()
+    }
+}
+
+fn attr_ints(name: &str, v: &[i64]) -> pb::AttributeProto {
+    pb::AttributeProto {
+        name: name.into(),
+        r#type: pb::attribute_proto::AttributeType::Ints as i32,
+        ints: v.to_vec(),
+        ..Default::default()
+    }
+}
+
+fn node(
+    op: &str,
+    name: &str,
+    inputs: &[&str],
+    outputs: &[&str],
+    attrs: Vec<pb::AttributeProto>,
+) -> pb::NodeProto {
+    pb::NodeProto {
+        op_type: op.into(),
+        name: name.into(),
+        input: inputs.iter().map(|s| s.to_string()).collect(),
+        output: outputs.iter().map(|s| s.to_string()).collect(),
+        attribute: attrs,
+        ..Default::default()
+    }
+}
+
+enum Dim {
+    Batch,
+    Fixed(usize),
+}
+
+fn value_info(name: &str, dims: &[Dim]) -> pb::ValueInfoProto {
+    use pb::tensor_shape_proto::{dimension::Value, Dimension};
+    let dim = dims
+        .iter()
+        .map(|d| Dimension {
+            denotation: String::new(),
+            value: Some(match d {
+                Dim::Batch => Value::DimParam("N".into()),
+                Dim::Fixed(n) => Value::DimValue(*n as i64),
+            }),
+        })
+        .collect();
+    pb::ValueInfoProto {
+        name: name.into(),
+        r#type: Some(pb::TypeProto {
+            denotation: String::new(),
+            value: Some(pb::type_proto::Value::TensorType(pb::type_proto::Tensor {
+                elem_type: pb::tensor_proto::DataType::Float as i32,
+                shape: Some(pb::TensorShapeProto { dim }),
+            })),
+        }),
+        ..Default::default()
+    }
+}
+
+/// Build the ONNX model.
+pub fn to_proto(m: &TrainedModel) -> pb::ModelProto {
+    let n_in = m.pre.n_features();
+    let n_cls = m.mlp.n_classes();
+    let mut init = vec![
+        f32_tensor("pre_tiny", &[], [TINY]),
+        f32_tensor("pre_floor", &[], [m.pre.floor]),
+        f32_tensor("pre_mean", &[n_in], m.pre.mean.iter().copied()),
+        f32_tensor("pre_inv_std", &[n_in], m.pre.inv_std.iter().copied()),
+    ];
+    let mut nodes = vec![
+        node(
+            "ReduceMean",
+            "window_mean",
+            &[INPUT],
+            &["win_mean"],
+            vec![attr_ints("axes", &[1]), attr_int("keepdims", 1)],
+        ),
+        node(
+            "Add",
+            "window_mean_safe",
+            &["win_mean", "pre_tiny"],
+            &["win_mean_safe"],
+            vec![],
+        ),
+        node(
+            "Div",
+            "ratio",
+            &[INPUT, "win_mean_safe"],
+            &["ratio"],
+            vec![],
+        ),
+        node(
+            "Add",
+            "ratio_floor",
+            &["ratio", "pre_floor"],
+            &["ratio_floor"],
+            vec![],
+        ),
+        node("Log", "log_ratio", &["ratio_floor"], &["log_ratio"], vec![]),
+        node(
+            "Sub",
+            "centre",
+            &["log_ratio", "pre_mean"],
+            &["centred"],
+            vec![],
+        ),
+        node("Mul", "scale", &["centred", "pre_inv_std"], &["z"], vec![]),
+    ];
+    let n_layers = m.mlp.layers.len();
+    let mut prev = "z".to_string();
+    for (i, l) in m.mlp.layers.iter().enumerate() {
+        let k = i + 1;
+        let (w, b) = (format!("dense_{k}_w"), format!("dense_{k}_b"));
+        init.push(f32_tensor(&w, &[l.n_out(), l.n_in()], l.w.iter().copied()));
+        init.push(f32_tensor(&b, &[l.n_out()], l.b.iter().copied()));
+        let is_out = i + 1 == n_layers;
+        let gemm_out = if is_out {
+            "logits".to_string()
+        } else {
+            format!("dense_{k}")
+        };
+        nodes.push(node(
+            "Gemm",
+            &format!("dense_{k}"),
+            &[&prev, &w, &b],
+            &[&gemm_out],
+            vec![attr_int("transB", 1)],
+        ));
+        if is_out {
+            nodes.push(node(
+                "Softmax",
+                "softmax",
+                &["logits"],
+                &[OUT_PROBS],
+                vec![attr_int("axis", -1)],
+            ));
+        } else {
+            let act = format!("relu_{k}");
+            nodes.push(node("Relu", &act, &[&gemm_out], &[&act], vec![]));
+            prev = act;
+        }
+    }
+    let k = m.novelty.whiten.nrows();
+    init.push(f32_tensor(
+        "novelty_whiten",
+        &[k, k],
+        m.novelty.whiten.iter().copied(),
+    ));
+    init.push(f32_tensor(
+        "novelty_centroids",
+        &[n_cls, k],
+        m.novelty.centroids.iter().copied(),
+    ));
+    init.push(i64_tensor("novelty_unsqueeze_axes", &[1]));
+    nodes.extend([
+        node(
+            "MatMul",
+            "novelty_whitening",
+            &[&prev, "novelty_whiten"],
+            &["whitened"],
+            vec![],
+        ),
+        node(
+            "Unsqueeze",
+            "novelty_unsqueeze",
+            &["whitened", "novelty_unsqueeze_axes"],
+            &["whitened_3d"],
+            vec![],
+        ),
+        node(
+            "Sub",
+            "novelty_offset",
+            &["whitened_3d", "novelty_centroids"],
+            &["offsets"],
+            vec![],
+        ),
+        node(
+            "ReduceSumSquare",
+            "novelty_d2",
+            &["offsets"],
+            &["d2"],
+            vec![attr_ints("axes", &[2]), attr_int("keepdims", 0)],
+        ),
+        node(
+            "ReduceMin",
+            "novelty_nearest",
+            &["d2"],
+            &["d2_min"],
+            vec![attr_ints("axes", &[1]), attr_int("keepdims", 0)],
+        ),
+        node("Sqrt", "novelty_sqrt", &["d2_min"], &[OUT_NOVELTY], vec![]),
+    ]);
+    let graph = pb::GraphProto {
+        name: "rigmon_classifier".into(),
+        node: nodes,
+        initializer: init,
+        input: vec![value_info(INPUT, &[Dim::Batch, Dim::Fixed(n_in)])],
+        output: vec![value_info(OUT_PROBS, &[Dim::Batch, Dim::Fixed(n_cls)]), value_info(OUT_NOVELTY, &[Dim::Batch])],
+        doc_string: "Envelope-order-spectrum bearing classifier: raw RMS order bins in, class probabilities and a Mahalanobis novelty score out.".into(),
+        ..Default::default()
+    };
+    pb::ModelProto {
+        ir_version: IR_VERSION,
+        opset_import: vec![pb::OperatorSetIdProto {
+            domain: String::new(),
+            version: OPSET,
+        }],
+        producer_name: "rigmon".into(),
+        producer_version: env!("CARGO_PKG_VERSION").into(),
+        graph: Some(graph),
+        metadata_props: m
+            .meta
+            .to_props()
+            .into_iter()
+            .map(|(key, value)| pb::StringStringEntryProto { key, value })
+            .collect(),
+        ..Default::default()
+    }
+}
+
+/// Serialise to ONNX bytes.
+pub fn to_bytes(m: &TrainedModel) -> Vec<u8> {
+    to_proto(m).encode_to_vec()
+}
+
+/// Write the model to `path` (parent folders created).
+pub fn write(m: &TrainedModel, path: &Path) -> Result<()> {
+    if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
+        std::fs::create_dir_all(dir)
+            .with_context(|| format!("cannot create folder {}", dir.display()))?;
+    }
+    std::fs::write(path, to_bytes(m))
+        .with_context(|| format!("cannot write model {}", path.display()))
+}
+
+/// `metadata_props` of a decoded model as a map.
+pub fn props(proto: &pb::ModelProto) -> BTreeMap<String, String> {
+    proto
+        .metadata_props
+        .iter()
+        .map(|e| (e.key.clone(), e.value.clone()))
+        .collect()
+}
+
+fn tensor_f32(t: &pb::TensorProto) -> Vec<f32> {
+    if !t.raw_data.is_empty() {
+        t.raw_data
+            .chunks_exact(4)
+            .map(|c| f32::from_le_bytes([c[0], c[1], c[2], c[3]]))
+            .collect()
+    } else {
+        t.float_data.clone()
+    }
+}
+
+/// Read a model written by [`write`] back into memory. `what` names the file in errors.
+pub fn from_bytes(bytes: &[u8], what: &str) -> Result<TrainedModel> {
+    let proto = pb::ModelProto::decode(bytes)
+        .with_context(|| format!("{what}: not an ONNX model (protobuf decode failed)"))?;
+    let meta = ModelMeta::from_props(&props(&proto), what)?;
+    let graph = proto
+        .graph
+        .as_ref()
+        .with_context(|| format!("{what}: ONNX model has no graph"))?;
+    let inits: BTreeMap<&str, &pb::TensorProto> = graph
+        .initializer
+        .iter()
+        .map(|t| (t.name.as_str(), t))
+        .collect();
+    let get = |name: &str, shape: &[usize]| -> Result<Vec<f32>> {
+        let t = inits.get(name).with_context(|| {
+            format!("{what}: initializer {name:?} missing; only models written by `rigmon train` can be read back")
+        })?;
+        let v = tensor_f32(t);
+        let want: usize = shape.iter().product();
+        if v.len() != want {
+            bail!(
+                "{what}: initializer {name:?} has {} values, expected {want} (shape {shape:?})",
+                v.len()
+            );
+        }
+        Ok(v)
+    };
+    let floor = get("pre_floor", &[])?[0];
+    let n_in = meta.n_features;
+    let pre = Preprocess {
+        floor,
+        mean: Array1::from(get("pre_mean", &[n_in])?),
+        inv_std: Array1::from(get("pre_inv_std", &[n_in])?),
+    };
+    let mut layers = Vec::new();
+    let mut k = 1;
+    while let Some(t) = inits.get(format!("dense_{k}_w").as_str()) {
+        if t.dims.len() != 2 {
+            bail!("{what}: dense_{k}_w is not a matrix (dims {:?})", t.dims);
+        }
+        let (o, i) = (t.dims[0] as usize, t.dims[1] as usize);
+        let w = Array2::from_shape_vec((o, i), get(&format!("dense_{k}_w"), &[o, i])?)?;
+        let b = Array1::from(get(&format!("dense_{k}_b"), &[o])?);
+        layers.push(Dense { w, b });
+        k += 1;
+    }
+    if layers.len() < 2 {
+        bail!("{what}: found {} dense layers; a rigmon classifier has hidden layers and an output layer", layers.len());
+    }
+    let hidden = layers[layers.len() - 2].n_out();
+    let n_cls = layers.last().map(Dense::n_out).unwrap_or(0);
+    if n_cls != meta.labels.len() {
+        bail!(
+            "{what}: output layer has {n_cls} classes but metadata lists {} labels",
+            meta.labels.len()
+        );
+    }
+    let novelty = Mahalanobis {
+        whiten: Array2::from_shape_vec(
+            (hidden, hidden),
+            get("novelty_whiten", &[hidden, hidden])?,
+        )?,
+        centroids: Array2::from_shape_vec(
+            (n_cls, hidden),
+            get("novelty_centroids", &[n_cls, hidden])?,
+        )?,
+        threshold: meta.novelty_threshold,
+    };
+    Ok(TrainedModel {
+        pre,
+        mlp: Mlp { layers },
+        novelty,
+        meta,
+    })
+}
+
+/// Read a model file written by [`write`].
+pub fn read(path: &Path) -> Result<TrainedModel> {
+    let bytes =
+        std::fs::read(path).with_context(|| format!("cannot read model {}", path.display()))?;
+    let mut m = from_bytes(&bytes, &path.display().to_string())?;
+    m.meta.sha256 = super::onnx::sha256_hex(&bytes);
+    Ok(m)
+}

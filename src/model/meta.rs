@@ -1,0 +1,106 @@
+//! Model metadata: what a classifier file says about itself (class labels, feature layout,
+//! provenance), stored as ONNX `metadata_props` and read back by [`super::onnx`].
+
+use anyhow::{bail, Context, Result};
+use std::collections::BTreeMap;
+
+/// Metadata of a classifier model file.
+#[derive(Debug, Clone, PartialEq, Default, serde::Serialize)]
+pub struct ModelMeta {
+    /// Class labels in output order (e.g. healthy, outer_race, inner_race).
+    pub labels: Vec<String>,
+    /// Width of one feature bin in orders.
+    pub bin_width: f64,
+    /// Highest order (the last bin ends here).
+    pub max_order: f64,
+    /// Channel name or axis whose features feed the model.
+    pub axis: String,
+    /// Rig the model was trained for (`machine.id`).
+    pub rig_id: String,
+    /// SHA-256 over the training recordings and their labels.
+    pub data_hash: String,
+    /// Calibration id of the rig file used to simulate the training data ("none" if none).
+    pub calibration_id: String,
+    /// rigmon version that wrote the file.
+    pub rigmon_version: String,
+    /// Novelty scores above this are reported as `unknown`.
+    pub novelty_threshold: f32,
+    /// SHA-256 of the model file itself (empty for a model not yet written).
+    pub sha256: String,
+    /// Number of input features (bins).
+    pub n_features: usize,
+    /// Name of the in-graph feature normalisation.
+    pub normalization: String,
+    /// Training summary (JSON text): plan, seed, epochs, split, validation figures.
+    pub training: String,
+    /// Fine-tuning summary (JSON text), empty when the model was never fine-tuned.
+    pub finetune: String,
+}
+
+impl ModelMeta {
+    /// As ONNX `metadata_props` entries (key, value), in a stable order.
+    pub fn to_props(&self) -> Vec<(String, String)> {
+        let mut v = vec![
+            ("labels".to_string(), self.labels.join(",")),
+            ("bin_width".into(), self.bin_width.to_string()),
+            ("max_order".into(), self.max_order.to_string()),
+            ("axis".into(), self.axis.clone()),
+            ("rig_id".into(), self.rig_id.clone()),
+            ("data_hash".into(), self.data_hash.clone()),
+            ("calibration_id".into(), self.calibration_id.clone()),
+            ("rigmon_version".into(), self.rigmon_version.clone()),
+            (
+                "novelty_threshold".into(),
+                format!("{:?}", self.novelty_threshold),
+            ),
+            ("n_features".into(), self.n_features.to_string()),
+            ("normalization".into(), self.normalization.clone()),
+            ("training".into(), self.training.clone()),
+        ];
+        if !self.finetune.is_empty() {
+            v.push(("finetune".into(), self.finetune.clone()));
+        }
+        v
+    }
+
+    /// Parse `metadata_props`; `what` names the file in errors.
+    pub fn from_props(props: &BTreeMap<String, String>, what: &str) -> Result<ModelMeta> {
+        let get = |k: &str| -> Result<&String> {
+            props.get(k).with_context(|| {
+                format!("{what}: metadata_props has no {k:?}; this is not a rigmon classifier (retrain it with `rigmon train`)")
+            })
+        };
+        let num = |k: &str| -> Result<f64> {
+            let s = get(k)?;
+            s.parse::<f64>()
+                .with_context(|| format!("{what}: metadata {k} = {s:?} is not a number"))
+        };
+        let labels: Vec<String> = get("labels")?
+            .split(',')
+            .map(|s| s.trim().to_string())
+            .filter(|s| !s.is_empty())
+            .collect();
+        if labels.len() < 2 {
+            bail!(
+                "{what}: metadata labels = {:?} needs at least two classes",
+                get("labels")?
+            );
+        }
+        Ok(ModelMeta {
+            labels,
+            bin_width: num("bin_width")?,
+            max_order: num("max_order")?,
+            axis: get("axis")?.clone(),
+            rig_id: get("rig_id")?.clone(),
+            data_hash: get("data_hash")?.clone(),
+            calibration_id: get("calibration_id")?.clone(),
+            rigmon_version: get("rigmon_version")?.clone(),
+            novelty_threshold: num("novelty_threshold")? as f32,
+            sha256: String::new(),
+            n_features: num("n_features")? as usize,
+            normalization: get("normalization")?.clone(),
+            training: props.get("training").cloned().unwrap_or_default(),
+            finetune: props.get("finetune").cloned().unwrap_or_default(),
+        })
+    }
+}

@@ -1,0 +1,153 @@
+//! Inference on a classifier file with tract: [`OnnxClassifier`] loads an ONNX model written
+//! by `rigmon train`, checks its metadata, and predicts class probabilities plus a novelty
+//! score for one window of raw features. The daemon, `evaluate` and `finetune` use it.
+
+pub use super::meta::ModelMeta;
+use crate::config::RigConfig;
+use anyhow::{anyhow, bail, Context, Result};
+use prost::Message;
+use sha2::{Digest, Sha256};
+use std::path::Path;
+use std::sync::Arc;
+use tract_onnx::prelude::*;
+
+type Plan = Arc<TypedRunnableModel>;
+
+/// The result for one window.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct Prediction {
+    /// Probability per class, in `meta().labels` order.
+    pub probs: Vec<f32>,
+    /// Index of the most probable class.
+    pub class: usize,
+    /// Its label.
+    pub label: String,
+    /// Novelty score (Mahalanobis distance of the last hidden layer to the nearest class).
+    pub novelty: f32,
+    /// `novelty > meta().novelty_threshold`: the window is unlike the training data.
+    pub unknown: bool,
+}
+
+/// A classifier loaded from an ONNX file, ready to run one window at a time.
+pub struct OnnxClassifier {
+    plan: Plan,
+    meta: ModelMeta,
+}
+
+impl std::fmt::Debug for OnnxClassifier {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("OnnxClassifier")
+            .field("meta", &self.meta)
+            .finish_non_exhaustive()
+    }
+}
+
+/// Lower-case hex SHA-256 of some bytes.
+pub fn sha256_hex(bytes: &[u8]) -> String {
+    Sha256::digest(bytes)
+        .iter()
+        .map(|b| format!("{b:02x}"))
+        .collect()
+}
+
+impl OnnxClassifier {
+    /// Load and optimise a model file; errors name the file and what is wrong with it.
+    pub fn load(path: &Path) -> Result<Self> {
+        let bytes = std::fs::read(path)
+            .with_context(|| format!("cannot read model file {}", path.display()))?;
+        Self::from_bytes(&bytes, &path.display().to_string())
+    }
+
+    /// Load from ONNX bytes; `what` names the source in errors.
+    pub fn from_bytes(bytes: &[u8], what: &str) -> Result<Self> {
+        let proto = tract_onnx::pb::ModelProto::decode(bytes).with_context(|| {
+            format!("{what}: not an ONNX model (protobuf decode failed); is the file truncated?")
+        })?;
+        let mut meta = ModelMeta::from_props(&super::export::props(&proto), what)?;
+        meta.sha256 = sha256_hex(bytes);
+        let n = meta.n_features;
+        let plan = tract_onnx::onnx()
+            .model_for_read(&mut &bytes[..])
+            .and_then(|m| m.with_input_fact(0, f32::fact([1, n]).into()))
+            .and_then(|m| m.into_optimized())
+            .and_then(|m| m.into_runnable())
+            .map_err(|e| anyhow!("{what}: tract cannot load the model: {e:#}"))?;
+        Ok(OnnxClassifier { plan, meta })
+    }
+
+    pub fn meta(&self) -> &ModelMeta {
+        &self.meta
+    }
+
+    /// Fail with a clear message when the rig's feature layout differs from the model's.
+    pub fn check_rig(&self, rig: &RigConfig) -> Result<()> {
+        let f = &rig.features;
+        let m = &self.meta;
+        if (f.bin_width_order - m.bin_width).abs() > 1e-9
+            || (f.max_order - m.max_order).abs() > 1e-9
+            || f.n_bins() != m.n_features
+        {
+            bail!(
+                "model expects {} bins of {} orders up to order {}, but rig {:?} gives {} bins of {} up to {}; use a model trained for this rig",
+                m.n_features,
+                m.bin_width,
+                m.max_order,
+                rig.machine.id,
+                f.n_bins(),
+                f.bin_width_order,
+                f.max_order
+            );
+        }
+        Ok(())
+    }
+
+    /// Classify one window of raw features (`meta().n_features` values).
+    pub fn predict(&self, features: &[f32]) -> Result<Prediction> {
+        let n = self.meta.n_features;
+        if features.len() != n {
+            bail!(
+                "model expects {n} features per window, got {}",
+                features.len()
+            );
+        }
+        let input = tract_ndarray::Array2::from_shape_vec((1, n), features.to_vec())?;
+        let out = self
+            .plan
+            .run(tvec!(Tensor::from(input).into()))
+            .map_err(|e| anyhow!("model inference failed: {e:#}"))?;
+        if out.len() < 2 {
+            bail!(
+                "model returned {} outputs; expected probabilities and novelty",
+                out.len()
+            );
+        }
+        let probs: Vec<f32> = out[0]
+            .to_plain_array_view::<f32>()
+            .map_err(|e| anyhow!("{e:#}"))?
+            .iter()
+            .copied()
+            .collect();
+        let novelty = *out[1]
+            .to_plain_array_view::<f32>()
+            .map_err(|e| anyhow!("{e:#}"))?
+            .iter()
+            .next()
+            .context("empty novelty output")?;
+        let class = probs
+            .iter()
+            .enumerate()
+            .fold(
+                (0, f32::NEG_INFINITY),
+                |b, (i, &v)| if v > b.1 { (i, v) } else { b },
+            )
+            .0;
+        let label = self.meta.labels.get(class).cloned().unwrap_or_default();
+        Ok(Prediction {
+            unknown: !(novelty <= self.meta.novelty_threshold),
+            probs,
+            class,
+            label,
+            novelty,
+        })
+    }
+}

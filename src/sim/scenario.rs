@@ -1,0 +1,230 @@
+//! A scenario: which faults, which speed profile, how long, which seed, and optional
+//! overrides of the rig's `[simulation]` parameters (defect size, slip, load, contact angle,
+//! noise, resonance...). Plans expand into scenarios; `simulate` runs one.
+
+use super::defects::DefectSet;
+use super::profile::SpeedProfile;
+use crate::config::simulation::{DefectShape, SimulationConfig};
+use anyhow::{bail, Result};
+use serde::{Deserialize, Serialize};
+use std::collections::BTreeMap;
+
+/// A localized bearing fault.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Fault {
+    OuterRace,
+    InnerRace,
+    Ball,
+}
+
+impl Fault {
+    pub fn label(&self) -> &'static str {
+        match self {
+            Fault::OuterRace => "outer_race",
+            Fault::InnerRace => "inner_race",
+            Fault::Ball => "ball",
+        }
+    }
+
+    /// Parse `healthy|outer_race|inner_race|ball[,..]` (also `or`, `ir`, `b`, `orf`, `irf`).
+    pub fn parse_list(text: &str) -> Result<Vec<Fault>> {
+        let mut out = Vec::new();
+        for part in text
+            .split([',', '+'])
+            .map(str::trim)
+            .filter(|s| !s.is_empty())
+        {
+            let f = match part.to_ascii_lowercase().as_str() {
+                "healthy" | "none" => continue,
+                "outer_race" | "outer" | "or" | "orf" => Fault::OuterRace,
+                "inner_race" | "inner" | "ir" | "irf" => Fault::InnerRace,
+                "ball" | "b" | "re" => Fault::Ball,
+                other => bail!("unknown fault {other:?}: use healthy, outer_race, inner_race, ball (comma-separated for compound faults)"),
+            };
+            if !out.contains(&f) {
+                out.push(f);
+            }
+        }
+        Ok(out)
+    }
+}
+
+/// The label of a fault list: `healthy`, or the dominant (first listed) fault. Compound
+/// faults keep the full list in the `faults` metadata key.
+pub fn label_of(faults: &[Fault]) -> &'static str {
+    faults.first().map_or("healthy", Fault::label)
+}
+
+/// Optional per-scenario changes to the rig's `[simulation]` section.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Overrides {
+    pub defect_width_mm: Option<f64>,
+    pub defect_depth_mm: Option<f64>,
+    pub defect_length_mm: Option<f64>,
+    pub defect_shape: Option<DefectShape>,
+    pub outer_race_position_deg: Option<f64>,
+    pub inner_race_position_deg: Option<f64>,
+    pub slip: Option<f64>,
+    pub slip_jitter: Option<f64>,
+    pub contact_angle_deg: Option<f64>,
+    pub radial_load_n: Option<f64>,
+    pub radial_clearance_mm: Option<f64>,
+    /// Scales every disc's unbalance.
+    pub unbalance_scale: Option<f64>,
+    pub noise_rms_m_s2: Option<f64>,
+    /// Moves the first structural resonance to this frequency (others keep their ratio).
+    pub resonance_hz: Option<f64>,
+    /// Sets the damping ratio of every structural resonance.
+    pub resonance_damping: Option<f64>,
+}
+
+impl Overrides {
+    /// The rig's simulation section with these overrides applied.
+    pub fn apply(&self, base: &SimulationConfig) -> SimulationConfig {
+        let mut s = base.clone();
+        let d = &mut s.defect;
+        if let Some(v) = self.defect_width_mm {
+            d.width_mm = v;
+        }
+        if let Some(v) = self.defect_depth_mm {
+            d.depth_mm = v;
+        }
+        if let Some(v) = self.defect_length_mm {
+            d.length_mm = v;
+        }
+        if let Some(v) = self.defect_shape {
+            d.shape = v;
+        }
+        if let Some(v) = self.outer_race_position_deg {
+            d.outer_race_position_deg = v;
+        }
+        if let Some(v) = self.inner_race_position_deg {
+            d.inner_race_position_deg = v;
+        }
+        let b = &mut s.bearing;
+        if let Some(v) = self.slip {
+            b.slip = v;
+        }
+        if let Some(v) = self.slip_jitter {
+            b.slip_jitter = v;
+        }
+        if let Some(v) = self.contact_angle_deg {
+            b.contact_angle_deg = Some(v);
+        }
+        if let Some(v) = self.radial_load_n {
+            b.radial_load_n = v;
+        }
+        if let Some(v) = self.radial_clearance_mm {
+            b.radial_clearance_mm = v;
+        }
+        if let Some(k) = self.unbalance_scale {
+            for disc in &mut s.rotor.discs {
+                disc.unbalance_g_mm *= k;
+            }
+        }
+        if let Some(v) = self.noise_rms_m_s2 {
+            s.structure.noise_rms_m_s2 = v;
+        }
+        if let Some(f) = self.resonance_hz {
+            if let Some(f0) = s.structure.resonances.first().map(|r| r.hz) {
+                for r in &mut s.structure.resonances {
+                    r.hz *= f / f0;
+                }
+            }
+        }
+        if let Some(z) = self.resonance_damping {
+            for r in &mut s.structure.resonances {
+                r.damping = z;
+            }
+        }
+        s
+    }
+
+    /// `key=value` pairs of the overrides that are set (for metadata).
+    pub fn to_metadata(&self) -> BTreeMap<String, String> {
+        let v = serde_json::to_value(self).unwrap_or_default();
+        let mut out = BTreeMap::new();
+        if let Some(map) = v.as_object() {
+            for (k, val) in map {
+                if !val.is_null() {
+                    out.insert(k.clone(), val.to_string().trim_matches('"').to_string());
+                }
+            }
+        }
+        out
+    }
+}
+
+/// One simulation run.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Scenario {
+    /// Empty = healthy.
+    pub faults: Vec<Fault>,
+    pub profile: SpeedProfile,
+    /// Length of the recording, s.
+    pub seconds: f64,
+    pub seed: u64,
+    pub overrides: Overrides,
+    /// Extra metadata stored with the recording (plan name, case...).
+    pub metadata: BTreeMap<String, String>,
+}
+
+impl Scenario {
+    /// A constant-speed scenario without overrides.
+    pub fn constant(faults: &[Fault], rpm: f64, seconds: f64, seed: u64) -> Scenario {
+        Scenario {
+            faults: faults.to_vec(),
+            profile: SpeedProfile::Constant { rpm },
+            seconds,
+            seed,
+            overrides: Overrides::default(),
+            metadata: BTreeMap::new(),
+        }
+    }
+
+    pub fn label(&self) -> &'static str {
+        label_of(&self.faults)
+    }
+
+    pub fn defect_set(&self) -> DefectSet {
+        DefectSet {
+            outer_race: self.faults.contains(&Fault::OuterRace),
+            inner_race: self.faults.contains(&Fault::InnerRace),
+            ball: self.faults.contains(&Fault::Ball),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn fault_lists() {
+        assert_eq!(Fault::parse_list("healthy").unwrap(), vec![]);
+        assert_eq!(
+            Fault::parse_list("inner_race,outer_race").unwrap(),
+            vec![Fault::InnerRace, Fault::OuterRace]
+        );
+        assert_eq!(label_of(&Fault::parse_list("ir+or").unwrap()), "inner_race");
+        let err = Fault::parse_list("cage").unwrap_err().to_string();
+        assert!(err.contains("cage"), "{err}");
+    }
+
+    #[test]
+    fn overrides_apply() {
+        let base = SimulationConfig::default();
+        let o = Overrides {
+            defect_width_mm: Some(0.3),
+            resonance_hz: Some(2000.0),
+            ..Default::default()
+        };
+        let s = o.apply(&base);
+        assert_eq!(s.defect.width_mm, 0.3);
+        assert!((s.structure.resonances[0].hz - 2000.0).abs() < 1e-9);
+        assert!(s.structure.resonances[1].hz > 2000.0);
+        assert_eq!(o.to_metadata()["defect_width_mm"], "0.3");
+    }
+}

@@ -1,0 +1,152 @@
+//! Labelled recordings for training and evaluation: the `labels.csv` manifest (`path,label`,
+//! relative paths relative to the CSV), a recording reduced to its classifier feature windows
+//! ([`RecordingFeatures`], made by [`super::featurise`]), and the training-data hash.
+
+use crate::model::ALL_LABELS;
+use anyhow::{bail, Context, Result};
+use ndarray::Array2;
+use sha2::{Digest, Sha256};
+use std::path::{Path, PathBuf};
+
+/// One row of a manifest.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ManifestEntry {
+    /// Resolved path (relative paths joined to the CSV's folder).
+    pub path: PathBuf,
+    /// As written in the CSV.
+    pub path_text: String,
+    pub label: String,
+    /// 1-based line in the CSV.
+    pub line: usize,
+}
+
+/// `--data` may name a dataset folder (holding `labels.csv`) or the CSV itself.
+pub fn manifest_path(data: &Path) -> PathBuf {
+    if data.is_dir() {
+        data.join("labels.csv")
+    } else {
+        data.to_path_buf()
+    }
+}
+
+/// Read a manifest. The header must have `path` and `label` columns (others are ignored).
+pub fn read_manifest(csv: &Path) -> Result<Vec<ManifestEntry>> {
+    let text = std::fs::read_to_string(csv).with_context(|| {
+        format!("cannot read manifest {} (expected a CSV with header `path,label`, or a dataset folder holding labels.csv)", csv.display())
+    })?;
+    parse_manifest(&text, csv)
+}
+
+/// Parse manifest text; `csv` is used to resolve relative paths and to name errors.
+pub fn parse_manifest(text: &str, csv: &Path) -> Result<Vec<ManifestEntry>> {
+    let base = csv.parent().unwrap_or(Path::new("."));
+    let mut lines = text
+        .lines()
+        .enumerate()
+        .filter(|(_, l)| !l.trim().is_empty() && !l.trim_start().starts_with('#'));
+    let (hline, header) = lines.next().with_context(|| {
+        format!(
+            "{}: empty manifest; expected a header `path,label`",
+            csv.display()
+        )
+    })?;
+    let cols: Vec<&str> = header.split(',').map(str::trim).collect();
+    let find = |name: &str| {
+        cols.iter()
+            .position(|c| c.eq_ignore_ascii_case(name))
+            .with_context(|| {
+                format!(
+                    "{}:{}: header {:?} has no `{name}` column; the header must be `path,label`",
+                    csv.display(),
+                    hline + 1,
+                    header
+                )
+            })
+    };
+    let (ip, il) = (find("path")?, find("label")?);
+    let mut out = Vec::new();
+    for (i, line) in lines {
+        let fields: Vec<&str> = line.split(',').map(str::trim).collect();
+        if fields.len() != cols.len() {
+            bail!(
+                "{}:{}: {} fields but the header has {} ({:?})",
+                csv.display(),
+                i + 1,
+                fields.len(),
+                cols.len(),
+                line
+            );
+        }
+        let (p, label) = (fields[ip].trim_matches('"'), fields[il].trim_matches('"'));
+        if !ALL_LABELS.contains(&label) {
+            bail!(
+                "{}:{}: label {:?} is not one of {}",
+                csv.display(),
+                i + 1,
+                label,
+                ALL_LABELS.join(", ")
+            );
+        }
+        let pb = Path::new(p);
+        let path = if pb.is_absolute() {
+            pb.to_path_buf()
+        } else {
+            base.join(pb)
+        };
+        out.push(ManifestEntry {
+            path,
+            path_text: p.to_string(),
+            label: label.to_string(),
+            line: i + 1,
+        });
+    }
+    if out.is_empty() {
+        bail!("{}: the manifest lists no recordings", csv.display());
+    }
+    Ok(out)
+}
+
+/// A recording reduced to its classifier feature windows.
+#[derive(Debug, Clone)]
+pub struct RecordingFeatures {
+    pub path: PathBuf,
+    pub path_text: String,
+    pub label: String,
+    /// SHA-256 of the file's bytes.
+    pub sha256: String,
+    /// Made by the simulator (as opposed to measured).
+    pub simulated: bool,
+    /// Mean shaft speed over the windows, rpm.
+    pub rpm: f64,
+    /// `[windows, bins]` raw classifier features.
+    pub windows: Array2<f32>,
+}
+
+/// SHA-256 over `label <TAB> file-sha256` lines in manifest order: identifies training data.
+pub fn data_hash(recs: &[RecordingFeatures]) -> String {
+    let mut h = Sha256::new();
+    for r in recs {
+        h.update(format!("{}\t{}\n", r.label, r.sha256).as_bytes());
+    }
+    h.finalize().iter().map(|b| format!("{b:02x}")).collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn manifest_resolves_relative_paths_and_names_bad_lines() {
+        let csv = Path::new("/data/set/labels.csv");
+        let m = parse_manifest("path,label\na.mcap,healthy\n/abs/b.mat,inner_race\n", csv).unwrap();
+        assert_eq!(m[0].path, Path::new("/data/set/a.mcap"));
+        assert_eq!(m[1].path, Path::new("/abs/b.mat"));
+        assert_eq!(m[1].line, 3);
+        let e = parse_manifest("path,label\na.mcap,broken\n", csv)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("labels.csv:2") && e.contains("broken"), "{e}");
+        let e = parse_manifest("file,label\n", csv).unwrap_err().to_string();
+        assert!(e.contains("no `path` column"), "{e}");
+    }
+}

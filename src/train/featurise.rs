@@ -1,0 +1,86 @@
+//! Turning manifest entries into classifier features: each recording is read with the
+//! importers (any supported format) and run through the DSP feature pipeline; files are
+//! processed in parallel and hashed for the training-data hash.
+
+use super::dataset::{ManifestEntry, RecordingFeatures};
+use crate::config::RigConfig;
+use crate::importers::{self, ImportOptions};
+use anyhow::{bail, Context, Result};
+use ndarray::Array2;
+use rayon::prelude::*;
+
+/// True when a recording was produced by rigmon's simulator.
+pub fn is_simulated(rec: &crate::recording::Recording) -> bool {
+    rec.provenance.format.contains("simulat")
+        || rec
+            .metadata
+            .keys()
+            .any(|k| k.starts_with("sim") || k == "scenario")
+        || rec
+            .metadata
+            .get("source")
+            .is_some_and(|s| s.contains("simulat"))
+}
+
+/// Load one recording and compute its classifier features.
+pub fn featurise(entry: &ManifestEntry, rig: &RigConfig) -> Result<RecordingFeatures> {
+    let bytes = std::fs::read(&entry.path).with_context(|| {
+        format!(
+            "manifest line {}: cannot read {}",
+            entry.line,
+            entry.path.display()
+        )
+    })?;
+    let sha256 = crate::model::onnx::sha256_hex(&bytes);
+    drop(bytes);
+    let rec = importers::load(&entry.path, rig, &ImportOptions::default()).with_context(|| {
+        format!(
+            "manifest line {}: loading {}",
+            entry.line,
+            entry.path.display()
+        )
+    })?;
+    let wins = crate::dsp::extract_recording(&rec, rig)
+        .with_context(|| format!("features of {}", entry.path.display()))?;
+    let n = rig.features.n_bins();
+    let mut data = Vec::with_capacity(wins.len() * n);
+    let mut rpm = 0.0;
+    let mut kept = 0usize;
+    for w in &wins {
+        let f = w.classifier_features(rig);
+        if f.len() != n || f.iter().any(|v| !v.is_finite()) {
+            continue;
+        }
+        data.extend_from_slice(f);
+        rpm += w.rpm;
+        kept += 1;
+    }
+    if kept == 0 {
+        bail!("{}: no usable feature window ({} windows computed; the recording may be shorter than one window or carry NaN)", entry.path.display(), wins.len());
+    }
+    Ok(RecordingFeatures {
+        path: entry.path.clone(),
+        path_text: entry.path_text.clone(),
+        label: entry.label.clone(),
+        sha256,
+        simulated: is_simulated(&rec),
+        rpm: rpm / kept as f64,
+        windows: Array2::from_shape_vec((kept, n), data)?,
+    })
+}
+
+/// Featurise every entry, in parallel, keeping manifest order. `progress` is ticked per file.
+pub fn featurise_all(
+    entries: &[ManifestEntry],
+    rig: &RigConfig,
+    progress: &indicatif::ProgressBar,
+) -> Result<Vec<RecordingFeatures>> {
+    entries
+        .par_iter()
+        .map(|e| {
+            let r = featurise(e, rig);
+            progress.inc(1);
+            r
+        })
+        .collect()
+}

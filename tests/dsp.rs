@@ -1,0 +1,378 @@
+//! DSP integration tests: synthetic signals with analytic answers (order peaks under a speed
+//! ramp, tacho repair, bin layout, NaN handling) and the shared CWRU recordings (fault-order
+//! peaks, speed estimation).
+
+use rigmon::config::{RigConfig, SpeedConfig};
+use rigmon::dsp::order_spectrum::whole_recording;
+use rigmon::dsp::synthetic::Synthetic;
+use rigmon::dsp::{extract_recording, speed_estimate, FeaturePipeline, SpeedTrack};
+use rigmon::importers::{self, ImportOptions};
+use rigmon::recording::{Channel, Provenance, Recording, Tacho};
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+
+fn rig(name: &str) -> RigConfig {
+    RigConfig::load(
+        &Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("config")
+            .join(name),
+    )
+    .unwrap()
+}
+
+fn shared_data() -> PathBuf {
+    let p = Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/../shared/data"));
+    assert!(
+        p.join("cwru").is_dir(),
+        "shared data missing: expected the CWRU files under {} (see its README)",
+        p.display()
+    );
+    p.to_path_buf()
+}
+
+/// A lut-rig recording: the synthetic signal on "vertical", noise on the other axes.
+fn lut_recording(syn: &Synthetic, tacho_as_edges: bool) -> (Recording, Vec<f64>) {
+    let run = syn.generate();
+    let noise = |k: usize| -> Vec<f32> {
+        (0..run.vibration.len())
+            .map(|i| 0.01 * (((i * 7919 + k * 104729) % 1000) as f32 / 500.0 - 1.0))
+            .collect()
+    };
+    let ch = |name: &str, samples: Vec<f32>| Channel {
+        name: name.into(),
+        axis: name.into(),
+        unit: "m/s^2".into(),
+        samples,
+    };
+    let tacho = if tacho_as_edges {
+        Tacho::Edges {
+            times_s: rigmon::dsp::tacho::detect_edges(&run.tacho, syn.sample_rate, 2.5, 0.5),
+        }
+    } else {
+        Tacho::Analog {
+            samples: run.tacho.clone(),
+            unit: "V".into(),
+        }
+    };
+    let rec = Recording {
+        sample_rate: syn.sample_rate,
+        start_time_ns: 0,
+        channels: vec![
+            ch("axial", noise(1)),
+            ch("vertical", run.vibration.clone()),
+            ch("horizontal", noise(2)),
+        ],
+        tacho: Some(tacho),
+        rpm: None,
+        provenance: Provenance {
+            source_path: "synthetic".into(),
+            format: "simulated".into(),
+            notes: vec![],
+        },
+        metadata: BTreeMap::new(),
+    };
+    (rec, run.edges)
+}
+
+fn argmax(v: &[f32]) -> usize {
+    (0..v.len()).max_by(|&a, &b| v[a].total_cmp(&v[b])).unwrap()
+}
+
+#[test]
+fn order_peak_stays_in_its_bin_under_a_20_percent_ramp_analog_tacho_and_edges() {
+    // 10 Hz +- 20 %: 8 -> 12 Hz over 10 s; impulses at order 3.7 -> bin (3.5, 4.0] = index 7
+    let syn = Synthetic::default();
+    for edges in [false, true] {
+        let mut rig = rig("lut-rig.toml");
+        if edges {
+            rig.speed = SpeedConfig::Edges { pulses_per_rev: 1 };
+        }
+        let (rec, _) = lut_recording(&syn, edges);
+        let windows = extract_recording(&rec, &rig).unwrap();
+        assert_eq!(windows.len(), 19);
+        for w in &windows {
+            let f = w.classifier_features(&rig);
+            assert_eq!(
+                argmax(f),
+                7,
+                "edges={edges} window at {}: bins {:?}",
+                w.t_start,
+                &f[..16]
+            );
+            // harmonics land in their bins too: 7.4 -> index 14, 11.1 -> 22
+            assert!(
+                f[14] > 3.0 * f[12] && f[22] > 3.0 * f[20],
+                "harmonics at {}",
+                w.t_start
+            );
+            let truth = 60.0 * (syn.angle(w.t_end) - syn.angle(w.t_start)) / (w.t_end - w.t_start);
+            assert!(
+                (w.rpm / truth - 1.0).abs() < 1e-3,
+                "rpm {} vs {truth}",
+                w.rpm
+            );
+            assert_eq!(w.speed_source, if edges { "edges" } else { "tacho" });
+            assert!(w.quality.is_clean(), "{:?}", w.quality.flags());
+        }
+    }
+    // without order tracking (one mean speed) the ramp smears the peak out of its bin
+    let rig = rig("lut-rig.toml");
+    let (rec, _) = lut_recording(&syn, false);
+    let fixed =
+        rigmon::dsp::extract_with_speed(&rec, &rig, &SpeedTrack::fixed(600.0).unwrap()).unwrap();
+    assert!(fixed
+        .iter()
+        .any(|w| argmax(w.classifier_features(&rig)) != 7));
+}
+
+#[test]
+fn missing_and_extra_tacho_pulses_are_repaired_and_flagged() {
+    let syn = Synthetic {
+        missing_pulses: vec![20, 55, 56],
+        extra_pulses: vec![3.0311, 7.5123],
+        ..Synthetic::default()
+    };
+    let rig = rig("lut-rig.toml");
+    let (rec, truth) = lut_recording(&syn, false);
+    let windows = extract_recording(&rec, &rig).unwrap();
+    let missing_at: Vec<f64> = [20usize, 55, 56].iter().map(|&i| truth[i]).collect();
+    for w in &windows {
+        let expect_missing = missing_at
+            .iter()
+            .filter(|&&t| t >= w.t_start && t < w.t_end)
+            .count() as u32;
+        let expect_extra = [3.0311, 7.5123]
+            .iter()
+            .filter(|&&t| t >= w.t_start && t < w.t_end)
+            .count() as u32;
+        assert_eq!(
+            w.quality.missing_pulses, expect_missing,
+            "window {}",
+            w.t_start
+        );
+        assert_eq!(w.quality.extra_pulses, expect_extra, "window {}", w.t_start);
+        assert_eq!(
+            argmax(w.classifier_features(&rig)),
+            7,
+            "window {}",
+            w.t_start
+        );
+    }
+    let total: u32 = windows.iter().map(|w| w.quality.missing_pulses).sum();
+    assert!(total >= 3);
+    // the repaired track agrees with the true angle
+    let speed = SpeedTrack::for_recording(&rec, &rig).unwrap();
+    for k in 0..85 {
+        let t = 1.05 + k as f64 * 0.1;
+        assert!(
+            (speed.angle_at(t) - speed.angle_at(1.0) - (syn.angle(t) - syn.angle(1.0))).abs()
+                < 0.002,
+            "angle at {t}: {} vs {}, repairs {:?}",
+            speed.angle_at(t) - speed.angle_at(1.0),
+            syn.angle(t) - syn.angle(1.0),
+            speed.repairs()
+        );
+    }
+}
+
+#[test]
+fn feature_vector_length_bin_layout_and_scale() {
+    // envelope = 1 + m cos(2 pi o theta) with o = 6.25 -> bin (6.0, 6.5] = index 12, band RMS m/sqrt 2
+    let rig = rig("lut-rig.toml");
+    let fs = 10_000.0;
+    let syn = Synthetic {
+        fault_order: 1.0,
+        ..Synthetic::default()
+    };
+    let (m, o) = (0.4, 6.25);
+    let x: Vec<f32> = (0..10_000)
+        .map(|i| {
+            let t = 2.0 + i as f64 / fs;
+            ((1.0 + m * (2.0 * std::f64::consts::PI * o * syn.angle(t)).cos())
+                * (2.0 * std::f64::consts::PI * 2000.0 * t).sin()) as f32
+        })
+        .collect();
+    let run = syn.generate();
+    let speed = SpeedTrack::from_edges(&run.edges, 1, "edges").unwrap();
+    let mut pipe = FeaturePipeline::new(&rig, fs).unwrap();
+    let w = pipe
+        .process_window(2.0, &[("vertical", &x), ("axial", &x)], &speed)
+        .unwrap();
+    assert_eq!(w.features.len(), 2);
+    let f = &w.features["vertical"];
+    assert_eq!(f.len(), 100);
+    assert_eq!(rig.features.bin_edges().len(), 101);
+    assert_eq!(argmax(f), 12);
+    let want = m / 2f64.sqrt();
+    assert!(
+        (f[12] as f64 / want - 1.0).abs() < 0.05,
+        "band RMS {} vs {want}",
+        f[12]
+    );
+    let rest: f32 = f
+        .iter()
+        .enumerate()
+        .filter(|(k, _)| *k != 12 && *k != 11 && *k != 13)
+        .map(|(_, v)| v * v)
+        .sum::<f32>()
+        .sqrt();
+    assert!(rest < 0.05 * f[12], "energy outside the bin: {rest}");
+    // the same window again gives the same numbers (buffers reused cleanly)
+    let w2 = pipe
+        .process_window(2.0, &[("vertical", &x), ("axial", &x)], &speed)
+        .unwrap();
+    assert_eq!(w.features, w2.features);
+    // JSON shape
+    let v = serde_json::to_value(&w).unwrap();
+    for key in [
+        "t_start",
+        "t_end",
+        "rpm",
+        "speed_source",
+        "quality",
+        "features",
+    ] {
+        assert!(v.get(key).is_some(), "{key} missing in {v}");
+    }
+}
+
+#[test]
+fn nan_input_is_a_clear_error_and_flat_channel_a_flag() {
+    let rig = rig("lut-rig.toml");
+    let mut pipe = FeaturePipeline::new(&rig, 10_000.0).unwrap();
+    let speed = SpeedTrack::fixed(600.0).unwrap();
+    let mut x: Vec<f32> = (0..10_000).map(|i| (i as f32 * 0.7).sin()).collect();
+    x[1234] = f32::NAN;
+    let err = pipe
+        .process_window(0.0, &[("vertical", &x)], &speed)
+        .unwrap_err()
+        .to_string();
+    assert!(
+        err.contains("\"vertical\"") && err.contains("sample 1234") && err.contains("NaN"),
+        "{err}"
+    );
+    let flat = vec![0.0f32; 10_000];
+    let ok: Vec<f32> = (0..10_000).map(|i| (i as f32 * 0.7).sin()).collect();
+    let w = pipe
+        .process_window(0.0, &[("vertical", &ok), ("axial", &flat)], &speed)
+        .unwrap();
+    assert_eq!(w.quality.flat, ["axial"]);
+    assert!(w.features["axial"].iter().all(|v| *v == 0.0));
+    let short = vec![0.0f32; 99];
+    assert!(pipe
+        .process_window(0.0, &[("vertical", &short)], &speed)
+        .unwrap_err()
+        .to_string()
+        .contains("expects 10000"));
+}
+
+struct Cwru {
+    file: &'static str,
+    fault: Option<&'static str>,
+}
+
+const CWRU: [Cwru; 7] = [
+    Cwru {
+        file: "97_Normal_0.mat",
+        fault: None,
+    },
+    Cwru {
+        file: "12k_Drive_End_Bearing_Fault_Data/IR/007/105_0.mat",
+        fault: Some("bpfi"),
+    },
+    Cwru {
+        file: "12k_Drive_End_Bearing_Fault_Data/IR/021/209_0.mat",
+        fault: Some("bpfi"),
+    },
+    Cwru {
+        file: "12k_Drive_End_Bearing_Fault_Data/OR/007/@6/130@6_0.mat",
+        fault: Some("bpfo"),
+    },
+    Cwru {
+        file: "12k_Drive_End_Bearing_Fault_Data/OR/021/@6/234_0.mat",
+        fault: Some("bpfo"),
+    },
+    Cwru {
+        file: "12k_Drive_End_Bearing_Fault_Data/B/007/118_0.mat",
+        fault: None,
+    },
+    Cwru {
+        file: "12k_Drive_End_Bearing_Fault_Data/B/021/222_0.mat",
+        fault: None,
+    },
+];
+
+fn load_cwru(file: &str, rig: &RigConfig) -> Recording {
+    let path = shared_data().join("cwru").join(file);
+    importers::load(&path, rig, &ImportOptions::default())
+        .unwrap_or_else(|e| panic!("{}: {e:#}", path.display()))
+}
+
+#[test]
+fn cwru_envelope_order_peak_at_the_fault_order() {
+    let rig = rig("cwru-de.toml");
+    let fo = rig.bearing.fault_orders();
+    for c in CWRU.iter().filter(|c| c.fault.is_some()) {
+        let rec = load_cwru(c.file, &rig);
+        let speed = SpeedTrack::for_recording(&rec, &rig).unwrap();
+        assert_eq!(speed.source(), "recording");
+        let de = rec.channel("DE").unwrap();
+        let spec = whole_recording(
+            &de.samples,
+            rec.sample_rate,
+            &speed,
+            rig.features.lowpass_hz,
+            12.0,
+        )
+        .unwrap();
+        let want = if c.fault == Some("bpfi") {
+            fo.bpfi
+        } else {
+            fo.bpfo
+        };
+        let peak = spec.peak_between(1.5, 10.0).unwrap();
+        let err = peak.order / want - 1.0;
+        assert!(
+            err.abs() < 0.005,
+            "{}: peak at order {:.4}, {} = {want:.4} ({:+.3} %)",
+            c.file,
+            peak.order,
+            c.fault.unwrap(),
+            100.0 * err
+        );
+    }
+}
+
+#[test]
+fn cwru_estimated_speed_within_one_percent() {
+    let mut rig = rig("cwru-de.toml");
+    rig.speed = SpeedConfig::Estimate {
+        min_rpm: 300.0,
+        max_rpm: 3600.0,
+    };
+    for c in &CWRU {
+        let rec = load_cwru(c.file, &rig);
+        let stored = rec.rpm.expect("CWRU files store the rpm");
+        let speed = SpeedTrack::for_recording(&rec, &rig).unwrap();
+        assert_eq!(speed.source(), "estimate");
+        let est = speed.mean_rpm(0.0, rec.duration_s());
+        assert!(
+            (est / stored - 1.0).abs() < 0.01,
+            "{}: estimated {est:.1} rpm, stored {stored}",
+            c.file
+        );
+        let direct = speed_estimate::estimate_constant(
+            &rec.channel("DE").unwrap().samples,
+            rec.sample_rate,
+            300.0,
+            3600.0,
+        )
+        .unwrap();
+        assert!(
+            (direct.rpm / stored - 1.0).abs() < 0.01,
+            "{}: {}",
+            c.file,
+            direct.rpm
+        );
+    }
+}

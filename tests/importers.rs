@@ -1,0 +1,1247 @@
+//! Integration tests of the importers (CWRU/MFPT .mat, WAV, CSV) and the rigmon MCAP layout:
+//! round trips through files written here by independent code (hound, hand-built MAT v5 bytes,
+//! CSV text), the real CWRU files, error messages for bad input, truncated MCAP files, the
+//! Python `mcap` package as an independent reader, and the `rigmon import` command.
+
+use rigmon::config::RigConfig;
+use rigmon::importers::{self, ImportOptions};
+use rigmon::recording::mcap_layout::{self, RecordingInfo, RecordingWriter, WriterSettings};
+use rigmon::recording::{Channel, Provenance, Recording, Tacho};
+use std::collections::BTreeMap;
+use std::io::Write;
+use std::path::{Path, PathBuf};
+
+// ---------------------------------------------------------------- helpers
+
+fn data_dir() -> PathBuf {
+    let p = PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../shared/data"));
+    assert!(
+        p.join("cwru/97_Normal_0.mat").is_file(),
+        "shared CWRU data missing at {} (../shared must link to /work/shared); these tests need it",
+        p.display()
+    );
+    p
+}
+
+fn cwru(rel: &str) -> PathBuf {
+    data_dir().join("cwru").join(rel)
+}
+
+fn rig_text(name: &str) -> String {
+    std::fs::read_to_string(
+        Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("config")
+            .join(name),
+    )
+    .unwrap()
+}
+
+fn rig(name: &str) -> RigConfig {
+    RigConfig::parse(&rig_text(name)).unwrap()
+}
+
+/// lut-rig with `sensitivity = 2.0` on the vertical channel.
+fn lut_rig_scaled() -> RigConfig {
+    let t = rig_text("lut-rig.toml").replacen(
+        "name = \"vertical\"",
+        "name = \"vertical\"\nsensitivity = 2.0",
+        1,
+    );
+    let r = RigConfig::parse(&t).unwrap();
+    assert_eq!(r.channels[1].sensitivity, 2.0);
+    r
+}
+
+fn no_opts() -> ImportOptions {
+    ImportOptions::default()
+}
+
+/// Deterministic test signal.
+fn signal(n: usize, seed: f64) -> Vec<f64> {
+    (0..n)
+        .map(|i| (i as f64 * 0.37 + seed).sin() * 0.8 + (i as f64 * 0.011 * seed).cos() * 0.15)
+        .collect()
+}
+
+fn err_of<T: std::fmt::Debug>(r: anyhow::Result<T>) -> String {
+    format!("{:#}", r.expect_err("expected an error"))
+}
+
+fn assert_mentions(msg: &str, parts: &[&str]) {
+    for p in parts {
+        assert!(msg.contains(p), "error message lacks {p:?}:\n{msg}");
+    }
+}
+
+// ------------------------------------------- an independent MAT v5 builder
+
+struct Mat {
+    be: bool,
+}
+
+impl Mat {
+    fn u32(&self, v: u32) -> [u8; 4] {
+        if self.be {
+            v.to_be_bytes()
+        } else {
+            v.to_le_bytes()
+        }
+    }
+
+    fn file(&self, elements: &[Vec<u8>]) -> Vec<u8> {
+        let mut h = format!(
+            "{:<116}",
+            "MATLAB 5.0 MAT-file, written by the rigmon integration test"
+        )
+        .into_bytes();
+        h.extend_from_slice(&[0; 8]);
+        if self.be {
+            h.extend_from_slice(&[0x01, 0x00, b'M', b'I']);
+        } else {
+            h.extend_from_slice(&[0x00, 0x01, b'I', b'M']);
+        }
+        for e in elements {
+            h.extend_from_slice(e);
+        }
+        h
+    }
+
+    /// Data element: tag, data, zero padding to 8 bytes.
+    fn el(&self, ty: u32, data: &[u8]) -> Vec<u8> {
+        let mut v = self.u32(ty).to_vec();
+        v.extend_from_slice(&self.u32(data.len() as u32));
+        v.extend_from_slice(data);
+        v.resize(v.len().div_ceil(8) * 8, 0);
+        v
+    }
+
+    fn head(&self, class: u32, dims: &[u32], name: &str) -> Vec<u8> {
+        let mut flags = self.u32(class).to_vec();
+        flags.extend_from_slice(&[0; 4]);
+        let mut b = self.el(6, &flags);
+        let d: Vec<u8> = dims.iter().flat_map(|&x| self.u32(x)).collect();
+        b.extend(self.el(5, &d));
+        b.extend(self.el(1, name.as_bytes()));
+        b
+    }
+
+    fn double(&self, name: &str, rows: u32, cols: u32, v: &[f64]) -> Vec<u8> {
+        let mut b = self.head(6, &[rows, cols], name);
+        let raw: Vec<u8> = v
+            .iter()
+            .flat_map(|x| {
+                if self.be {
+                    x.to_be_bytes()
+                } else {
+                    x.to_le_bytes()
+                }
+            })
+            .collect();
+        b.extend(self.el(9, &raw));
+        self.el(14, &b)
+    }
+
+    /// A double stored as int16 data (MATLAB's space-saving trick).
+    fn double_as_int16(&self, name: &str, v: &[i16]) -> Vec<u8> {
+        let mut b = self.head(6, &[v.len() as u32, 1], name);
+        let raw: Vec<u8> = v
+            .iter()
+            .flat_map(|x| {
+                if self.be {
+                    x.to_be_bytes()
+                } else {
+                    x.to_le_bytes()
+                }
+            })
+            .collect();
+        b.extend(self.el(3, &raw));
+        self.el(14, &b)
+    }
+
+    fn text(&self, name: &str, s: &str) -> Vec<u8> {
+        let mut b = self.head(4, &[1, s.len() as u32], name);
+        let raw: Vec<u8> = s
+            .encode_utf16()
+            .flat_map(|x| {
+                if self.be {
+                    x.to_be_bytes()
+                } else {
+                    x.to_le_bytes()
+                }
+            })
+            .collect();
+        b.extend(self.el(4, &raw));
+        self.el(14, &b)
+    }
+
+    /// A 1x1 struct; `fields` are full miMATRIX elements with empty names.
+    fn structure(&self, name: &str, fields: &[(&str, Vec<u8>)]) -> Vec<u8> {
+        let mut b = self.head(2, &[1, 1], name);
+        let len = 32u32;
+        b.extend(self.el(5, &self.u32(len)));
+        let mut names = Vec::new();
+        for (n, _) in fields {
+            let mut x = n.as_bytes().to_vec();
+            x.resize(len as usize, 0);
+            names.extend(x);
+        }
+        b.extend(self.el(1, &names));
+        for (_, f) in fields {
+            b.extend_from_slice(f);
+        }
+        self.el(14, &b)
+    }
+
+    /// Wrap a full miMATRIX element in miCOMPRESSED (no padding after it, as MATLAB writes).
+    fn compressed(&self, matrix: &[u8]) -> Vec<u8> {
+        let mut z = flate2::write::ZlibEncoder::new(Vec::new(), flate2::Compression::best());
+        z.write_all(matrix).unwrap();
+        let z = z.finish().unwrap();
+        let mut v = self.u32(15).to_vec();
+        v.extend_from_slice(&self.u32(z.len() as u32));
+        v.extend(z);
+        v
+    }
+}
+
+fn write(dir: &Path, name: &str, bytes: &[u8]) -> PathBuf {
+    let p = dir.join(name);
+    std::fs::write(&p, bytes).unwrap();
+    p
+}
+
+fn as_f32(v: &[f64]) -> Vec<f32> {
+    v.iter().map(|&x| x as f32).collect()
+}
+
+// ------------------------------------------------------------- MAT files
+
+#[test]
+fn cwru_style_mat_round_trips_in_both_byte_orders_plain_and_compressed() {
+    let dir = tempfile::tempdir().unwrap();
+    let de = signal(3000, 1.0);
+    let fe = signal(3000, 2.0);
+    for be in [false, true] {
+        for z in [false, true] {
+            let m = Mat { be };
+            let wrap = |e: Vec<u8>| if z { m.compressed(&e) } else { e };
+            let bytes = m.file(&[
+                wrap(m.double("X105_DE_time", 3000, 1, &de)),
+                wrap(m.double("X105_FE_time", 3000, 1, &fe)),
+                wrap(m.double("X105RPM", 1, 1, &[1797.0])),
+                wrap(m.text("note", "renamed file")),
+            ]);
+            // The file name says nothing: the record number comes from the variable names.
+            let path = write(dir.path(), &format!("renamed_{be}_{z}.mat"), &bytes);
+            let rec = importers::load(&path, &rig("cwru-de.toml"), &no_opts()).unwrap();
+            assert_eq!(rec.sample_rate, 12_000.0, "CWRU catalogue: 105 is 12 kHz");
+            assert_eq!(rec.rpm, Some(1797.0));
+            assert_eq!(rec.channels.len(), 2, "no BA variable -> BA left out");
+            assert_eq!(rec.channel("DE").unwrap().samples, as_f32(&de));
+            assert_eq!(rec.channel("FE").unwrap().samples, as_f32(&fe));
+            assert_eq!(rec.channel("DE").unwrap().unit, "g");
+            assert_eq!(rec.label(), Some("inner_race"));
+            assert_eq!(rec.provenance.format, "cwru-mat");
+            assert_eq!(
+                rec.metadata.get("rig_id").map(String::as_str),
+                Some("cwru-de")
+            );
+            // And through MCAP.
+            let out = dir.path().join(format!("r_{be}_{z}.mcap"));
+            mcap_layout::write_recording(&out, &rec).unwrap();
+            assert_eq!(mcap_layout::read_recording(&out).unwrap(), rec);
+        }
+    }
+}
+
+#[test]
+fn cwru_sample_rate_precedence_and_unknown_records() {
+    let dir = tempfile::tempdir().unwrap();
+    let m = Mat { be: false };
+    let mk = |num: &str| {
+        m.file(&[
+            m.double(&format!("X{num}_DE_time"), 500, 1, &signal(500, 3.0)),
+            m.double(&format!("X{num}RPM"), 1, 1, &[1772.0]),
+        ])
+    };
+    let p97 = write(dir.path(), "a.mat", &mk("097"));
+    assert_eq!(
+        importers::load(&p97, &rig("cwru-de.toml"), &no_opts())
+            .unwrap()
+            .sample_rate,
+        48_000.0
+    );
+    // The flag overrides the catalogue, and --rpm the stored speed.
+    let r = importers::load(
+        &p97,
+        &rig("cwru-de.toml"),
+        &ImportOptions {
+            sample_rate: Some(12_000.0),
+            rpm: Some(1750.0),
+        },
+    )
+    .unwrap();
+    assert_eq!((r.sample_rate, r.rpm), (12_000.0, Some(1750.0)));
+    // A rig rate that contradicts the catalogue is a mismatch.
+    let rig12 = RigConfig::parse(&rig_text("cwru-de.toml").replacen(
+        "[[channels]]",
+        "[acquisition]\nsample_rate_hz = 12000.0\n\n[[channels]]",
+        1,
+    ))
+    .unwrap();
+    let e = err_of(importers::load(&p97, &rig12, &no_opts()));
+    assert_mentions(
+        &e,
+        &[
+            "a.mat",
+            "sample-rate mismatch",
+            "48000",
+            "12000",
+            "--sample-rate",
+        ],
+    );
+    // A record not in the catalogue, no rig rate: ask for --sample-rate.
+    let p999 = write(dir.path(), "b.mat", &mk("999"));
+    let e = err_of(importers::load(&p999, &rig("cwru-de.toml"), &no_opts()));
+    assert_mentions(&e, &["b.mat", "999", "--sample-rate"]);
+    assert_eq!(
+        importers::load(&p999, &rig12, &no_opts())
+            .unwrap()
+            .sample_rate,
+        12_000.0
+    );
+    // Integer-typed storage of a double array is decoded.
+    let pi = write(
+        dir.path(),
+        "c.mat",
+        &m.file(&[m.double_as_int16("X105_DE_time", &[1, -2, 300, -32768])]),
+    );
+    let r = importers::load(&pi, &rig("cwru-de.toml"), &no_opts()).unwrap();
+    assert_eq!(r.channels[0].samples, vec![1.0, -2.0, 300.0, -32768.0]);
+    assert_eq!(r.rpm, None);
+}
+
+#[test]
+fn mfpt_struct_compressed_big_endian_round_trips() {
+    let dir = tempfile::tempdir().unwrap();
+    let gs = signal(4000, 5.0);
+    let m = Mat { be: true };
+    let bearing = m.structure(
+        "bearing",
+        &[
+            ("sr", m.double("", 1, 1, &[48828.0])),
+            ("gs", m.double("", 4000, 1, &gs)),
+            ("load", m.double("", 1, 1, &[270.0])),
+            ("rate", m.double("", 1, 1, &[25.0])),
+            (
+                "extra",
+                m.structure("", &[("nested", m.double("", 1, 2, &[1.0, 2.0]))]),
+            ),
+        ],
+    );
+    let path = write(
+        dir.path(),
+        "baseline_1.mat",
+        &m.file(&[m.compressed(&bearing)]),
+    );
+    let rec = importers::load(&path, &rig("cwru-de.toml"), &no_opts()).unwrap();
+    assert_eq!(rec.provenance.format, "mfpt-mat");
+    assert_eq!(rec.sample_rate, 48828.0);
+    assert_eq!(rec.rpm, Some(1500.0));
+    assert_eq!(rec.metadata.get("load").map(String::as_str), Some("270"));
+    assert_eq!(rec.channels.len(), 1);
+    assert_eq!(
+        rec.channels[0].name, "DE",
+        "the signal goes on the rig's classifier channel"
+    );
+    assert_eq!(rec.channels[0].samples, as_f32(&gs));
+    // The rig says 10 kHz, the file 48828 Hz.
+    let e = err_of(importers::load(&path, &rig("lut-rig.toml"), &no_opts()));
+    assert_mentions(
+        &e,
+        &[
+            "baseline_1.mat",
+            "sample-rate mismatch",
+            "48828",
+            "10000",
+            "bearing.sr",
+        ],
+    );
+    // Missing field.
+    let nogs = m.structure("bearing", &[("sr", m.double("", 1, 1, &[48828.0]))]);
+    let p2 = write(dir.path(), "nogs.mat", &m.file(&[nogs]));
+    let e = err_of(importers::load(&p2, &rig("cwru-de.toml"), &no_opts()));
+    assert_mentions(&e, &["nogs.mat", "missing variable", "gs"]);
+}
+
+// ------------------------------------------------------------- WAV and CSV
+
+fn write_wav(path: &Path, spec: hound::WavSpec, frames: &[Vec<f64>]) {
+    let mut w = hound::WavWriter::create(path, spec).unwrap();
+    for f in frames {
+        for &x in f {
+            match spec.sample_format {
+                hound::SampleFormat::Float => w.write_sample(x as f32).unwrap(),
+                hound::SampleFormat::Int => {
+                    let full = (1i64 << (spec.bits_per_sample - 1)) as f64;
+                    w.write_sample((x * full).round().clamp(-full, full - 1.0) as i32)
+                        .unwrap()
+                }
+            }
+        }
+    }
+    w.finalize().unwrap();
+}
+
+/// 4 columns for lut-rig: axial, vertical, horizontal in -1..1, tacho pulses 0/0.9.
+fn frames(n: usize) -> Vec<Vec<f64>> {
+    let (a, v, h) = (signal(n, 1.0), signal(n, 2.0), signal(n, 3.0));
+    (0..n)
+        .map(|i| {
+            vec![
+                a[i] * 0.9,
+                v[i] * 0.9,
+                h[i] * 0.9,
+                if i % 100 < 10 { 0.9 } else { 0.0 },
+            ]
+        })
+        .collect()
+}
+
+#[test]
+fn wav_float32_int16_int24_round_trip_with_channel_map_and_sensitivity() {
+    let dir = tempfile::tempdir().unwrap();
+    let rig = lut_rig_scaled();
+    let fr = frames(2500);
+    for (bits, format) in [
+        (32, hound::SampleFormat::Float),
+        (16, hound::SampleFormat::Int),
+        (24, hound::SampleFormat::Int),
+    ] {
+        let spec = hound::WavSpec {
+            channels: 4,
+            sample_rate: 10_000,
+            bits_per_sample: bits,
+            sample_format: format,
+        };
+        let path = dir.path().join(format!("rig_{bits}.wav"));
+        write_wav(&path, spec, &fr);
+        let rec = importers::load(&path, &rig, &no_opts()).unwrap();
+        assert_eq!(rec.sample_rate, 10_000.0);
+        assert_eq!(rec.len(), 2500);
+        let names: Vec<&str> = rec.channels.iter().map(|c| c.name.as_str()).collect();
+        assert_eq!(names, ["axial", "vertical", "horizontal"]);
+        let tol = match bits {
+            32 => 1e-7,
+            16 => 1.0 / 32768.0,
+            _ => 1.0 / 8_388_608.0,
+        };
+        for (k, ch) in rec.channels.iter().enumerate() {
+            let scale = if ch.name == "vertical" { 2.0 } else { 1.0 };
+            for (i, &x) in ch.samples.iter().enumerate() {
+                let want = fr[i][k] * scale;
+                assert!(
+                    (x as f64 - want).abs() <= tol * scale + 1e-7,
+                    "{bits}-bit {} sample {i}: {x} vs {want}",
+                    ch.name
+                );
+            }
+        }
+        let Some(Tacho::Analog { samples, unit }) = &rec.tacho else {
+            panic!("tacho should be analog")
+        };
+        assert_eq!(unit, "V");
+        assert!((samples[5] - 0.9).abs() < 1e-3 && samples[50].abs() < 1e-6);
+        let out = dir.path().join(format!("rig_{bits}.mcap"));
+        mcap_layout::write_recording(&out, &rec).unwrap();
+        assert_eq!(mcap_layout::read_recording(&out).unwrap(), rec);
+    }
+}
+
+#[test]
+fn wav_errors_name_the_problem() {
+    let dir = tempfile::tempdir().unwrap();
+    let rig = rig("lut-rig.toml");
+    let spec = hound::WavSpec {
+        channels: 4,
+        sample_rate: 8000,
+        bits_per_sample: 32,
+        sample_format: hound::SampleFormat::Float,
+    };
+    let p = dir.path().join("slow.wav");
+    write_wav(&p, spec, &frames(100));
+    let e = err_of(importers::load(&p, &rig, &no_opts()));
+    assert_mentions(
+        &e,
+        &[
+            "slow.wav",
+            "sample-rate mismatch",
+            "8000",
+            "10000",
+            "WAV header",
+            "--sample-rate",
+        ],
+    );
+    assert_eq!(
+        importers::load(
+            &p,
+            &rig,
+            &ImportOptions {
+                sample_rate: Some(8000.0),
+                rpm: None
+            }
+        )
+        .unwrap()
+        .sample_rate,
+        8000.0
+    );
+    // Wrong channel count.
+    let p3 = dir.path().join("three.wav");
+    write_wav(
+        &p3,
+        hound::WavSpec {
+            channels: 3,
+            sample_rate: 10_000,
+            ..spec
+        },
+        &frames(10)
+            .into_iter()
+            .map(|f| f[..3].to_vec())
+            .collect::<Vec<_>>(),
+    );
+    assert_mentions(
+        &err_of(importers::load(&p3, &rig, &no_opts())),
+        &["three.wav", "3 channel", "4", "axial"],
+    );
+    // Inf in a float WAV: channel and sample index.
+    let mut fr = frames(100);
+    fr[42][2] = f64::INFINITY;
+    let pi = dir.path().join("inf.wav");
+    write_wav(
+        &pi,
+        hound::WavSpec {
+            sample_rate: 10_000,
+            ..spec
+        },
+        &fr,
+    );
+    assert_mentions(
+        &err_of(importers::load(&pi, &rig, &no_opts())),
+        &["inf.wav", "\"horizontal\"", "sample 42", "inf"],
+    );
+    // Truncated: cut the data chunk mid-way.
+    let good = dir.path().join("good.wav");
+    write_wav(
+        &good,
+        hound::WavSpec {
+            sample_rate: 10_000,
+            ..spec
+        },
+        &frames(1000),
+    );
+    let bytes = std::fs::read(&good).unwrap();
+    let pt = write(dir.path(), "cut.wav", &bytes[..bytes.len() / 2 + 3]);
+    assert_mentions(
+        &err_of(importers::load(&pt, &rig, &no_opts())),
+        &["cut.wav", "truncated"],
+    );
+}
+
+#[test]
+fn csv_round_trips_with_and_without_time_column() {
+    let dir = tempfile::tempdir().unwrap();
+    let rig = lut_rig_scaled();
+    let (v, a) = (signal(800, 4.0), signal(800, 5.0));
+    // Columns in another order than the rig's; a time column at 10 kHz; a comment line.
+    let mut text = String::from("# exported by a DAQ\ntime,vertical,axial,tacho\n");
+    for i in 0..800 {
+        text.push_str(&format!(
+            "{},{},{},{}\n",
+            i as f64 * 1e-4,
+            v[i],
+            a[i],
+            if i % 50 == 0 { 5 } else { 0 }
+        ));
+    }
+    let p = write(dir.path(), "daq.csv", text.as_bytes());
+    let rec = importers::load(&p, &rig, &no_opts()).unwrap();
+    assert_eq!(rec.sample_rate, 10_000.0);
+    assert_eq!(
+        rec.channels
+            .iter()
+            .map(|c| c.name.as_str())
+            .collect::<Vec<_>>(),
+        ["axial", "vertical"]
+    );
+    assert_eq!(rec.channel("axial").unwrap().samples, as_f32(&a));
+    assert_eq!(
+        rec.channel("vertical").unwrap().samples,
+        v.iter().map(|&x| (x * 2.0) as f32).collect::<Vec<_>>()
+    );
+    assert!(
+        matches!(&rec.tacho, Some(Tacho::Analog { samples, .. }) if samples[0] == 5.0 && samples[1] == 0.0)
+    );
+    // A 5 kHz time column on a rig without a rate: the column decides.
+    let mut t5 = String::from("t;DE\n");
+    for (i, x) in v.iter().enumerate().take(300) {
+        t5.push_str(&format!("{};{x}\n", i as f64 / 5000.0));
+    }
+    let p5 = write(dir.path(), "de.csv", t5.as_bytes());
+    let r5 = importers::load(
+        &p5,
+        &RigConfig::parse(&rig_text("cwru-de.toml")).unwrap(),
+        &no_opts(),
+    )
+    .unwrap();
+    assert_eq!((r5.sample_rate, r5.len()), (5000.0, 300));
+    // No time column: the rig's rate.
+    let p0 = write(
+        dir.path(),
+        "plain.csv",
+        format!("vertical\n{}\n{}\n", v[0], v[1]).as_bytes(),
+    );
+    assert_eq!(
+        importers::load(&p0, &rig, &no_opts()).unwrap().sample_rate,
+        10_000.0
+    );
+    // Through MCAP.
+    let out = dir.path().join("daq.mcap");
+    mcap_layout::write_recording(&out, &rec).unwrap();
+    assert_eq!(mcap_layout::read_recording(&out).unwrap(), rec);
+}
+
+#[test]
+fn csv_errors_name_line_column_channel_and_sample() {
+    let dir = tempfile::tempdir().unwrap();
+    let rig = rig("lut-rig.toml");
+    let p = write(dir.path(), "nan.csv", b"vertical,axial\n1,2\n3,4\n5,NaN\n");
+    assert_mentions(
+        &err_of(importers::load(&p, &rig, &no_opts())),
+        &["nan.csv", "\"axial\"", "sample 2", "NaN"],
+    );
+    let p = write(dir.path(), "text.csv", b"vertical\n1\nabc\n");
+    assert_mentions(
+        &err_of(importers::load(&p, &rig, &no_opts())),
+        &["text.csv", "line 3", "\"abc\" is not a number"],
+    );
+    let p = write(dir.path(), "cols.csv", b"vertical,bogus\n1,2\n");
+    assert_mentions(
+        &err_of(importers::load(&p, &rig, &no_opts())),
+        &["cols.csv", "\"bogus\"", "names no rig channel", "vertical"],
+    );
+    let p = write(dir.path(), "cut.csv", b"vertical,axial\n1,2\n3,4\n5");
+    assert_mentions(
+        &err_of(importers::load(&p, &rig, &no_opts())),
+        &["cut.csv", "line 4", "truncated"],
+    );
+    let p = write(
+        dir.path(),
+        "uneven.csv",
+        b"time,vertical\n0,1\n0.0001,2\n0.0003,3\n",
+    );
+    assert_mentions(
+        &err_of(importers::load(&p, &rig, &no_opts())),
+        &["uneven.csv", "uneven time step"],
+    );
+    let p = write(
+        dir.path(),
+        "rate.csv",
+        b"time,vertical\n0,1\n0.001,2\n0.002,3\n",
+    );
+    assert_mentions(
+        &err_of(importers::load(&p, &rig, &no_opts())),
+        &["rate.csv", "sample-rate mismatch", "time column", "1000"],
+    );
+    let p = write(dir.path(), "noclass.csv", b"axial\n1\n2\n");
+    assert_mentions(
+        &err_of(importers::load(&p, &rig, &no_opts())),
+        &["noclass.csv", "missing", "\"vertical\"", "classifier"],
+    );
+}
+
+// ------------------------------------------------------------- bad input in general
+
+#[test]
+fn empty_files_and_wrong_shapes_and_missing_variables_are_named() {
+    let dir = tempfile::tempdir().unwrap();
+    let cw = rig("cwru-de.toml");
+    for name in ["e.mat", "e.wav", "e.csv", "e.mcap"] {
+        let p = write(dir.path(), name, b"");
+        assert_mentions(
+            &err_of(importers::load(&p, &cw, &no_opts())),
+            &[name, "empty"],
+        );
+    }
+    let p = write(dir.path(), "hdr.csv", b"DE\n");
+    assert_mentions(
+        &err_of(importers::load(&p, &cw, &no_opts())),
+        &["hdr.csv", "no samples"],
+    );
+    let m = Mat { be: false };
+    // Wrong shape: a matrix where a vector belongs.
+    let p = write(
+        dir.path(),
+        "matrix.mat",
+        &m.file(&[m.double("X105_DE_time", 2, 500, &signal(1000, 1.0))]),
+    );
+    assert_mentions(
+        &err_of(importers::load(&p, &cw, &no_opts())),
+        &[
+            "matrix.mat",
+            "wrong shape",
+            "X105_DE_time",
+            "2x500",
+            "column vector",
+        ],
+    );
+    // A row vector is accepted.
+    let p = write(
+        dir.path(),
+        "row.mat",
+        &m.file(&[m.double("X105_DE_time", 1, 64, &signal(64, 1.0))]),
+    );
+    assert_eq!(importers::load(&p, &cw, &no_opts()).unwrap().len(), 64);
+    // The classifier's channel is missing.
+    let p = write(
+        dir.path(),
+        "nofe.mat",
+        &m.file(&[m.double("X105_FE_time", 64, 1, &signal(64, 1.0))]),
+    );
+    assert_mentions(
+        &err_of(importers::load(&p, &cw, &no_opts())),
+        &[
+            "nofe.mat",
+            "missing variable X105_DE_time",
+            "X105_FE_time (64x1 double)",
+        ],
+    );
+    // Neither CWRU nor MFPT.
+    let p = write(
+        dir.path(),
+        "other.mat",
+        &m.file(&[m.double("data", 3, 1, &[1.0, 2.0, 3.0])]),
+    );
+    assert_mentions(
+        &err_of(importers::load(&p, &cw, &no_opts())),
+        &[
+            "other.mat",
+            "missing variable",
+            "X<nnn>_DE_time",
+            "bearing",
+            "data (3x1 double)",
+        ],
+    );
+    // NaN in a MAT signal.
+    let mut s = signal(64, 1.0);
+    s[17] = f64::NAN;
+    let p = write(
+        dir.path(),
+        "nan.mat",
+        &m.file(&[m.double("X105_DE_time", 64, 1, &s)]),
+    );
+    assert_mentions(
+        &err_of(importers::load(&p, &cw, &no_opts())),
+        &["nan.mat", "\"DE\"", "sample 17", "NaN"],
+    );
+    // Lengths differ between channels.
+    let p = write(
+        dir.path(),
+        "len.mat",
+        &m.file(&[
+            m.double("X105_DE_time", 64, 1, &signal(64, 1.0)),
+            m.double("X105_FE_time", 60, 1, &signal(60, 1.0)),
+        ]),
+    );
+    assert_mentions(
+        &err_of(importers::load(&p, &cw, &no_opts())),
+        &["len.mat", "60", "64"],
+    );
+    // A rig whose channels are not CWRU sensors.
+    let p = write(
+        dir.path(),
+        "ok.mat",
+        &m.file(&[m.double("X105_DE_time", 64, 1, &signal(64, 1.0))]),
+    );
+    assert_mentions(
+        &err_of(importers::load(&p, &rig("lut-rig.toml"), &no_opts())),
+        &["ok.mat", "DE, FE or BA", "cwru-de.toml"],
+    );
+    // Unknown format.
+    let p = write(dir.path(), "x.bin", b"\x01\x02\x03");
+    assert_mentions(
+        &err_of(importers::load(&p, &cw, &no_opts())),
+        &["x.bin", "unknown recording format"],
+    );
+}
+
+#[test]
+fn truncated_real_cwru_file_is_reported() {
+    let dir = tempfile::tempdir().unwrap();
+    let bytes = std::fs::read(cwru("12k_Drive_End_Bearing_Fault_Data/IR/007/105_0.mat")).unwrap();
+    for cut in [100, 128 + 4, 1_000_000, bytes.len() - 1] {
+        let p = write(dir.path(), "105_cut.mat", &bytes[..cut]);
+        let e = err_of(importers::load(&p, &rig("cwru-de.toml"), &no_opts()));
+        assert_mentions(&e, &["105_cut.mat", "truncated"]);
+    }
+}
+
+// ------------------------------------------------------------- real CWRU files
+
+#[test]
+fn real_cwru_files_load_with_catalogue_rates_and_stored_rpm() {
+    let rig = rig("cwru-de.toml");
+    let cases: [(&str, f64, Option<usize>, &str); 7] = [
+        ("97_Normal_0.mat", 48_000.0, Some(243_938), "healthy"),
+        (
+            "12k_Drive_End_Bearing_Fault_Data/IR/007/105_0.mat",
+            12_000.0,
+            Some(121_265),
+            "inner_race",
+        ),
+        (
+            "12k_Drive_End_Bearing_Fault_Data/IR/021/209_0.mat",
+            12_000.0,
+            None,
+            "inner_race",
+        ),
+        (
+            "12k_Drive_End_Bearing_Fault_Data/OR/007/@6/130@6_0.mat",
+            12_000.0,
+            None,
+            "outer_race",
+        ),
+        (
+            "12k_Drive_End_Bearing_Fault_Data/OR/021/@6/234_0.mat",
+            12_000.0,
+            None,
+            "outer_race",
+        ),
+        (
+            "12k_Drive_End_Bearing_Fault_Data/B/007/118_0.mat",
+            12_000.0,
+            None,
+            "ball",
+        ),
+        (
+            "12k_Drive_End_Bearing_Fault_Data/B/021/222_0.mat",
+            12_000.0,
+            None,
+            "ball",
+        ),
+    ];
+    for (rel, fs, n, label) in cases {
+        let rec = importers::load(&cwru(rel), &rig, &no_opts())
+            .unwrap_or_else(|e| panic!("{rel}: {e:#}"));
+        assert_eq!(rec.sample_rate, fs, "{rel}");
+        if let Some(n) = n {
+            assert_eq!(rec.len(), n, "{rel}");
+        }
+        let dur = rec.duration_s();
+        assert!((4.9..10.5).contains(&dur), "{rel}: {dur} s");
+        let rpm = rec.rpm.unwrap();
+        assert!((1795.5..1797.5).contains(&rpm), "{rel}: rpm {rpm}");
+        assert_eq!(rec.label(), Some(label), "{rel}");
+        assert_eq!(rec.channel("DE").unwrap().unit, "g");
+        // Acceleration in g of a running motor: RMS well above zero, peak below 50 g.
+        let de = &rec.channel("DE").unwrap().samples;
+        let rms = (de.iter().map(|&x| (x as f64).powi(2)).sum::<f64>() / de.len() as f64).sqrt();
+        assert!(
+            rms > 0.01 && de.iter().all(|x| x.abs() < 50.0),
+            "{rel}: rms {rms}"
+        );
+    }
+    let r97 = importers::load(&cwru("97_Normal_0.mat"), &rig, &no_opts()).unwrap();
+    assert_eq!(
+        r97.channels
+            .iter()
+            .map(|c| c.name.as_str())
+            .collect::<Vec<_>>(),
+        ["DE", "FE"],
+        "97 has no BA sensor"
+    );
+    assert_eq!(r97.rpm, Some(1796.0));
+    let r105 = importers::load(
+        &cwru("12k_Drive_End_Bearing_Fault_Data/IR/007/105_0.mat"),
+        &rig,
+        &no_opts(),
+    )
+    .unwrap();
+    assert_eq!(r105.rpm, Some(1797.0));
+    assert_eq!(r105.channels.len(), 3);
+}
+
+// ------------------------------------------------------------- MCAP layout
+
+fn synthetic(n: usize, tacho: Option<Tacho>) -> Recording {
+    Recording {
+        sample_rate: 10_000.0,
+        start_time_ns: 1_700_000_000_123_456_789,
+        channels: ["axial", "vertical", "horizontal"]
+            .iter()
+            .enumerate()
+            .map(|(k, name)| Channel {
+                name: name.to_string(),
+                axis: name.to_string(),
+                unit: "m/s^2".into(),
+                samples: as_f32(&signal(n, k as f64 + 0.5)),
+            })
+            .collect(),
+        tacho,
+        rpm: Some(600.5),
+        provenance: Provenance {
+            source_path: "sim".into(),
+            format: "simulated".into(),
+            notes: vec!["seed 7".into()],
+        },
+        metadata: BTreeMap::from([
+            ("label".to_string(), "outer_race".to_string()),
+            ("seed".to_string(), "7".to_string()),
+        ]),
+    }
+}
+
+fn edges(n: usize, fs: f64) -> Vec<f64> {
+    (0..)
+        .map(|k| 0.0123 + k as f64 * 0.1001)
+        .take_while(|&t| t < n as f64 / fs)
+        .collect()
+}
+
+#[test]
+fn mcap_write_read_is_exact_for_analog_and_edge_tachos() {
+    let dir = tempfile::tempdir().unwrap();
+    let n = 12_345;
+    let analog: Vec<f32> = (0..n)
+        .map(|i| if i % 1000 < 100 { 5.0 } else { 0.0 })
+        .collect();
+    for rec in [
+        synthetic(
+            n,
+            Some(Tacho::Analog {
+                samples: analog,
+                unit: "V".into(),
+            }),
+        ),
+        synthetic(
+            n,
+            Some(Tacho::Edges {
+                times_s: edges(n, 10_000.0),
+            }),
+        ),
+        synthetic(n, None),
+    ] {
+        let p = dir.path().join("x.mcap");
+        mcap_layout::write_recording(&p, &rec).unwrap();
+        let back = mcap_layout::read_recording(&p).unwrap();
+        assert_eq!(back, rec);
+        // importers::load keeps an MCAP's own provenance and metadata.
+        assert_eq!(
+            importers::load(&p, &rig("lut-rig.toml"), &no_opts()).unwrap(),
+            rec
+        );
+    }
+    let e = err_of(mcap_layout::read_recording(&write(
+        dir.path(),
+        "not.mcap",
+        b"\x89MCAP0\r\nrubbish",
+    )));
+    assert_mentions(&e, &["not.mcap"]);
+}
+
+/// Stream blocks like the daemon does, never finish (as if killed), and cut the file at many
+/// places: every cut yields exactly the samples of its complete chunks.
+#[test]
+fn mcap_streaming_writer_survives_kill_and_truncation() {
+    let dir = tempfile::tempdir().unwrap();
+    let n_blocks = 60;
+    let bl = 250;
+    let full = synthetic(n_blocks * bl, None);
+    let all_edges = edges(n_blocks * bl, 10_000.0);
+    let mut info = RecordingInfo::of(&full);
+    info.tacho = mcap_layout::TachoInfo::Edges;
+    let p = dir.path().join("stream.mcap");
+    let settings = WriterSettings {
+        chunk_size: 8 * 1024,
+        zstd_level: 1,
+    };
+    let mut w = RecordingWriter::create_with(&p, &info, &settings).unwrap();
+    for b in 0..n_blocks {
+        let (s, e) = (b * bl, (b + 1) * bl);
+        let chans: Vec<&[f32]> = full.channels.iter().map(|c| &c.samples[s..e]).collect();
+        let ed: Vec<f64> = all_edges
+            .iter()
+            .copied()
+            .filter(|&t| t >= s as f64 / 1e4 && t < e as f64 / 1e4)
+            .collect();
+        w.write_block(s as u64, &chans, None, &ed).unwrap();
+        if b == 40 {
+            w.flush().unwrap();
+        }
+    }
+    // Killed: no finish, no summary, no footer. Everything flushed at block 40 survives.
+    std::mem::forget(w);
+    let killed = mcap_layout::read_recording(&p).unwrap();
+    assert!(
+        killed.len() >= 41 * bl && killed.len() <= full.len(),
+        "{}",
+        killed.len()
+    );
+    assert_eq!(killed.len() % bl, 0);
+    for (a, b) in killed.channels.iter().zip(&full.channels) {
+        assert_eq!(a.samples[..], b.samples[..killed.len()]);
+    }
+    let Some(Tacho::Edges { times_s }) = &killed.tacho else {
+        panic!()
+    };
+    let want: Vec<f64> = all_edges
+        .iter()
+        .copied()
+        .filter(|&t| t < killed.len() as f64 / 1e4)
+        .collect();
+    assert_eq!(times_s, &want);
+    assert_eq!(killed.metadata, full.metadata);
+
+    // A finished file cut at many places.
+    let p2 = dir.path().join("whole.mcap");
+    let mut w = RecordingWriter::create_with(&p2, &info, &settings).unwrap();
+    for b in 0..n_blocks {
+        let chans: Vec<&[f32]> = full
+            .channels
+            .iter()
+            .map(|c| &c.samples[b * bl..(b + 1) * bl])
+            .collect();
+        w.write_block((b * bl) as u64, &chans, None, &[]).unwrap();
+    }
+    w.finish().unwrap();
+    let bytes = std::fs::read(&p2).unwrap();
+    let mut last = 0;
+    let mut errors = 0;
+    for k in 1..40 {
+        let cut = bytes.len() * k / 40;
+        match mcap_layout::read_recording_bytes(&bytes[..cut]) {
+            Ok(r) => {
+                assert!(r.len() >= last, "more bytes never give fewer samples");
+                last = r.len();
+                for (a, b) in r.channels.iter().zip(&full.channels) {
+                    assert_eq!(a.samples[..], b.samples[..r.len()], "cut at {cut}");
+                }
+                assert!(
+                    r.provenance
+                        .notes
+                        .iter()
+                        .any(|n| n.contains("cut short") || n.contains("no footer")),
+                    "{:?}",
+                    r.provenance.notes
+                );
+            }
+            Err(e) => {
+                errors += 1;
+                let m = format!("{e:#}");
+                assert!(
+                    m.contains("cut short") || m.contains("truncated"),
+                    "cut at {cut}: {m}"
+                );
+            }
+        }
+    }
+    assert!(
+        errors < 10 && last > full.len() / 2,
+        "errors {errors}, last {last}"
+    );
+}
+
+#[test]
+fn mcap_gaps_are_zero_filled_and_noted() {
+    let dir = tempfile::tempdir().unwrap();
+    let full = synthetic(1000, None);
+    let p = dir.path().join("gap.mcap");
+    let mut w = RecordingWriter::create(&p, &RecordingInfo::of(&full)).unwrap();
+    for b in [0usize, 1, 3] {
+        let chans: Vec<&[f32]> = full
+            .channels
+            .iter()
+            .map(|c| &c.samples[b * 250..(b + 1) * 250])
+            .collect();
+        w.write_block((b * 250) as u64, &chans, None, &[]).unwrap();
+    }
+    w.finish().unwrap();
+    let r = mcap_layout::read_recording(&p).unwrap();
+    assert_eq!(r.len(), 1000);
+    assert!(r.channels[0].samples[500..750].iter().all(|&x| x == 0.0));
+    assert_eq!(
+        r.channels[0].samples[750..],
+        full.channels[0].samples[750..]
+    );
+    assert!(
+        r.provenance
+            .notes
+            .iter()
+            .any(|n| n.contains("250 samples missing before sample 750")),
+        "{:?}",
+        r.provenance.notes
+    );
+}
+
+// ------------------------------------------------------------- independent reader (Python)
+
+fn python_read(path: &Path, full: bool) -> serde_json::Value {
+    let script = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/python/read_mcap.py");
+    let mut cmd = std::process::Command::new("python3");
+    cmd.arg(script).arg(path);
+    if full {
+        cmd.arg("--full");
+    }
+    let out = cmd
+        .output()
+        .expect("python3 must be installed (tests/python/requirements.txt)");
+    assert!(
+        out.status.success(),
+        "read_mcap.py failed: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    serde_json::from_slice(&out.stdout).unwrap()
+}
+
+#[test]
+fn python_mcap_package_reads_the_layout() {
+    let dir = tempfile::tempdir().unwrap();
+    let n = 7_001;
+    let mut rec = synthetic(
+        n,
+        Some(Tacho::Analog {
+            samples: (0..n).map(|i| (i % 97) as f32 * 0.05).collect(),
+            unit: "V".into(),
+        }),
+    );
+    rec.metadata
+        .insert("rig_config".into(), rig_text("lut-rig.toml"));
+    let p = dir.path().join("py.mcap");
+    mcap_layout::write_recording(&p, &rec).unwrap();
+    let v = python_read(&p, true);
+    assert_eq!(v["profile"], "rigmon");
+    assert_eq!(v["schemas"]["rigmon.SampleBlock"], "rigmon-le");
+    let meta = &v["metadata"];
+    assert_eq!(meta["rigmon.metadata"]["label"], "outer_race");
+    assert_eq!(
+        meta["rigmon.metadata"]["rig_config"],
+        rig_text("lut-rig.toml")
+    );
+    assert_eq!(meta["rigmon.recording"]["sample_rate_hz"], "10000");
+    assert_eq!(meta["rigmon.recording"]["rpm"], "600.5");
+    assert_eq!(meta["rigmon.recording"]["tacho"], "analog");
+    let prov: serde_json::Value =
+        serde_json::from_str(meta["rigmon.recording"]["provenance"].as_str().unwrap()).unwrap();
+    assert_eq!(prov["format"], "simulated");
+    for c in &rec.channels {
+        let ch = &v["channels"][format!("/accel/{}", c.name)];
+        assert_eq!(ch["n"], n);
+        assert_eq!(ch["unit"], "m/s^2");
+        let got: Vec<f32> = ch["samples_bits"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|x| f32::from_bits(x.as_u64().unwrap() as u32))
+            .collect();
+        assert_eq!(got, c.samples, "{}", c.name);
+    }
+    let Some(Tacho::Analog { samples, .. }) = &rec.tacho else {
+        unreachable!()
+    };
+    let t = &v["channels"]["/tacho/analog"];
+    assert_eq!(t["unit"], "V");
+    let got: Vec<f32> = t["samples_bits"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|x| f32::from_bits(x.as_u64().unwrap() as u32))
+        .collect();
+    assert_eq!(&got, samples);
+
+    // Edge times.
+    let rec = synthetic(
+        5000,
+        Some(Tacho::Edges {
+            times_s: edges(5000, 10_000.0),
+        }),
+    );
+    mcap_layout::write_recording(&p, &rec).unwrap();
+    let v = python_read(&p, false);
+    let got: Vec<f64> = v["edges_bits"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|x| f64::from_bits(x.as_u64().unwrap()))
+        .collect();
+    assert_eq!(got, edges(5000, 10_000.0));
+    assert_eq!(v["schemas"]["rigmon.TachoEdges"], "rigmon-le");
+
+    // A real CWRU file imported: counts and sums agree.
+    let r97 = importers::load(&cwru("97_Normal_0.mat"), &rig("cwru-de.toml"), &no_opts()).unwrap();
+    mcap_layout::write_recording(&p, &r97).unwrap();
+    let v = python_read(&p, false);
+    for c in &r97.channels {
+        let ch = &v["channels"][format!("/accel/{}", c.name)];
+        assert_eq!(ch["n"], 243_938);
+        assert_eq!(ch["sample_rate_hz"], 48_000.0);
+        let sum: f64 = c.samples.iter().map(|&x| x as f64).sum();
+        let sum_sq: f64 = c.samples.iter().map(|&x| (x as f64).powi(2)).sum();
+        assert!(
+            (ch["sum"].as_f64().unwrap() - sum).abs() <= 1e-9 * sum_sq.max(1.0),
+            "{}",
+            c.name
+        );
+        assert!(
+            (ch["sum_sq"].as_f64().unwrap() - sum_sq).abs() <= 1e-9 * sum_sq,
+            "{}",
+            c.name
+        );
+    }
+}
+
+// ------------------------------------------------------------- the command
+
+#[test]
+fn rigmon_import_writes_mcap_and_prints_a_summary() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("105.mcap");
+    let o = std::process::Command::new(env!("CARGO_BIN_EXE_rigmon"))
+        .args(["import"])
+        .arg(cwru("12k_Drive_End_Bearing_Fault_Data/IR/007/105_0.mat"))
+        .arg("--rig")
+        .arg(Path::new(env!("CARGO_MANIFEST_DIR")).join("config/cwru-de.toml"))
+        .arg("-o")
+        .arg(&out)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let line = String::from_utf8(o.stdout).unwrap();
+    assert_eq!(line.lines().count(), 1, "{line}");
+    assert_mentions(
+        &line,
+        &[
+            "3 channel(s) (DE, FE, BA)",
+            "121265 samples @ 12000 Hz",
+            "10.105 s",
+            "rpm 1797",
+            "label inner_race",
+        ],
+    );
+    let rec = mcap_layout::read_recording(&out).unwrap();
+    assert_eq!(
+        (rec.len(), rec.sample_rate, rec.rpm),
+        (121_265, 12_000.0, Some(1797.0))
+    );
+    // A failing import exits non-zero and says why.
+    let o = std::process::Command::new(env!("CARGO_BIN_EXE_rigmon"))
+        .args(["import", "/nonexistent/file.mat", "--rig"])
+        .arg(Path::new(env!("CARGO_MANIFEST_DIR")).join("config/cwru-de.toml"))
+        .arg("-o")
+        .arg(dir.path().join("x.mcap"))
+        .output()
+        .unwrap();
+    assert!(!o.status.success());
+    assert_mentions(
+        &String::from_utf8_lossy(&o.stderr),
+        &["/nonexistent/file.mat"],
+    );
+}

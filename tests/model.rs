@@ -1,0 +1,318 @@
+//! Classifier integration tests: train on small synthetic envelope-order spectra, export ONNX,
+//! and check that tract (in-process) and onnxruntime (Python, an independent runtime) give
+//! the in-memory model's outputs; novelty, fine-tuning, reproducibility and the shipped models.
+
+use ndarray::Array2;
+use rand::{Rng, SeedableRng};
+use rigmon::config::RigConfig;
+use rigmon::model::classifier::TrainedModel;
+use rigmon::model::{export, OnnxClassifier};
+use rigmon::train::dataset::RecordingFeatures;
+use rigmon::train::fit::{class_labels, fit};
+use rigmon::train::trainer::TrainConfig;
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+fn manifest_dir() -> &'static Path {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+}
+
+fn rig() -> RigConfig {
+    RigConfig::load(&manifest_dir().join("config/lut-rig.toml")).unwrap()
+}
+
+/// A synthetic 100-bin envelope order spectrum: decaying floor, shaft lines, and fault
+/// harmonics (BPFO / BPFI with +-1x sidebands) for the lut-rig bearing; random overall gain.
+fn spectrum(label: &str, shift: f64, rng: &mut impl Rng) -> Vec<f32> {
+    let fo = rig().bearing.fault_orders();
+    let mut v = vec![0f64; 100];
+    for (k, x) in v.iter_mut().enumerate() {
+        let order = (k as f64 + 0.5) * 0.5;
+        *x = 0.2 * (-order / 30.0).exp() * (0.7 + 0.6 * rng.random::<f64>());
+    }
+    let mut line = |order: f64, amp: f64| {
+        let k = ((order + shift) / 0.5).floor() as usize;
+        if k < 100 {
+            v[k] += amp * (0.7 + 0.6 * rng.random::<f64>());
+        }
+    };
+    line(1.0, 0.3);
+    line(2.0, 0.1);
+    match label {
+        "outer_race" => (1..=6).for_each(|h| line(h as f64 * fo.bpfo, 1.0 / h as f64)),
+        "inner_race" => (1..=5).for_each(|h| {
+            line(h as f64 * fo.bpfi, 0.8 / h as f64);
+            line(h as f64 * fo.bpfi - 1.0, 0.3 / h as f64);
+            line(h as f64 * fo.bpfi + 1.0, 0.3 / h as f64);
+        }),
+        _ => {}
+    }
+    let gain = 10f64.powf(rng.random::<f64>() * 3.0 - 1.5);
+    v.into_iter().map(|x| (x * gain) as f32).collect()
+}
+
+fn recordings(
+    per_class: usize,
+    windows: usize,
+    seed: u64,
+    simulated: bool,
+    shift: f64,
+) -> Vec<RecordingFeatures> {
+    let mut rng = rand::rngs::StdRng::seed_from_u64(seed);
+    let mut out = Vec::new();
+    for label in ["healthy", "outer_race", "inner_race"] {
+        for r in 0..per_class {
+            let mut data = Vec::new();
+            for _ in 0..windows {
+                data.extend(spectrum(label, shift, &mut rng));
+            }
+            out.push(RecordingFeatures {
+                path: PathBuf::from(format!("{label}_{r}.mcap")),
+                path_text: format!("{label}_{r}.mcap"),
+                label: label.to_string(),
+                sha256: format!("{seed:x}{label}{r}"),
+                simulated,
+                rpm: 600.0,
+                windows: Array2::from_shape_vec((windows, 100), data).unwrap(),
+            });
+        }
+    }
+    out
+}
+
+fn small_config(seed: u64) -> TrainConfig {
+    TrainConfig {
+        seed,
+        epochs: 25,
+        patience: 8,
+        ..TrainConfig::default()
+    }
+}
+
+fn trained(
+    seed: u64,
+) -> (
+    TrainedModel,
+    rigmon::train::fit::FitReport,
+    Vec<RecordingFeatures>,
+) {
+    let recs = recordings(10, 8, 11, true, 0.0);
+    let (m, rep, _) = fit(
+        &recs,
+        &rig(),
+        &class_labels(false),
+        &small_config(seed),
+        0.1,
+        |_| {},
+    )
+    .unwrap();
+    (m, rep, recs)
+}
+
+fn python_check(model: &Path, cases: Option<&Path>) -> String {
+    let script = manifest_dir().join("tests/python/check_onnx.py");
+    let mut cmd = Command::new("python3");
+    cmd.arg(&script).arg(model);
+    if let Some(c) = cases {
+        cmd.arg(c);
+    }
+    let out = cmd
+        .output()
+        .expect("python3 must be installed (tests/python/requirements.txt)");
+    assert!(
+        out.status.success(),
+        "check_onnx.py failed on {}:\n{}\n{}",
+        model.display(),
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr)
+    );
+    String::from_utf8_lossy(&out.stdout).to_string()
+}
+
+#[test]
+fn export_matches_in_memory_model_in_tract_and_onnxruntime() {
+    let (model, report, recs) = trained(3);
+    assert!(
+        report.validation_balanced_accuracy > 0.9,
+        "synthetic classes should separate: {report:?}"
+    );
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("m.onnx");
+    export::write(&model, &path).unwrap();
+    let size = std::fs::metadata(&path).unwrap().len();
+    assert!(size < 400_000, "model is {size} bytes; keep it small");
+
+    // Inputs: training-like windows, an all-zero (dead sensor) window and an odd spectrum.
+    let mut x: Vec<Vec<f32>> = recs
+        .iter()
+        .step_by(5)
+        .map(|r| r.windows.row(0).to_vec())
+        .collect();
+    x.push(vec![0.0; 100]);
+    x.push(
+        (0..100)
+            .map(|k| 1e3 * (k as f32 * 0.3).sin().abs())
+            .collect(),
+    );
+    let xa = Array2::from_shape_vec((x.len(), 100), x.concat()).unwrap();
+    let want = model.predict(xa.view());
+
+    let clf = OnnxClassifier::load(&path).unwrap();
+    assert_eq!(clf.meta().labels, class_labels(false));
+    assert_eq!(clf.meta().rig_id, "lut-rig");
+    assert_eq!(clf.meta().calibration_id, "none");
+    assert_eq!(clf.meta().n_features, 100);
+    assert_eq!(clf.meta().sha256.len(), 64);
+    for (i, row) in x.iter().enumerate() {
+        let p = clf.predict(row).unwrap();
+        for (a, b) in p.probs.iter().zip(want.probs.row(i)) {
+            assert!(
+                (a - b).abs() <= 1e-5,
+                "row {i}: tract prob {a} vs in-memory {b}"
+            );
+        }
+        let n = want.novelty[i];
+        assert!(
+            (p.novelty - n).abs() <= 1e-5 * n.abs().max(1.0),
+            "row {i}: tract novelty {} vs {n}",
+            p.novelty
+        );
+        assert_eq!(p.label, model.meta.labels[p.class]);
+    }
+
+    // onnxruntime + onnx.checker(full_check) through Python.
+    let cases = serde_json::json!({
+        "inputs": x,
+        "probabilities": want.probs.rows().into_iter().map(|r| r.to_vec()).collect::<Vec<_>>(),
+        "novelty": want.novelty.to_vec(),
+    });
+    let cases_path = dir.path().join("cases.json");
+    std::fs::write(&cases_path, cases.to_string()).unwrap();
+    let out = python_check(&path, Some(&cases_path));
+    assert!(out.contains("\"checker\": \"ok\""), "{out}");
+
+    // Reading the file back gives the same model.
+    let back = export::read(&path).unwrap();
+    assert_eq!(back.mlp, model.mlp);
+    assert_eq!(back.pre, model.pre);
+    assert_eq!(back.novelty, model.novelty);
+}
+
+#[test]
+fn split_is_by_recording_and_training_is_reproducible() {
+    let (a, rep, _) = trained(5);
+    for v in &rep.validation_records {
+        assert!(
+            !rep.train_records.contains(v),
+            "{v} on both sides of the split"
+        );
+    }
+    assert_eq!(rep.train_records.len() + rep.validation_records.len(), 30);
+    assert_eq!(
+        rep.validation_records.len(),
+        3,
+        "one recording per class held out"
+    );
+    let (b, _, _) = trained(5);
+    assert_eq!(
+        export::to_bytes(&a),
+        export::to_bytes(&b),
+        "same seed, same data -> same file"
+    );
+    let (c, _, _) = trained(6);
+    assert_ne!(export::to_bytes(&a), export::to_bytes(&c));
+}
+
+#[test]
+fn novelty_flags_windows_unlike_the_training_data() {
+    let (model, _, _) = trained(3);
+    let val = recordings(2, 10, 99, true, 0.0);
+    let x = ndarray::concatenate(
+        ndarray::Axis(0),
+        &val.iter().map(|r| r.windows.view()).collect::<Vec<_>>(),
+    )
+    .unwrap();
+    let known = model
+        .predict(x.view())
+        .novelty
+        .iter()
+        .filter(|&&s| s > model.novelty.threshold)
+        .count();
+    assert!(
+        known * 10 <= x.nrows(),
+        "{known} of {} in-distribution windows flagged unknown",
+        x.nrows()
+    );
+    // Lines at orders no bearing class has, and a flat spectrum.
+    let mut odd = vec![0.01f32; 100];
+    for k in [13, 29, 41, 57, 77, 93] {
+        odd[k] = 1.0;
+    }
+    let flat = vec![1.0f32; 100];
+    let o = model.predict(
+        Array2::from_shape_vec((2, 100), [odd, flat].concat())
+            .unwrap()
+            .view(),
+    );
+    for (i, s) in o.novelty.iter().enumerate() {
+        assert!(
+            *s > model.novelty.threshold,
+            "probe {i}: novelty {s} <= threshold {}",
+            model.novelty.threshold
+        );
+    }
+}
+
+#[test]
+fn finetune_retrains_only_the_output_layer_on_whole_recordings() {
+    let (model, _, _) = trained(3);
+    // "Measured" data: fault lines shifted by one bin (a 0.5-order calibration error).
+    let measured = recordings(5, 6, 42, false, 0.5);
+    let cfg = rigmon::train::finetune::default_config(7);
+    let (tuned, rep, before, after) =
+        rigmon::train::finetune::finetune(&model, &measured, 0.2, &cfg).unwrap();
+    assert_eq!(rep.finetune_records.len(), 3);
+    assert_eq!(rep.held_out_records.len(), 12);
+    for r in &rep.finetune_records {
+        assert!(!rep.held_out_records.contains(r));
+    }
+    let n = model.mlp.layers.len();
+    for i in 0..n - 1 {
+        assert_eq!(
+            tuned.mlp.layers[i], model.mlp.layers[i],
+            "hidden layer {i} must stay frozen"
+        );
+    }
+    assert_ne!(tuned.mlp.layers[n - 1], model.mlp.layers[n - 1]);
+    assert_eq!(before.n_records, 12);
+    assert_eq!(after.n_records, 12);
+    assert!(tuned.meta.finetune.contains(&rep.finetune_sha256[0]));
+    // The tuned model is still a valid, checkable file.
+    let dir = tempfile::tempdir().unwrap();
+    let p = dir.path().join("ft.onnx");
+    export::write(&tuned, &p).unwrap();
+    python_check(&p, None);
+}
+
+#[test]
+fn bad_model_files_give_clear_errors() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = dir.path().join("broken.onnx");
+    std::fs::write(&p, b"definitely not protobuf \xff\xff\xff").unwrap();
+    let e = format!("{:#}", OnnxClassifier::load(&p).unwrap_err());
+    assert!(e.contains("broken.onnx"), "{e}");
+    let e = format!(
+        "{:#}",
+        OnnxClassifier::load(&dir.path().join("missing.onnx")).unwrap_err()
+    );
+    assert!(e.contains("missing.onnx"), "{e}");
+    let (model, _, _) = trained(3);
+    let good = dir.path().join("good.onnx");
+    export::write(&model, &good).unwrap();
+    let clf = OnnxClassifier::load(&good).unwrap();
+    let e = clf.predict(&[1.0; 99]).unwrap_err().to_string();
+    assert!(e.contains("100") && e.contains("99"), "{e}");
+    let mut cwru = RigConfig::load(&manifest_dir().join("config/cwru-de.toml")).unwrap();
+    cwru.features.max_order = 25.0;
+    assert!(clf.check_rig(&cwru).is_err());
+}

@@ -1,0 +1,323 @@
+//! Simulator tests: fault signatures at the theoretical orders (with the model's own contact
+//! angle), IR load-zone sidebands, clean healthy spectra, the first bending modes (Table 3),
+//! determinism, a long bounded run, and the WAV / dataset outputs.
+
+use rigmon::config::RigConfig;
+use rigmon::recording::{Recording, Tacho};
+use rigmon::sim::{self, signature::envelope_spectrum, Fault, Scenario};
+use std::path::Path;
+
+fn rig(name: &str) -> RigConfig {
+    RigConfig::load(
+        &Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("config")
+            .join(name),
+    )
+    .unwrap()
+}
+
+fn vertical(rec: &Recording) -> &[f32] {
+    &rec.channel("vertical").expect("vertical channel").samples
+}
+
+/// Envelope spectrum of the classifier channel, thesis recipe (low-pass 4 kHz).
+fn env_spec(rec: &Recording, ch: &str) -> sim::signature::EnvelopeSpectrum {
+    envelope_spectrum(
+        &rec.channel(ch).unwrap().samples,
+        rec.sample_rate,
+        0.0,
+        4000.0,
+        4,
+    )
+}
+
+#[test]
+fn first_bending_modes_match_table3() {
+    let r = rig("lut-rig.toml");
+    let ([v, h], all) = sim::bending_modes(&r, r.simulation.as_ref().unwrap()).unwrap();
+    assert!(
+        (v / 31.25 - 1.0).abs() < 0.10,
+        "vertical {v} Hz, all {all:?}"
+    );
+    assert!(
+        (h / 33.75 - 1.0).abs() < 0.10,
+        "horizontal {h} Hz, all {all:?}"
+    );
+    assert!(
+        v < h,
+        "vertical {v} should be below lateral {h} like the rig"
+    );
+}
+
+fn check_fault_line(fault: Fault, fr: f64, seconds: f64) {
+    let r = rig("lut-rig.toml");
+    let rec = sim::simulate(&r, &Scenario::constant(&[fault], fr * 60.0, seconds, 11)).unwrap();
+    let orders = sim::model_fault_orders(&r, r.simulation.as_ref().unwrap());
+    let f0 = match fault {
+        Fault::OuterRace => orders.bpfo,
+        Fault::InnerRace => orders.bpfi,
+        Fault::Ball => orders.two_bsf,
+    } * fr;
+    let s = env_spec(&rec, "vertical");
+    let (f, a) = s.peak_near(f0, 0.03);
+    let floor = s.median(0.5 * fr, 50.0 * fr);
+    eprintln!("{fault:?} at {fr} Hz: theory {f0:.3} Hz, peak {f:.3} Hz ({:+.3} %), amplitude {a:.4} / floor {floor:.4}", (f / f0 - 1.0) * 100.0);
+    assert!(
+        (f / f0 - 1.0).abs() < 0.005,
+        "{fault:?} at {fr} Hz: peak {f} Hz vs theory {f0} Hz"
+    );
+    assert!(
+        a > 8.0 * floor,
+        "{fault:?} at {fr} Hz: line {a} not clearly above the floor {floor}"
+    );
+}
+
+#[test]
+fn outer_race_line_at_bpfo() {
+    check_fault_line(Fault::OuterRace, 9.8, 6.0);
+    check_fault_line(Fault::OuterRace, 19.8, 4.0);
+}
+
+#[test]
+fn inner_race_line_at_bpfi_with_sidebands() {
+    check_fault_line(Fault::InnerRace, 9.8, 6.0);
+    check_fault_line(Fault::InnerRace, 19.8, 4.0);
+    // load-zone modulation: BPFI +- 1x
+    let r = rig("lut-rig.toml");
+    let fr = 19.8;
+    let rec = sim::simulate(
+        &r,
+        &Scenario::constant(&[Fault::InnerRace], fr * 60.0, 4.0, 5),
+    )
+    .unwrap();
+    let bpfi = sim::model_fault_orders(&r, r.simulation.as_ref().unwrap()).bpfi * fr;
+    let s = env_spec(&rec, "vertical");
+    let floor = s.median(0.5 * fr, 50.0 * fr);
+    for f in [bpfi - fr, bpfi + fr] {
+        let (fp, a) = s.peak_near(f, 0.01);
+        eprintln!("sideband {f:.2} Hz: peak {fp:.2} Hz amplitude {a:.4} / floor {floor:.4}");
+        assert!(
+            (fp - f).abs() < 0.01 * f,
+            "sideband at {fp} Hz, expected {f}"
+        );
+        assert!(a > 4.0 * floor, "sideband at {f} Hz: {a} vs floor {floor}");
+    }
+}
+
+#[test]
+fn contact_angle_moves_the_lines() {
+    // thesis MBD: alpha ~28.9 deg raises BPFO by ~2.4 %; the model follows its own angle
+    let r = rig("lut-rig.toml");
+    let fr = 19.8;
+    let mut sc = Scenario::constant(&[Fault::OuterRace], fr * 60.0, 4.0, 3);
+    sc.overrides.contact_angle_deg = Some(28.87);
+    sc.overrides.radial_clearance_mm = Some(0.0);
+    let rec = sim::simulate(&r, &sc).unwrap();
+    let cfg = sc.overrides.apply(r.simulation.as_ref().unwrap());
+    let f0 = sim::model_fault_orders(&r, &cfg).bpfo * fr;
+    let f_zero = r.bearing.with_contact_angle(0.0).fault_orders().bpfo * fr;
+    let (f, _) = env_spec(&rec, "vertical").peak_near(f0, 0.02);
+    assert!((f / f0 - 1.0).abs() < 0.005, "peak {f} vs {f0}");
+    assert!(
+        (f / f_zero - 1.0) > 0.015,
+        "the contact angle must raise BPFO ({f} vs {f_zero})"
+    );
+}
+
+#[test]
+fn healthy_has_no_fault_lines() {
+    let r = rig("lut-rig.toml");
+    let o = sim::model_fault_orders(&r, r.simulation.as_ref().unwrap());
+    for fr in [9.8, 19.8] {
+        let rec = sim::simulate(&r, &Scenario::constant(&[], fr * 60.0, 4.0, 21)).unwrap();
+        let s = env_spec(&rec, "vertical");
+        let floor = s.median(0.5 * fr, 50.0 * fr);
+        for (name, ord) in [("BPFO", o.bpfo), ("BPFI", o.bpfi), ("2xBSF", o.two_bsf)] {
+            let (_, a) = s.peak_near(ord * fr, 0.01);
+            eprintln!("healthy {fr} Hz {name}: {a:.5} vs floor {floor:.5}");
+            assert!(
+                a < 4.0 * floor,
+                "healthy at {fr} Hz shows {name}: {a} vs floor {floor}"
+            );
+        }
+    }
+}
+
+#[test]
+fn same_seed_same_output_and_bounded_long_run() {
+    let r = rig("lut-rig.toml");
+    let sc = Scenario::constant(&[Fault::InnerRace, Fault::OuterRace], 900.0, 0.5, 77);
+    let a = sim::simulate(&r, &sc).unwrap();
+    let b = sim::simulate(&r, &sc).unwrap();
+    assert_eq!(a, b);
+    let mut other = sc.clone();
+    other.seed = 78;
+    assert_ne!(vertical(&a), vertical(&sim::simulate(&r, &other).unwrap()));
+    assert_eq!(a.label(), Some("inner_race"));
+    assert_eq!(a.metadata["faults"], "inner_race,outer_race");
+
+    // 60 s at 19.8 Hz stays bounded and stationary
+    let long = sim::simulate(
+        &r,
+        &Scenario::constant(&[Fault::InnerRace], 1188.0, 60.0, 9),
+    )
+    .unwrap();
+    let v = vertical(&long);
+    assert!(
+        v.iter().all(|x| x.is_finite() && x.abs() < 1e3),
+        "unbounded samples"
+    );
+    let rms =
+        |s: &[f32]| (s.iter().map(|&x| (x as f64).powi(2)).sum::<f64>() / s.len() as f64).sqrt();
+    let (first, last) = (rms(&v[..50_000]), rms(&v[v.len() - 50_000..]));
+    assert!(
+        last < 1.5 * first && last > first / 1.5,
+        "rms drifted from {first} to {last}"
+    );
+}
+
+#[test]
+fn tacho_and_wav_layout() {
+    let r = rig("lut-rig.toml");
+    let rec = sim::simulate(&r, &Scenario::constant(&[Fault::OuterRace], 1188.0, 1.0, 1)).unwrap();
+    let Some(Tacho::Analog { samples, unit }) = &rec.tacho else {
+        panic!("no analog tacho")
+    };
+    assert_eq!(unit, "V");
+    let rising = samples
+        .windows(2)
+        .filter(|w| w[0] < 2.5 && w[1] >= 2.5)
+        .count();
+    assert!(
+        (19..=20).contains(&rising),
+        "{rising} pulses in 1 s at 19.8 Hz"
+    );
+    assert!(samples.iter().all(|&v| (-0.2..=5.2).contains(&v)));
+    let dir = tempfile::tempdir().unwrap();
+    let p = dir.path().join("or.wav");
+    sim::output::write(&p, &rec, &r).unwrap();
+    let mut wr = hound::WavReader::open(&p).unwrap();
+    let spec = wr.spec();
+    assert_eq!(
+        (spec.channels, spec.sample_rate, spec.bits_per_sample),
+        (4, 10_000, 32)
+    );
+    assert_eq!(spec.sample_format, hound::SampleFormat::Float);
+    let all: Vec<f32> = wr.samples::<f32>().map(|s| s.unwrap()).collect();
+    assert_eq!(all.len(), 4 * rec.len());
+    assert_eq!(
+        all[4 * 100 + 1],
+        rec.channel("vertical").unwrap().samples[100]
+    );
+    assert_eq!(all[4 * 100 + 3], samples[100]);
+}
+
+#[test]
+fn cwru_rig_simulates_in_g_at_12khz() {
+    let r = rig("cwru-de.toml");
+    let fr = 1797.0 / 60.0;
+    let rec = sim::simulate(&r, &Scenario::constant(&[Fault::InnerRace], 1797.0, 2.0, 4)).unwrap();
+    assert_eq!(rec.sample_rate, 12_000.0);
+    assert!(rec.tacho.is_none());
+    assert_eq!(rec.rpm, Some(1797.0));
+    let names: Vec<&str> = rec.channels.iter().map(|c| c.name.as_str()).collect();
+    assert_eq!(names, ["DE", "FE"]);
+    assert_eq!(rec.channels[0].unit, "g");
+    let s = env_spec(&rec, "DE");
+    let (f, _) = s.peak_near(5.4152 * fr, 0.03);
+    assert!(
+        (f / (5.4152 * fr) - 1.0).abs() < 0.005,
+        "CWRU BPFI peak {f}"
+    );
+}
+
+/// The product's own feature pipeline (tacho -> order tracking -> envelope order spectrum ->
+/// 0.5-order RMS bins) sees the simulated faults in the right bins and the right speed.
+#[test]
+fn dsp_features_see_the_fault_orders() {
+    let r = rig("lut-rig.toml");
+    let o = sim::model_fault_orders(&r, r.simulation.as_ref().unwrap());
+    let bw = r.features.bin_width_order;
+    let bin = |order: f64| ((order / bw).ceil() as usize).saturating_sub(1);
+    for fr in [9.8, 19.8] {
+        let mut ratio = std::collections::BTreeMap::new();
+        for (faults, order) in [
+            (vec![], o.bpfo),
+            (vec![Fault::OuterRace], o.bpfo),
+            (vec![Fault::InnerRace], o.bpfi),
+        ] {
+            let rec = sim::simulate(&r, &Scenario::constant(&faults, fr * 60.0, 3.0, 8)).unwrap();
+            let wins = rigmon::dsp::extract_recording(&rec, &r).unwrap();
+            assert!(wins.len() >= 3, "{} windows", wins.len());
+            for w in &wins {
+                assert!(
+                    (w.rpm / (fr * 60.0) - 1.0).abs() < 0.005,
+                    "tacho speed {} rpm vs {}",
+                    w.rpm,
+                    fr * 60.0
+                );
+            }
+            let f = wins[1].classifier_features(&r);
+            let mut sorted = f.to_vec();
+            sorted.sort_by(f32::total_cmp);
+            let med = sorted[sorted.len() / 2] as f64;
+            let k = bin(order);
+            ratio.insert(format!("{faults:?}"), f[k] as f64 / med);
+        }
+        eprintln!("{fr} Hz: fault-bin / median-bin ratios {ratio:?}");
+        assert!(ratio["[OuterRace]"] > 5.0, "OR bin at {fr} Hz: {ratio:?}");
+        assert!(ratio["[InnerRace]"] > 3.5, "IR bin at {fr} Hz: {ratio:?}");
+        assert!(ratio["[]"] < 2.5, "healthy BPFO bin at {fr} Hz: {ratio:?}");
+    }
+}
+
+/// `rigmon dataset`'s engine: MCAP files + labels.csv, labels and plan parameters in the
+/// MCAP metadata, read back by the importers' reader.
+#[test]
+fn dataset_writes_mcap_and_labels() {
+    let r = rig("lut-rig.toml");
+    let plan = sim::plan::Plan::parse(
+        r#"
+name = "tiny"
+seed = 5
+seconds = 0.5
+[random]
+defect_width_mm = [0.3, 0.6]
+[[case]]
+faults = "outer_race"
+rpm = 1188
+recordings = 2
+[[case]]
+faults = "healthy"
+rpm = 588
+recordings = 1
+[[case]]
+faults = "inner_race,ball"
+recordings = 1
+profile = { kind = "ramp", from_rpm = 600.0, to_rpm = 900.0, seconds = 0.5 }
+"#,
+    )
+    .unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let s = sim::dataset::generate(&r, &plan, dir.path(), "mcap", Some(2), false).unwrap();
+    assert_eq!(s.recordings, 4);
+    let csv = std::fs::read_to_string(dir.path().join("labels.csv")).unwrap();
+    let lines: Vec<&str> = csv.lines().collect();
+    assert_eq!(lines[0], "path,label");
+    assert_eq!(lines.len(), 5, "{csv}");
+    for line in &lines[1..] {
+        let (path, label) = line.split_once(',').unwrap();
+        let rec = rigmon::recording::mcap_layout::read_recording(&dir.path().join(path)).unwrap();
+        assert_eq!(rec.label(), Some(label), "{path}");
+        assert_eq!(rec.metadata["plan"], "tiny");
+        assert_eq!(rec.len(), 5000);
+        if label == "outer_race" {
+            let w: f64 = rec.metadata["defect_width_mm"].parse().unwrap();
+            assert!((0.3..=0.6).contains(&w), "{w}");
+        }
+        if label == "inner_race" {
+            assert_eq!(rec.metadata["faults"], "inner_race,ball");
+            assert!(rec.metadata["speed_profile"].starts_with("ramp"));
+        }
+    }
+}
