@@ -565,3 +565,136 @@ fn systemd_unit_passes_systemd_analyze_verify() {
         "systemd-analyze verify: {text}"
     );
 }
+
+const PY_ROUTER: &str = r#"
+import json, sys, time, zenoh
+c = zenoh.Config()
+c.insert_json5("mode", '"router"')
+c.insert_json5("listen/endpoints", json.dumps(["tcp/127.0.0.1:" + sys.argv[1]]))
+c.insert_json5("connect/endpoints", "[]")
+c.insert_json5("scouting/multicast/enabled", "false")
+s = zenoh.open(c)
+print("up", flush=True)
+while True:
+    time.sleep(1)
+"#;
+
+fn router(port: u16) -> Guard {
+    let mut c = Command::new("python3")
+        .args(["-c", PY_ROUTER, &port.to_string()])
+        .stdout(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let out = lines(c.stdout.take().unwrap());
+    assert_eq!(
+        out.recv_timeout(Duration::from_secs(20))
+            .expect("python zenoh router did not start"),
+        "up"
+    );
+    Guard(c)
+}
+
+#[test]
+fn survives_a_router_restart_and_answers_queries_and_liveliness() {
+    let tmp = tempfile::tempdir().unwrap();
+    let port = free_port();
+    let ep = format!("tcp/127.0.0.1:{port}");
+    let mut r = router(port);
+    let (file, label) = replays().into_iter().find(|(_, l)| l != "healthy").unwrap();
+    let cfg = daemon_config(tmp.path(), &file, &model(), "2.0", free_port(), false);
+    // Client mode through the router (the config's listen endpoint is replaced by none).
+    let daemon = Command::new(bin())
+        .args([
+            "run",
+            "--config",
+            cfg.to_str().unwrap(),
+            "--mode",
+            "client",
+            "--connect",
+            &ep,
+        ])
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut daemon = Guard(daemon);
+    let _daemon_err = lines(daemon.0.stderr.take().unwrap());
+    let watch = Command::new(bin())
+        .args(["watch", "--json", "--mode", "client", "--connect", &ep])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::null())
+        .spawn()
+        .unwrap();
+    let mut watch = Guard(watch);
+    let got = lines(watch.0.stdout.take().unwrap());
+    for _ in 0..3 {
+        got.recv_timeout(Duration::from_secs(20))
+            .expect("health through the router");
+    }
+
+    // Kill the router, restart it, and time how long until health flows again.
+    r.0.kill().unwrap();
+    r.0.wait().unwrap();
+    std::thread::sleep(Duration::from_millis(500));
+    while got.try_recv().is_ok() {}
+    let t = Instant::now();
+    let _r2 = router(port);
+    let first: HealthMessage = serde_json::from_str(
+        &got.recv_timeout(Duration::from_secs(30))
+            .expect("health resumed after the router restart"),
+    )
+    .unwrap();
+    eprintln!(
+        "health resumed {:.1} s after the router restarted",
+        t.elapsed().as_secs_f64()
+    );
+    assert_eq!(first.state, label);
+
+    // Read-only queryables: the latest health and the running config.
+    let q = |key: &str| {
+        let out = Command::new(bin())
+            .args([
+                "watch",
+                "--query",
+                "--json",
+                "--mode",
+                "client",
+                "--connect",
+                &ep,
+                key,
+            ])
+            .output()
+            .unwrap();
+        assert!(
+            out.status.success(),
+            "query {key}: {}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        String::from_utf8(out.stdout).unwrap()
+    };
+    let latest: HealthMessage =
+        serde_json::from_str(q("rigmon/lut-rig/shaft/nde/health").trim()).unwrap();
+    assert_eq!(latest.rig, "lut-rig");
+    let config: serde_json::Value =
+        serde_json::from_str(q("rigmon/lut-rig/shaft/nde/config").trim()).unwrap();
+    assert_eq!(config["zenoh"]["mode"], "client", "{config}");
+    assert_eq!(config["health"]["vote_k"], 3, "{config}");
+    // The liveliness token, seen by the independent Python client.
+    let live = Command::new("python3")
+        .args([
+            "-c",
+            "import json,sys,zenoh\nc=zenoh.Config()\nc.insert_json5('mode','\"client\"')\nc.insert_json5('connect/endpoints',json.dumps([sys.argv[1]]))\nc.insert_json5('scouting/multicast/enabled','false')\nwith zenoh.open(c) as s:\n    print(sorted(str(r.ok.key_expr) for r in s.liveliness().get('rigmon/**', timeout=5.0) if r.ok))",
+            &ep,
+        ])
+        .output()
+        .unwrap();
+    let text = String::from_utf8_lossy(&live.stdout);
+    assert!(
+        text.contains("rigmon/lut-rig/shaft/nde/alive"),
+        "liveliness: {text} {}",
+        String::from_utf8_lossy(&live.stderr)
+    );
+    signal(&daemon.0, libc::SIGTERM);
+    assert!(wait_exit(&mut daemon.0, Duration::from_secs(15)).success());
+    let _ = watch.0.kill();
+}
