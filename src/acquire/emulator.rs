@@ -157,10 +157,12 @@ impl SerialEmulator {
             }
             if unplug_at.is_some_and(|u| clock >= u) && report.unplugs == 0 {
                 report.unplugs += 1;
-                drop(out);
+                // Remove the name first: once the pty is closed its number can be reused by
+                // another pty, which a reader must not find under our name.
                 if let EmulatorPort::Pty { link: Some(l) } = port {
                     let _ = std::fs::remove_file(l);
                 }
+                drop(out);
                 let pause = Duration::from_secs_f64(self.opts.unplug_for_s.max(0.0));
                 if !sleep_unless_stopped(pause, stop) {
                     return Ok(report);
@@ -315,16 +317,20 @@ impl Output {
     }
 
     /// End of stream: let the reader take what is still buffered in the pseudo-terminal
-    /// (closing the master would throw it away), for up to 5 s.
+    /// (closing the master would throw it away), for up to 5 s. The slave's input queue
+    /// must stay empty for 60 ms: bytes still in the kernel's flip buffers do not show in it.
     fn finish(mut self, stop: &StopToken) {
         let _ = self.writer().flush();
         if let Output::Pty { _slave: slave, .. } = &self {
             let end = Instant::now() + Duration::from_secs(5);
-            while slave.bytes_to_read().is_ok_and(|n| n > 0)
-                && Instant::now() < end
-                && !stop.is_stopped()
-            {
-                std::thread::sleep(Duration::from_millis(10));
+            let mut empty_polls = 0;
+            while empty_polls < 3 && Instant::now() < end && !stop.is_stopped() {
+                std::thread::sleep(Duration::from_millis(20));
+                match slave.bytes_to_read() {
+                    Ok(0) => empty_polls += 1,
+                    Ok(_) => empty_polls = 0,
+                    Err(_) => break,
+                }
             }
         }
     }

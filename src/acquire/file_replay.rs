@@ -150,8 +150,11 @@ impl FileSourceConfig {
         };
         let rec = importers::load(&self.path, rig, &opts)
             .with_context(|| format!("file source: cannot replay {}", self.path.display()))?;
-        FileReplay::from_recording(rec, rig, self.speed, self.looping, self.block_ms)
-            .with_context(|| format!("file source {}", self.path.display()))
+        let mut replay =
+            FileReplay::from_recording(rec, rig, self.speed, self.looping, self.block_ms)
+                .with_context(|| format!("file source {}", self.path.display()))?;
+        replay.name = self.path.display().to_string();
+        Ok(replay)
     }
 }
 
@@ -172,6 +175,8 @@ pub struct FileReplay {
     speed: ReplaySpeed,
     looping: bool,
     block: usize,
+    /// What `describe` calls it: the path it was read from, else the recording's provenance.
+    name: String,
 }
 
 impl FileReplay {
@@ -257,6 +262,7 @@ impl FileReplay {
             tracing::warn!("the recording has no channel(s) {absent:?} of rig {} (it has {names:?}); they are replayed as NaN", rig.machine.id);
         }
         let block = super::BlockAssembler::samples_for_ms(rec.sample_rate, block_ms);
+        let name = rec.provenance.source_path.clone();
         Ok(FileReplay {
             rec,
             order,
@@ -264,6 +270,7 @@ impl FileReplay {
             speed,
             looping,
             block,
+            name,
         })
     }
 
@@ -310,7 +317,7 @@ impl Source for FileReplay {
         let p = &self.rec.provenance;
         format!(
             "file {} ({}, {} Hz, {:.1} s, speed {}{})",
-            p.source_path,
+            self.name,
             if p.format.is_empty() {
                 "recording"
             } else {
