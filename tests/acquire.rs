@@ -666,3 +666,113 @@ fn audio_child() {
         "every gap on the sample clock is counted as lost: gaps {gaps}, lost {lost}"
     );
 }
+
+/// The serial frame layout as documented (README table), read by an independent decoder in
+/// Python (struct + zlib.crc32) from bytes the Rust encoder wrote.
+#[test]
+fn an_independent_python_decoder_reads_the_serial_frames() {
+    use rigmon::acquire::serial_protocol::FrameEncoder;
+    const PY: &str = r#"
+import json, struct, sys, zlib
+b = open(sys.argv[1], "rb").read()
+out, i = [], 0
+while i < len(b):
+    assert b[i:i+4] == bytes([0xA5, 0x5A, 0x52, 0x4D]), "sync"
+    ver, fmt, c, flags, n, e, seq, first, rate, hcrc = struct.unpack_from("<BBBBHHIQfI", b, i + 4)
+    assert zlib.crc32(b[i:i+28]) == hcrc, "header crc"
+    bps = {1: 2, 2: 3, 3: 4}[fmt]
+    total = 32 + 4*c + n*c*bps + 8*e + 4
+    assert zlib.crc32(b[i:i+total-4]) == struct.unpack_from("<I", b, i + total - 4)[0], "frame crc"
+    scales = struct.unpack_from("<%df" % c, b, i + 32)
+    o = i + 32 + 4*c
+    vals = [[] for _ in range(c)]
+    for k in range(n * c):
+        raw = b[o + k*bps : o + (k+1)*bps]
+        v = struct.unpack("<h", raw)[0] if fmt == 1 else (int.from_bytes(raw, "little", signed=True) if fmt == 2 else struct.unpack("<f", raw)[0])
+        vals[k % c].append(v * scales[k % c])
+    o += n*c*bps
+    edges = [q / 65536.0 for q in struct.unpack_from("<%dQ" % e, b, o)]
+    out.append(dict(version=ver, format=fmt, seq=seq, first=first, rate=rate, values=vals, edges=edges))
+    i += total
+print(json.dumps(out))
+"#;
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("frames.bin");
+    let mut bytes = Vec::new();
+    let mut sent = Vec::new();
+    for (k, (format, scale)) in [
+        (SampleFormat::I16, 1e-3f32),
+        (SampleFormat::I24, 1e-6),
+        (SampleFormat::F32, 1.0),
+    ]
+    .into_iter()
+    .enumerate()
+    {
+        let enc = FrameEncoder {
+            sample_rate: 12_000.0,
+            format,
+            scales: vec![scale, scale],
+            flags: 0,
+        };
+        let a: Vec<f32> = (0..7).map(|i| (i as f32 - 3.0) * 2.5).collect();
+        let b: Vec<f32> = (0..7).map(|i| -(i as f32) * 0.125).collect();
+        enc.encode(
+            &mut bytes,
+            40 + k as u32,
+            1000 * k as u64,
+            &[&a, &b],
+            &[1000.0 * k as f64 + 2.5, 1000.0 * k as f64 + 6.75],
+        )
+        .unwrap();
+        sent.push((a, b));
+    }
+    std::fs::write(&path, &bytes).unwrap();
+    let out = std::process::Command::new("python3")
+        .arg("-c")
+        .arg(PY)
+        .arg(&path)
+        .output()
+        .expect("python3 runs");
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let frames: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(frames.as_array().unwrap().len(), 3);
+    for (k, f) in frames.as_array().unwrap().iter().enumerate() {
+        assert_eq!(
+            (
+                f["version"].as_u64(),
+                f["format"].as_u64(),
+                f["seq"].as_u64(),
+                f["first"].as_u64()
+            ),
+            (
+                Some(1),
+                Some(k as u64 + 1),
+                Some(40 + k as u64),
+                Some(1000 * k as u64)
+            )
+        );
+        assert_eq!(f["rate"].as_f64(), Some(12_000.0));
+        assert_eq!(
+            f["edges"],
+            serde_json::json!([1000.0 * k as f64 + 2.5, 1000.0 * k as f64 + 6.75])
+        );
+        for (c, want) in [&sent[k].0, &sent[k].1].into_iter().enumerate() {
+            let got: Vec<f64> = f["values"][c]
+                .as_array()
+                .unwrap()
+                .iter()
+                .map(|v| v.as_f64().unwrap())
+                .collect();
+            for (g, w) in got.iter().zip(want) {
+                assert!(
+                    (g - *w as f64).abs() < 1e-3,
+                    "frame {k} channel {c}: {g} vs {w}"
+                );
+            }
+        }
+    }
+}

@@ -316,3 +316,139 @@ fn bad_model_files_give_clear_errors() {
     cwru.features.max_order = 25.0;
     assert!(clf.check_rig(&cwru).is_err());
 }
+
+fn shared_data() -> PathBuf {
+    let p = manifest_dir().join("../shared/data/cwru");
+    assert!(
+        p.is_dir(),
+        "shared CWRU data missing at {} (CI always has it; see ../shared/data/README.md)",
+        p.display()
+    );
+    p
+}
+
+fn rigmon(args: &[&str]) -> String {
+    let out = Command::new(env!("CARGO_BIN_EXE_rigmon"))
+        .args(args)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "rigmon {args:?} failed:\n{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    String::from_utf8_lossy(&out.stdout).to_string()
+}
+
+/// The shipped models: valid for the reference tooling, metadata for their rig, small.
+#[test]
+fn shipped_models_pass_the_onnx_checks() {
+    for name in ["lut-rig", "cwru-de"] {
+        let p = manifest_dir().join(format!("models/{name}.onnx"));
+        let clf = OnnxClassifier::load(&p).unwrap();
+        let m = clf.meta();
+        assert_eq!(m.rig_id, name);
+        assert_eq!(m.labels, class_labels(false));
+        assert!(m.novelty_threshold.is_finite() && m.novelty_threshold > 0.0);
+        assert!(
+            m.finetune.is_empty(),
+            "{name}: shipped models learn from simulation only"
+        );
+        let rig = RigConfig::load(&manifest_dir().join(format!("config/{name}.toml"))).unwrap();
+        clf.check_rig(&rig).unwrap();
+        assert!(std::fs::metadata(&p).unwrap().len() < 400_000);
+        let card =
+            std::fs::read_to_string(manifest_dir().join(format!("models/{name}.md"))).unwrap();
+        assert!(
+            card.contains(&m.data_hash[..12]),
+            "{name}.md must name the training-data hash"
+        );
+        python_check(&p, None);
+    }
+}
+
+/// `rigmon evaluate` on the real CWRU records (importers + dsp + tract end to end), then
+/// `rigmon finetune` and the leak guard: the fine-tuning recording is not scored again.
+#[test]
+fn evaluate_and_finetune_on_real_cwru_records() {
+    shared_data();
+    let csv = manifest_dir().join("models/cwru-real.csv");
+    let model = manifest_dir().join("models/cwru-de.onnx");
+    let rig = manifest_dir().join("config/cwru-de.toml");
+    let (csv, model, rig) = (
+        csv.to_str().unwrap(),
+        model.to_str().unwrap(),
+        rig.to_str().unwrap(),
+    );
+    let v: serde_json::Value = serde_json::from_str(&rigmon(&[
+        "evaluate",
+        "--model",
+        model,
+        "--rig",
+        rig,
+        "--manifest",
+        csv,
+        "--json",
+    ]))
+    .unwrap();
+    assert_eq!(
+        v["n_records"], 5,
+        "ball records are skipped by a 3-class model: {v}"
+    );
+    for key in ["record_accuracy", "balanced_accuracy", "window_accuracy"] {
+        let x = v[key].as_f64().unwrap();
+        assert!((0.0..=1.0).contains(&x), "{key} = {x}");
+    }
+    assert_eq!(v["confusion"]["labels"].as_array().unwrap().len(), 3);
+    let recs = v["records"].as_array().unwrap();
+    assert!(recs
+        .iter()
+        .all(|r| r["path"].is_string() && r["label"].is_string() && r["predicted"].is_string()));
+    assert_eq!(
+        v["split"]["skipped_unknown_label_records"]
+            .as_array()
+            .unwrap()
+            .len(),
+        2
+    );
+
+    let dir = tempfile::tempdir().unwrap();
+    let ft = dir.path().join("ft.onnx");
+    let ft = ft.to_str().unwrap();
+    let r: serde_json::Value = serde_json::from_str(&rigmon(&[
+        "finetune",
+        "--model",
+        model,
+        "--rig",
+        rig,
+        "--manifest",
+        csv,
+        "--fraction",
+        "0.2",
+        "--seed",
+        "3",
+        "-o",
+        ft,
+        "--json",
+    ]))
+    .unwrap();
+    let used = r["report"]["finetune_records"].as_array().unwrap().clone();
+    assert_eq!(used.len(), 1);
+    assert_eq!(r["after"]["n_records"], 4);
+    let e: serde_json::Value = serde_json::from_str(&rigmon(&[
+        "evaluate",
+        "--model",
+        ft,
+        "--rig",
+        rig,
+        "--manifest",
+        csv,
+        "--json",
+    ]))
+    .unwrap();
+    assert_eq!(e["n_records"], 4);
+    assert_eq!(
+        e["split"]["excluded_finetune_records"].as_array().unwrap(),
+        &used
+    );
+}

@@ -202,6 +202,9 @@ pub fn fit(
         novelty_threshold: model.novelty.threshold,
         validation_unknown_rate: ev.unknown_rate,
     };
-    model.meta.training = serde_json::to_string(&report)?;
+    // Metadata keeps the validation list but only the count of training recordings (small file).
+    let mut compact = serde_json::to_value(&report)?;
+    compact["train_records"] = serde_json::json!(report.train_records.len());
+    model.meta.training = compact.to_string();
     Ok((model, report, ev))
 }

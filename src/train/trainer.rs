@@ -63,7 +63,7 @@ impl Default for TrainConfig {
             weight_decay: 1e-4,
             dropout: 0.2,
             hidden: vec![128, 128, 128],
-            augment: 0.5,
+            augment: 2.0,
             floor: Preprocess::DEFAULT_FLOOR,
         }
     }
@@ -289,6 +289,7 @@ mod tests {
             epochs: 40,
             patience: 10,
             hidden: vec![16, 16],
+            augment: 0.0,
             ..Default::default()
         };
         let a = train(&tr, &va, 3, &cfg, |_| {});
@@ -297,6 +298,24 @@ mod tests {
         let (_, lg) = a.mlp.forward(a.pre.apply(va.x.view()).view());
         let acc = accuracy(softmax(lg.view()).view(), &va.y);
         assert!(acc > 0.95, "validation accuracy {acc}");
+    }
+
+    #[test]
+    fn augmentation_keeps_spectra_positive_and_is_seeded() {
+        let x0 = synthetic(4, 9).x;
+        let run = |seed| {
+            let mut x = x0.clone();
+            augment(&mut x, 2.0, &mut rand::rngs::StdRng::seed_from_u64(seed));
+            x
+        };
+        let (a, b, c) = (run(1), run(1), run(2));
+        assert_eq!(a, b);
+        assert_ne!(a, c);
+        assert!(a.iter().all(|v| v.is_finite() && *v > 0.0));
+        assert_ne!(a, x0);
+        let mut same = x0.clone();
+        augment(&mut same, 0.0, &mut rand::rngs::StdRng::seed_from_u64(1));
+        assert_eq!(same, x0, "strength 0 is off");
     }
 
     #[test]
