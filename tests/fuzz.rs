@@ -1,6 +1,6 @@
 //! Bounded, coverage-free, structure-aware mutation fuzzing of every decoder that reads bytes
 //! from outside rigmon: the serial frame decoder, the CAN frame decoder, the MCAP reader, the
-//! MAT v5 (CWRU/MFPT), WAV and CSV importers and the rig config parser.
+//! MAT v5 (CWRU/MFPT), WAV and CSV importers, the rig config and the daemon config parsers.
 //!
 //! Each target starts from its committed seed corpus (`tests/corpus/<target>/`; every seed
 //! must be accepted, so the corpus stays meaningful), then mutates for a time budget
@@ -15,6 +15,7 @@
 
 use rigmon::acquire::can_protocol::{CanDecoder, CanEncoder};
 use rigmon::acquire::serial_protocol::{self as sp, FrameEncoder, SampleFormat};
+use rigmon::config::daemon::DaemonConfig;
 use rigmon::config::RigConfig;
 use rigmon::importers::{self, cwru, mat5, mfpt, ImportOptions};
 use rigmon::recording::mcap_layout;
@@ -889,7 +890,11 @@ fn mat_target() -> Target {
 /// Importers that take a path: write the input to a per-target temp file and `load` it.
 fn file_target(name: &'static str, kind: Kind, file: &'static str, rig_file: &str) -> Target {
     let rig = rig(rig_file);
-    let dir = tempfile::tempdir().unwrap();
+    // A RAM-backed folder when there is one: the importers read real files.
+    let dir = match Path::new("/dev/shm").is_dir() {
+        true => tempfile::tempdir_in("/dev/shm").unwrap(),
+        false => tempfile::tempdir().unwrap(),
+    };
     let path = dir.path().join(file);
     Target {
         name,
@@ -967,6 +972,43 @@ fn first_difference(a: &str, b: &str) -> String {
     format!("before: ...{} / after: ...{}", cut(a), cut(b))
 }
 
+fn daemon_target() -> Target {
+    let base = manifest().join("config/rigmon.toml");
+    Target {
+        name: "daemon",
+        kind: Kind::Text,
+        fixup: None,
+        run: Box::new(move |input: &[u8]| {
+            let text = String::from_utf8_lossy(input);
+            let Ok(cfg) = DaemonConfig::parse(&text, &base) else {
+                return Verdict::Rejected;
+            };
+            // The daemon prints its effective config as TOML: it must read back the same.
+            let back = match toml::to_string(&cfg) {
+                Ok(t) => t,
+                Err(e) => {
+                    return Verdict::Broken(format!("validated config does not serialise: {e}"))
+                }
+            };
+            match DaemonConfig::parse(&back, &base) {
+                Ok(again) if again == cfg => Verdict::Accepted,
+                Ok(again) => Verdict::Broken(format!(
+                    "daemon config changes in a TOML round trip: {}",
+                    first_difference(&format!("{cfg:?}"), &format!("{again:?}"))
+                )),
+                Err(e) => Verdict::Broken(format!(
+                    "validated daemon config does not parse after a TOML round trip: {e:#}"
+                )),
+            }
+        }),
+    }
+}
+
+#[test]
+fn fuzz_daemon_config() {
+    fuzz(daemon_target());
+}
+
 #[test]
 fn fuzz_serial_decoder() {
     fuzz(serial_target());
@@ -1018,6 +1060,7 @@ fn replay() {
         "wav" => file_target("wav", Kind::Binary, "fuzz.wav", "lut-rig.toml"),
         "csv" => file_target("csv", Kind::Text, "fuzz.csv", "lut-rig.toml"),
         "rig" => rig_target(),
+        "daemon" => daemon_target(),
         other => panic!("unknown target {other}"),
     };
     match (t.run)(&input) {
@@ -1514,7 +1557,9 @@ fn regenerate_corpus() {
 #[test]
 fn corpus_is_small() {
     let mut total = 0;
-    for t in ["serial", "can", "mcap", "mat", "wav", "csv", "rig"] {
+    for t in [
+        "serial", "can", "mcap", "mat", "wav", "csv", "rig", "daemon",
+    ] {
         total += load_corpus(t).iter().map(|(_, b)| b.len()).sum::<usize>();
     }
     assert!(
