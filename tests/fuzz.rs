@@ -1102,6 +1102,46 @@ fn can_take_aligned_terminates_with_pending_edges() {
     }
 }
 
+/// Found by `fuzz_serial_decoder`: `DecoderCounters::samples_lost` is summed without
+/// saturation (src/acquire/serial_protocol.rs, `Decoder::account`), so a stream whose sample
+/// clock jumps far ahead twice (with a reset between) overflows it: a panic in debug builds,
+/// a wrapped counter in release. Owned by the sources helper; this test stays red until fixed.
+#[test]
+fn serial_lost_sample_counter_survives_clock_jumps() {
+    let enc = FrameEncoder {
+        sample_rate: 10_000.0,
+        format: SampleFormat::I16,
+        scales: vec![1e-3],
+        flags: 0,
+    };
+    let mut stream = Vec::new();
+    for (seq, first) in [0u64, u64::MAX - 10, 0, u64::MAX - 10]
+        .into_iter()
+        .enumerate()
+    {
+        enc.encode(&mut stream, seq as u32, first, &[&[0.1, 0.2]], &[])
+            .unwrap();
+    }
+    let hex_stream = hex(&stream);
+    let r = std::panic::catch_unwind(move || {
+        let mut dec = sp::Decoder::new();
+        dec.feed(&stream);
+        let mut n = 0;
+        while dec.next_frame().is_some() {
+            n += 1;
+        }
+        (n, dec.counters().samples_lost)
+    });
+    let (frames, lost) = r.unwrap_or_else(|_| {
+        panic!("the serial decoder panicked on 4 valid frames whose clock jumps; hex: {hex_stream}")
+    });
+    assert_eq!(frames, 4);
+    assert!(
+        lost >= 1 << 63,
+        "samples_lost wrapped to {lost} after two jumps of ~2^64 samples; hex: {hex_stream}"
+    );
+}
+
 /// The mutator must change inputs, keep them bounded and be reproducible from its seed.
 #[test]
 fn mutator_is_deterministic_and_mutates() {
