@@ -405,12 +405,15 @@ enum Verdict {
     Broken(String),
 }
 
+/// A target's entry point: one input in, a verdict out.
+type RunFn = Box<dyn Fn(&[u8]) -> Verdict + Send + Sync>;
+
 struct Target {
     name: &'static str,
     kind: Kind,
     /// Structure-aware repair after mutation (e.g. recompute CRCs), applied half the time.
-    fixup: Option<fn(&mut Vec<u8>)>,
-    run: Box<dyn Fn(&[u8]) -> Verdict + Send + Sync>,
+    fixup: Option<fn(&mut [u8])>,
+    run: RunFn,
 }
 
 fn manifest() -> &'static Path {
@@ -703,7 +706,7 @@ fn rig(name: &str) -> RigConfig {
 
 /// Recompute the header and frame CRCs of every serial frame whose header fits, so mutations
 /// of the fields and the body reach the decoder past its CRC checks.
-fn fix_serial_crcs(d: &mut Vec<u8>) {
+fn fix_serial_crcs(d: &mut [u8]) {
     let mut i = 0;
     while i + sp::HEADER_BYTES <= d.len() {
         if d[i..i + 4] != sp::SYNC {
