@@ -1,1 +1,540 @@
-//! Health state machine: per-window results -> smoothed state with hysteresis; the health message. (owner: daemon)
+//! Health state machine: per-window verdicts -> a smoothed machine state with hysteresis.
+//!
+//! Each window gets a *window state*: the classifier's label, or `unknown` when the data
+//! quality is bad, the window is novel (out of the training distribution) or the top
+//! probability is below `min_confidence`. The *smoothed state* changes only when one state
+//! wins at least `k` of the last `n` window states (k-of-n voting) and has kept winning for
+//! `dwell_s` seconds of signal (dwell time). Going to `unknown` uses `unknown_dwell_s`
+//! (default 0: stop claiming a state as soon as the votes say the data cannot be trusted).
+//! Before the first vote is won the smoothed state is `unknown`.
+//!
+//! The published message is in [`message`]; the ISO 20816-3 velocity zones in [`iso20816`].
+
+pub mod iso20816;
+pub mod message;
+
+use anyhow::{bail, Result};
+use serde::{Deserialize, Serialize};
+use std::collections::VecDeque;
+
+/// The state name used when no class can be trusted.
+pub const UNKNOWN: &str = "unknown";
+
+/// How window verdicts are smoothed (the `[health]` section of the daemon config).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct HealthPolicy {
+    /// Votes kept (the last `vote_n` windows).
+    #[serde(default = "default_n")]
+    pub vote_n: usize,
+    /// Votes a state needs among the last `vote_n` windows to become the smoothed state.
+    #[serde(default = "default_k")]
+    pub vote_k: usize,
+    /// Seconds (of signal) a new known state must keep winning the vote before it is adopted.
+    #[serde(default = "default_dwell")]
+    pub dwell_s: f64,
+    /// Seconds the `unknown` vote must keep winning before the smoothed state becomes unknown.
+    #[serde(default)]
+    pub unknown_dwell_s: f64,
+    /// A window whose top class probability is below this is `unknown`.
+    #[serde(default = "default_min_conf")]
+    pub min_confidence: f32,
+    /// Override the model's novelty threshold (None = use the model's own).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub novelty_threshold: Option<f32>,
+    /// ISO 20816-3 zone limits for the velocity RMS advisory.
+    #[serde(default)]
+    pub iso20816: iso20816::ZoneConfig,
+}
+
+fn default_n() -> usize {
+    5
+}
+fn default_k() -> usize {
+    3
+}
+fn default_dwell() -> f64 {
+    1.0
+}
+fn default_min_conf() -> f32 {
+    0.5
+}
+
+impl Default for HealthPolicy {
+    fn default() -> Self {
+        HealthPolicy {
+            vote_n: default_n(),
+            vote_k: default_k(),
+            dwell_s: default_dwell(),
+            unknown_dwell_s: 0.0,
+            min_confidence: default_min_conf(),
+            novelty_threshold: None,
+            iso20816: iso20816::ZoneConfig::default(),
+        }
+    }
+}
+
+impl HealthPolicy {
+    /// Check the numbers; errors name the key and the rule.
+    pub fn validate(&self) -> Result<()> {
+        if self.vote_n == 0 || self.vote_n > 1000 {
+            bail!(
+                "health.vote_n = {}: must be between 1 and 1000",
+                self.vote_n
+            );
+        }
+        if self.vote_k * 2 <= self.vote_n || self.vote_k > self.vote_n {
+            bail!(
+                "health.vote_k = {} with vote_n = {}: need vote_n/2 < vote_k <= vote_n so that at most one state can win",
+                self.vote_k,
+                self.vote_n
+            );
+        }
+        if !(self.dwell_s >= 0.0 && self.dwell_s.is_finite())
+            || !(self.unknown_dwell_s >= 0.0 && self.unknown_dwell_s.is_finite())
+        {
+            bail!("health.dwell_s and health.unknown_dwell_s must be finite and >= 0");
+        }
+        if !(0.0..=1.0).contains(&self.min_confidence) {
+            bail!(
+                "health.min_confidence = {}: must be in 0..=1",
+                self.min_confidence
+            );
+        }
+        self.iso20816.validate()
+    }
+}
+
+/// What one window says, before smoothing.
+#[derive(Debug, Clone, PartialEq)]
+pub struct WindowVerdict<'a> {
+    /// End of the window on the sample clock, s.
+    pub t_end: f64,
+    /// Class labels (model order) and their probabilities.
+    pub labels: &'a [String],
+    pub probs: &'a [f32],
+    /// Novelty score and the threshold above which the window is novel.
+    pub novelty: f32,
+    pub novelty_threshold: f32,
+    /// True when the data quality forbids a verdict (NaN, dropout, clipping, lost tacho).
+    pub bad_quality: bool,
+}
+
+/// Why a window is `unknown` (None when it has a class).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum UnknownReason {
+    BadQuality,
+    Novelty,
+    LowConfidence,
+}
+
+/// The state machine's answer for one window.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Smoothed {
+    /// This window's own state.
+    pub window_state: String,
+    pub unknown_reason: Option<UnknownReason>,
+    /// The smoothed state after this window.
+    pub state: String,
+    /// Mean probability of the smoothed state over the vote history (for `unknown`: the
+    /// share of `unknown` votes).
+    pub confidence: f32,
+    /// True when this window changed the smoothed state.
+    pub changed: bool,
+    /// Window-end time at which the smoothed state was entered, s.
+    pub since_s: f64,
+}
+
+/// k-of-n voting with dwell time. Allocation-free per window once the history is full
+/// (state names are interned in `names`).
+#[derive(Debug, Clone)]
+pub struct HealthStateMachine {
+    policy: HealthPolicy,
+    /// Interned state names: index 0 is `unknown`, then the model's labels.
+    names: Vec<String>,
+    /// Last n votes: (state index, probability vector index in `probs`).
+    votes: VecDeque<usize>,
+    /// Probabilities of the last n windows, flattened (n x labels), in vote order.
+    probs: VecDeque<Vec<f32>>,
+    state: usize,
+    since_s: f64,
+    /// The state currently winning the vote but not yet adopted, and since when.
+    candidate: Option<(usize, f64)>,
+    /// False until the first state has been adopted (leaving start-up needs no dwell).
+    started: bool,
+}
+
+impl HealthStateMachine {
+    pub fn new(policy: HealthPolicy, labels: &[String]) -> Result<Self> {
+        policy.validate()?;
+        let mut names = vec![UNKNOWN.to_string()];
+        for l in labels {
+            if l == UNKNOWN {
+                bail!("the model has a class named {UNKNOWN:?}; that name is reserved for the health state machine");
+            }
+            names.push(l.clone());
+        }
+        let n = policy.vote_n;
+        Ok(HealthStateMachine {
+            policy,
+            names,
+            votes: VecDeque::with_capacity(n + 1),
+            probs: VecDeque::with_capacity(n + 1),
+            state: 0,
+            since_s: 0.0,
+            candidate: None,
+            started: false,
+        })
+    }
+
+    pub fn policy(&self) -> &HealthPolicy {
+        &self.policy
+    }
+
+    /// The current smoothed state.
+    pub fn state(&self) -> &str {
+        &self.names[self.state]
+    }
+
+    /// Swap in a new policy and/or label set (SIGHUP reload). The vote history is kept when
+    /// the labels are the same, cleared (state -> unknown) when they differ.
+    pub fn reconfigure(&mut self, policy: HealthPolicy, labels: &[String]) -> Result<()> {
+        let fresh = HealthStateMachine::new(policy, labels)?;
+        if fresh.names == self.names {
+            self.policy = fresh.policy;
+            while self.votes.len() > self.policy.vote_n {
+                self.votes.pop_front();
+                self.probs.pop_front();
+            }
+        } else {
+            *self = fresh;
+        }
+        Ok(())
+    }
+
+    /// Feed one window; returns its window state and the smoothed state.
+    pub fn update(&mut self, v: &WindowVerdict) -> Smoothed {
+        let (top, top_p) = v.probs.iter().copied().enumerate().fold(
+            (0usize, f32::NEG_INFINITY),
+            |best, (i, p)| if p > best.1 { (i, p) } else { best },
+        );
+        let reason = if v.bad_quality || v.probs.is_empty() || !top_p.is_finite() {
+            Some(UnknownReason::BadQuality)
+        } else if !v.novelty.is_finite() || v.novelty > v.novelty_threshold {
+            Some(UnknownReason::Novelty)
+        } else if top_p < self.policy.min_confidence {
+            Some(UnknownReason::LowConfidence)
+        } else {
+            None
+        };
+        let vote = match reason {
+            Some(_) => 0,
+            None => self.intern(&v.labels[top.min(v.labels.len().saturating_sub(1))]),
+        };
+
+        // Record the vote and the probabilities (recycling the oldest buffer).
+        let mut buf = if self.votes.len() >= self.policy.vote_n {
+            self.votes.pop_front();
+            self.probs.pop_front().unwrap_or_default()
+        } else {
+            Vec::with_capacity(v.probs.len())
+        };
+        buf.clear();
+        buf.extend_from_slice(v.probs);
+        self.votes.push_back(vote);
+        self.probs.push_back(buf);
+
+        // k-of-n winner, if any.
+        let winner = (0..self.names.len())
+            .find(|&s| self.votes.iter().filter(|&&x| x == s).count() >= self.policy.vote_k);
+        let mut changed = false;
+        match winner {
+            Some(w) if w != self.state => {
+                let since = match self.candidate {
+                    Some((c, t)) if c == w => t,
+                    _ => v.t_end,
+                };
+                self.candidate = Some((w, since));
+                let dwell = if w == 0 {
+                    self.policy.unknown_dwell_s
+                } else {
+                    self.policy.dwell_s
+                };
+                // Leaving the start-up `unknown` needs no dwell beyond the vote itself.
+                if !self.started || v.t_end - since + 1e-9 >= dwell {
+                    self.started = true;
+                    self.state = w;
+                    self.since_s = v.t_end;
+                    self.candidate = None;
+                    changed = true;
+                }
+            }
+            _ => self.candidate = None,
+        }
+
+        Smoothed {
+            window_state: self.names[vote].clone(),
+            unknown_reason: reason,
+            state: self.names[self.state].clone(),
+            confidence: self.confidence(v.labels),
+            changed,
+            since_s: self.since_s,
+        }
+    }
+
+    fn intern(&mut self, label: &str) -> usize {
+        match self.names.iter().position(|n| n == label) {
+            Some(i) => i,
+            None => {
+                self.names.push(label.to_string());
+                self.names.len() - 1
+            }
+        }
+    }
+
+    fn confidence(&self, labels: &[String]) -> f32 {
+        let n = self.votes.len().max(1) as f32;
+        if self.state == 0 {
+            return self.votes.iter().filter(|&&x| x == 0).count() as f32 / n;
+        }
+        let name = &self.names[self.state];
+        match labels.iter().position(|l| l == name) {
+            Some(i) => {
+                self.probs
+                    .iter()
+                    .map(|p| p.get(i).copied().unwrap_or(0.0))
+                    .sum::<f32>()
+                    / n
+            }
+            None => 0.0,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn labels() -> Vec<String> {
+        ["healthy", "outer_race", "inner_race", "ball"]
+            .iter()
+            .map(|s| s.to_string())
+            .collect()
+    }
+
+    fn probs_for(label: &str) -> Vec<f32> {
+        labels()
+            .iter()
+            .map(|l| if l == label { 0.9 } else { 0.1 / 3.0 })
+            .collect()
+    }
+
+    /// Feed window states (a label, "nan" for bad quality, "novel" for novelty) at hop 0.5 s.
+    fn run(policy: HealthPolicy, seq: &[&str]) -> Vec<Smoothed> {
+        let labels = labels();
+        let mut sm = HealthStateMachine::new(policy, &labels).unwrap();
+        seq.iter()
+            .enumerate()
+            .map(|(i, s)| {
+                let p = probs_for(if *s == "nan" || *s == "novel" {
+                    "healthy"
+                } else {
+                    s
+                });
+                sm.update(&WindowVerdict {
+                    t_end: 1.0 + 0.5 * i as f64,
+                    labels: &labels,
+                    probs: &p,
+                    novelty: if *s == "novel" { 5.0 } else { 0.1 },
+                    novelty_threshold: 1.0,
+                    bad_quality: *s == "nan",
+                })
+            })
+            .collect()
+    }
+
+    fn states(out: &[Smoothed]) -> Vec<&str> {
+        out.iter().map(|s| s.state.as_str()).collect()
+    }
+
+    #[test]
+    fn starts_unknown_and_adopts_after_k_votes() {
+        let out = run(HealthPolicy::default(), &["healthy"; 4]);
+        assert_eq!(states(&out), ["unknown", "unknown", "healthy", "healthy"]);
+        assert!(out[2].changed && !out[3].changed);
+        assert!(
+            (out[3].confidence - 0.9).abs() < 1e-6,
+            "{}",
+            out[3].confidence
+        );
+    }
+
+    #[test]
+    fn hysteresis_ignores_isolated_flips() {
+        // One or two stray fault windows among healthy ones never reach 3 of 5.
+        let seq = [
+            "healthy",
+            "healthy",
+            "healthy",
+            "outer_race",
+            "healthy",
+            "outer_race",
+            "healthy",
+            "healthy",
+            "inner_race",
+        ];
+        let out = run(HealthPolicy::default(), &seq);
+        assert!(
+            out[2..].iter().all(|s| s.state == "healthy"),
+            "{:?}",
+            states(&out)
+        );
+        assert_eq!(out[3].window_state, "outer_race");
+    }
+
+    #[test]
+    fn dwell_delays_a_change_between_known_states() {
+        let mut seq = vec!["healthy"; 5];
+        seq.extend(["outer_race"; 6]);
+        let policy = HealthPolicy {
+            dwell_s: 1.0,
+            ..HealthPolicy::default()
+        };
+        let out = run(policy, &seq);
+        // outer_race wins 3 of 5 at index 7 (t = 4.5); dwell 1 s -> adopted at index 9 (t = 5.5).
+        let first = out.iter().position(|s| s.state == "outer_race").unwrap();
+        assert_eq!(first, 9, "{:?}", states(&out));
+        assert!(out[first].changed);
+        assert_eq!(out[first].since_s, 5.5);
+        // Without dwell it switches as soon as the vote is won.
+        let out0 = run(
+            HealthPolicy {
+                dwell_s: 0.0,
+                ..HealthPolicy::default()
+            },
+            &seq,
+        );
+        assert_eq!(
+            out0.iter().position(|s| s.state == "outer_race").unwrap(),
+            7
+        );
+    }
+
+    #[test]
+    fn a_broken_streak_restarts_the_dwell_clock() {
+        let seq = [
+            "healthy",
+            "healthy",
+            "healthy",
+            "outer_race",
+            "outer_race",
+            "healthy",
+            "healthy",
+            "outer_race",
+            "outer_race",
+            "outer_race",
+            "outer_race",
+        ];
+        let policy = HealthPolicy {
+            dwell_s: 1.0,
+            vote_n: 3,
+            vote_k: 2,
+            ..HealthPolicy::default()
+        };
+        let out = run(policy, &seq);
+        // outer_race wins 2 of 3 from index 4 (t = 3.0) to 5, loses at 6 (t = 4.0), wins again
+        // from index 8 (t = 5.0): the dwell clock restarts there and runs out at index 10.
+        let s = states(&out);
+        assert_eq!(s[0], "unknown");
+        assert!(s[1..10].iter().all(|&x| x == "healthy"), "{s:?}");
+        assert_eq!(s[10], "outer_race", "{s:?}");
+        assert_eq!(out[10].since_s, 6.0);
+    }
+
+    #[test]
+    fn bad_quality_and_novelty_make_unknown() {
+        let mut seq = vec!["healthy"; 4];
+        seq.extend(["nan"; 3]);
+        seq.extend(["novel"; 3]);
+        let out = run(HealthPolicy::default(), &seq);
+        assert_eq!(out[4].window_state, "unknown");
+        assert_eq!(out[4].unknown_reason, Some(UnknownReason::BadQuality));
+        assert_eq!(out[8].unknown_reason, Some(UnknownReason::Novelty));
+        // 3 unknown votes of 5 at index 6 -> unknown at once (unknown_dwell_s = 0).
+        assert_eq!(out[5].state, "healthy");
+        assert_eq!(out[6].state, "unknown");
+        assert!(out[6].changed);
+        assert!(out[9].state == "unknown" && out[9].confidence == 1.0);
+    }
+
+    #[test]
+    fn low_confidence_is_unknown() {
+        let labels = labels();
+        let mut sm = HealthStateMachine::new(
+            HealthPolicy {
+                min_confidence: 0.6,
+                ..Default::default()
+            },
+            &labels,
+        )
+        .unwrap();
+        let s = sm.update(&WindowVerdict {
+            t_end: 1.0,
+            labels: &labels,
+            probs: &[0.4, 0.3, 0.2, 0.1],
+            novelty: 0.0,
+            novelty_threshold: 1.0,
+            bad_quality: false,
+        });
+        assert_eq!(s.window_state, "unknown");
+        assert_eq!(s.unknown_reason, Some(UnknownReason::LowConfidence));
+    }
+
+    #[test]
+    fn invalid_policies_are_rejected_with_the_key() {
+        let e = HealthStateMachine::new(
+            HealthPolicy {
+                vote_k: 2,
+                vote_n: 4,
+                ..Default::default()
+            },
+            &labels(),
+        )
+        .unwrap_err();
+        assert!(e.to_string().contains("health.vote_k"), "{e}");
+        let e =
+            HealthStateMachine::new(HealthPolicy::default(), &["unknown".to_string()]).unwrap_err();
+        assert!(e.to_string().contains("reserved"), "{e}");
+    }
+
+    #[test]
+    fn reconfigure_keeps_history_for_same_labels() {
+        let labels = labels();
+        let mut sm = HealthStateMachine::new(HealthPolicy::default(), &labels).unwrap();
+        let p = probs_for("ball");
+        for i in 0..3 {
+            sm.update(&WindowVerdict {
+                t_end: i as f64,
+                labels: &labels,
+                probs: &p,
+                novelty: 0.0,
+                novelty_threshold: 1.0,
+                bad_quality: false,
+            });
+        }
+        assert_eq!(sm.state(), "ball");
+        sm.reconfigure(
+            HealthPolicy {
+                dwell_s: 3.0,
+                ..Default::default()
+            },
+            &labels,
+        )
+        .unwrap();
+        assert_eq!(sm.state(), "ball");
+        sm.reconfigure(HealthPolicy::default(), &labels[..2])
+            .unwrap();
+        assert_eq!(sm.state(), "unknown");
+    }
+}

@@ -403,3 +403,376 @@ fn live_sources_need_a_sample_rate() {
         .to_string();
     assert!(e.contains("sample_rate_hz"), "{e}");
 }
+
+/// Whether this kernel can have a virtual CAN interface; `Err(reason)` when it cannot.
+#[cfg(feature = "can")]
+fn vcan_possible() -> Result<(), String> {
+    let fd = unsafe { libc::socket(libc::AF_CAN, libc::SOCK_RAW, libc::CAN_RAW) };
+    if fd < 0 {
+        let e = std::io::Error::last_os_error();
+        if e.raw_os_error() == Some(libc::EAFNOSUPPORT) {
+            return Err(format!("the kernel has no SocketCAN (socket(AF_CAN): {e})"));
+        }
+        panic!("socket(AF_CAN) failed unexpectedly: {e}");
+    }
+    unsafe { libc::close(fd) };
+    Ok(())
+}
+
+#[cfg(feature = "can")]
+#[test]
+fn can_source_reports_a_kernel_without_socketcan_clearly() {
+    let cfg = SourceConfig::Can(rigmon::acquire::can::CanSourceConfig::new(
+        "rigmon-nonexistent0",
+    ));
+    let e = format!(
+        "{:#}",
+        cfg.build(&rig("lut-rig.toml"))
+            .err()
+            .expect("no such interface")
+    );
+    assert!(
+        e.contains("rigmon-nonexistent0")
+            && (e.contains("no SocketCAN support") || e.contains("no interface named")),
+        "{e}"
+    );
+}
+
+/// The CAN source on a virtual CAN interface: classic and FD frames from a second socket,
+/// one frame dropped. Skipped (with the reason printed) only where the kernel cannot have
+/// a vcan interface; on such machines the codec tests in `can_protocol` still run.
+#[cfg(feature = "can")]
+#[test]
+fn can_source_on_a_virtual_can_interface() {
+    use rigmon::acquire::can_protocol::CanEncoder;
+    use socketcan::{
+        CanAnyFrame, CanDataFrame, CanFdFrame, CanFdSocket, CanInterface, EmbeddedFrame, Socket,
+        StandardId,
+    };
+    if let Err(reason) = vcan_possible() {
+        eprintln!("SKIPPED can_source_on_a_virtual_can_interface: {reason}");
+        return;
+    }
+    let name = "rigmonvcan0";
+    let iface = match CanInterface::open(name) {
+        Ok(i) => i,
+        Err(_) => match CanInterface::create_vcan(name, None) {
+            Ok(i) => i,
+            Err(e) if !Path::new("/sys/module/vcan").exists() => {
+                eprintln!("SKIPPED can_source_on_a_virtual_can_interface: cannot create {name} and the vcan module is not loaded ({e})");
+                return;
+            }
+            Err(e) => panic!("cannot create {name} although vcan is loaded: {e}"),
+        },
+    };
+    iface.bring_up().expect("bring the vcan interface up");
+    let _ = iface.set_mtu(socketcan::nl::Mtu::Fd); // classic frames still pass if this fails
+    let rig = rig("lut-rig.toml");
+    let rec = lut_recording(0.5);
+    let Some(Tacho::Analog { samples: tacho, .. }) = &rec.tacho else {
+        panic!()
+    };
+    for payload in [8usize, 64] {
+        let src = SourceConfig::Can(rigmon::acquire::can::CanSourceConfig::new(name))
+            .build(&rig)
+            .unwrap();
+        let (rx, stats, stop, h) = spawn(src, 256);
+        std::thread::sleep(Duration::from_millis(200));
+        let tx = CanFdSocket::open(name).unwrap();
+        let peak = |v: &[f32]| v.iter().fold(0f32, |m, x| m.max(x.abs())) * 1.0001 / 32767.0;
+        let scales: Vec<f32> = rec
+            .channels
+            .iter()
+            .map(|c| peak(&c.samples))
+            .chain([peak(tacho)])
+            .collect();
+        let mut enc = CanEncoder::new(0x100, payload, 10_000, scales.clone());
+        let chans: Vec<&[f32]> = rec
+            .channels
+            .iter()
+            .map(|c| c.samples.as_slice())
+            .chain([tacho.as_slice()])
+            .collect();
+        let mut frames = enc.info();
+        frames.extend(enc.samples(0, &chans));
+        for (k, (id, d)) in frames.iter().enumerate() {
+            if k == 10 {
+                continue; // one lost frame
+            }
+            let id = StandardId::new(*id as u16).unwrap();
+            let f: CanAnyFrame = if payload == 8 {
+                CanDataFrame::new(id, d).unwrap().into()
+            } else {
+                CanFdFrame::new(id, d).unwrap().into()
+            };
+            while let Err(e) = tx.write_frame(&f) {
+                assert!(
+                    e.kind() == std::io::ErrorKind::WouldBlock
+                        || e.raw_os_error() == Some(libc::ENOBUFS),
+                    "{e}"
+                );
+                std::thread::sleep(Duration::from_millis(1));
+            }
+        }
+        let n = rec.len() as u64;
+        let mut blocks = collect_until(&rx, Duration::from_secs(20), |got| got + 2 * 30 >= n);
+        stop.stop();
+        h.join().unwrap().unwrap();
+        blocks.extend(rx.try_iter());
+        assert_eq!(
+            stats.sequence_gaps.load(Ordering::Relaxed),
+            1,
+            "payload {payload}"
+        );
+        let k = rigmon::acquire::can_protocol::samples_per_frame(payload) as u64;
+        assert_eq!(
+            stats.samples_lost.load(Ordering::Relaxed),
+            k,
+            "payload {payload}"
+        );
+        let mut checked = 0;
+        for b in &blocks {
+            for i in 0..b.len() {
+                let pos = (b.first_sample + i as u64) as usize;
+                for c in 0..3 {
+                    let (g, w) = (b.channels[c][i], rec.channels[c].samples[pos]);
+                    assert!(
+                        g.is_nan() || (g - w).abs() <= scales[c] * 0.5 + w.abs() * f32::EPSILON,
+                        "payload {payload} ch {c} sample {pos}: {g} vs {w}"
+                    );
+                }
+                checked += 1;
+            }
+        }
+        assert!(
+            checked + 2 * k >= n,
+            "payload {payload}: {checked} of {n} samples arrived"
+        );
+    }
+}
+
+/// The sound-card source through a file-backed ALSA device (`.asoundrc` under a private
+/// HOME, so it runs in a child process of this test binary).
+#[cfg(feature = "audio")]
+#[test]
+fn audio_source_reads_a_file_backed_alsa_device() {
+    let dir = tempfile::tempdir().unwrap();
+    let infile = dir.path().join("capture.f32");
+    // 4 interleaved input channels: in0 = vertical, in1 = horizontal, in2 = axial, in3 = tacho.
+    let n = 10_000;
+    let mut bytes = Vec::with_capacity(n * 16);
+    for i in 0..n {
+        for v in audio_frame(i) {
+            bytes.extend_from_slice(&v.to_le_bytes());
+        }
+    }
+    std::fs::write(&infile, &bytes).unwrap();
+    std::fs::write(
+        dir.path().join(".asoundrc"),
+        format!(
+            "pcm.rigcap {{\n type file\n slave.pcm \"null\"\n file \"/dev/null\"\n infile \"{}\"\n format \"raw\"\n hint {{ show on description \"rig capture\" }}\n}}\n",
+            infile.display()
+        ),
+    )
+    .unwrap();
+    let out = std::process::Command::new(std::env::current_exe().unwrap())
+        .args([
+            "--ignored",
+            "--exact",
+            "audio_child",
+            "--nocapture",
+            "--test-threads=1",
+        ])
+        .env("HOME", dir.path())
+        .env("RIGMON_AUDIO_TEST", "1")
+        .output()
+        .unwrap();
+    let text = format!(
+        "{}{}",
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(out.status.success() && text.contains("1 passed"), "{text}");
+}
+
+#[cfg(feature = "audio")]
+fn audio_frame(i: usize) -> [f32; 4] {
+    let t = i as f32;
+    [
+        (t * 0.05).sin() * 0.5,
+        (t * 0.011).cos() * 0.25,
+        ((i % 97) as f32 / 97.0) - 0.5,
+        if i % 250 < 10 { 0.9 } else { 0.0 },
+    ]
+}
+
+#[cfg(feature = "audio")]
+#[test]
+#[ignore = "runs inside audio_source_reads_a_file_backed_alsa_device with its own HOME"]
+fn audio_child() {
+    assert_eq!(
+        std::env::var("RIGMON_AUDIO_TEST").as_deref(),
+        Ok("1"),
+        "run through audio_source_reads_a_file_backed_alsa_device"
+    );
+    let text = "type = \"audio\"\ndevice = \"rigcap\"\nmap = { vertical = 0, horizontal = 1, axial = 2, tacho = 3 }";
+    let cfg: SourceConfig = toml::from_str(text).unwrap();
+    let src = cfg.build(&rig("lut-rig.toml")).unwrap();
+    assert!(src.describe().contains("rigcap"), "{}", src.describe());
+    let (rx, stats, stop, h) = spawn(src, 64);
+    let mut blocks = collect_until(&rx, Duration::from_secs(20), |got| got >= 5000);
+    stop.stop();
+    h.join().unwrap().unwrap();
+    blocks.extend(rx.try_iter());
+    // The file device has no clock: it delivers as fast as it can. Whatever the source
+    // could not take is counted lost, and after an overrun or a reopen the file restarts.
+    // The first run from sample 0 up to the first gap must be the file, sample for sample.
+    assert_eq!(blocks[0].first_sample, 0);
+    let (mut next, mut gaps, mut checked, mut in_first_run) = (0u64, 0u64, 0, true);
+    for b in &blocks {
+        assert!(
+            b.first_sample >= next,
+            "blocks overlap at {}",
+            b.first_sample
+        );
+        gaps += b.first_sample - next;
+        in_first_run &= b.first_sample == next;
+        for k in 0..b.len() {
+            let i = b.first_sample as usize + k;
+            if in_first_run && i < 10_000 {
+                let got = [
+                    b.channels[1][k],
+                    b.channels[2][k],
+                    b.channels[0][k],
+                    b.tacho_analog.as_ref().unwrap()[k],
+                ];
+                assert_eq!(
+                    got,
+                    audio_frame(i),
+                    "sample {i}: rig order axial, vertical, horizontal from in2, in0, in1"
+                );
+                checked += 1;
+            }
+        }
+        next = b.first_sample + b.len() as u64;
+    }
+    let lost = stats.samples_lost.load(Ordering::Relaxed);
+    assert!(
+        checked >= 5000,
+        "only {checked} samples of the file arrived in order ({lost} lost)"
+    );
+    assert!(
+        gaps <= lost,
+        "every gap on the sample clock is counted as lost: gaps {gaps}, lost {lost}"
+    );
+}
+
+/// The serial frame layout as documented (README table), read by an independent decoder in
+/// Python (struct + zlib.crc32) from bytes the Rust encoder wrote.
+#[test]
+fn an_independent_python_decoder_reads_the_serial_frames() {
+    use rigmon::acquire::serial_protocol::FrameEncoder;
+    const PY: &str = r#"
+import json, struct, sys, zlib
+b = open(sys.argv[1], "rb").read()
+out, i = [], 0
+while i < len(b):
+    assert b[i:i+4] == bytes([0xA5, 0x5A, 0x52, 0x4D]), "sync"
+    ver, fmt, c, flags, n, e, seq, first, rate, hcrc = struct.unpack_from("<BBBBHHIQfI", b, i + 4)
+    assert zlib.crc32(b[i:i+28]) == hcrc, "header crc"
+    bps = {1: 2, 2: 3, 3: 4}[fmt]
+    total = 32 + 4*c + n*c*bps + 8*e + 4
+    assert zlib.crc32(b[i:i+total-4]) == struct.unpack_from("<I", b, i + total - 4)[0], "frame crc"
+    scales = struct.unpack_from("<%df" % c, b, i + 32)
+    o = i + 32 + 4*c
+    vals = [[] for _ in range(c)]
+    for k in range(n * c):
+        raw = b[o + k*bps : o + (k+1)*bps]
+        v = struct.unpack("<h", raw)[0] if fmt == 1 else (int.from_bytes(raw, "little", signed=True) if fmt == 2 else struct.unpack("<f", raw)[0])
+        vals[k % c].append(v * scales[k % c])
+    o += n*c*bps
+    edges = [q / 65536.0 for q in struct.unpack_from("<%dQ" % e, b, o)]
+    out.append(dict(version=ver, format=fmt, seq=seq, first=first, rate=rate, values=vals, edges=edges))
+    i += total
+print(json.dumps(out))
+"#;
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("frames.bin");
+    let mut bytes = Vec::new();
+    let mut sent = Vec::new();
+    for (k, (format, scale)) in [
+        (SampleFormat::I16, 1e-3f32),
+        (SampleFormat::I24, 1e-6),
+        (SampleFormat::F32, 1.0),
+    ]
+    .into_iter()
+    .enumerate()
+    {
+        let enc = FrameEncoder {
+            sample_rate: 12_000.0,
+            format,
+            scales: vec![scale, scale],
+            flags: 0,
+        };
+        let a: Vec<f32> = (0..7).map(|i| (i as f32 - 3.0) * 2.5).collect();
+        let b: Vec<f32> = (0..7).map(|i| -(i as f32) * 0.125).collect();
+        enc.encode(
+            &mut bytes,
+            40 + k as u32,
+            1000 * k as u64,
+            &[&a, &b],
+            &[1000.0 * k as f64 + 2.5, 1000.0 * k as f64 + 6.75],
+        )
+        .unwrap();
+        sent.push((a, b));
+    }
+    std::fs::write(&path, &bytes).unwrap();
+    let out = std::process::Command::new("python3")
+        .arg("-c")
+        .arg(PY)
+        .arg(&path)
+        .output()
+        .expect("python3 runs");
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let frames: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(frames.as_array().unwrap().len(), 3);
+    for (k, f) in frames.as_array().unwrap().iter().enumerate() {
+        assert_eq!(
+            (
+                f["version"].as_u64(),
+                f["format"].as_u64(),
+                f["seq"].as_u64(),
+                f["first"].as_u64()
+            ),
+            (
+                Some(1),
+                Some(k as u64 + 1),
+                Some(40 + k as u64),
+                Some(1000 * k as u64)
+            )
+        );
+        assert_eq!(f["rate"].as_f64(), Some(12_000.0));
+        assert_eq!(
+            f["edges"],
+            serde_json::json!([1000.0 * k as f64 + 2.5, 1000.0 * k as f64 + 6.75])
+        );
+        for (c, want) in [&sent[k].0, &sent[k].1].into_iter().enumerate() {
+            let got: Vec<f64> = f["values"][c]
+                .as_array()
+                .unwrap()
+                .iter()
+                .map(|v| v.as_f64().unwrap())
+                .collect();
+            for (g, w) in got.iter().zip(want) {
+                assert!(
+                    (g - *w as f64).abs() < 1e-3,
+                    "frame {k} channel {c}: {g} vs {w}"
+                );
+            }
+        }
+    }
+}

@@ -376,3 +376,66 @@ fn cwru_estimated_speed_within_one_percent() {
         );
     }
 }
+
+/// Counts heap allocations made by the current thread (for the steady-state check).
+mod alloc_count {
+    use std::alloc::{GlobalAlloc, Layout, System};
+    use std::cell::Cell;
+
+    thread_local! {
+        static COUNT: Cell<usize> = const { Cell::new(0) };
+    }
+
+    pub struct Counting;
+
+    unsafe impl GlobalAlloc for Counting {
+        unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
+            let _ = COUNT.try_with(|c| c.set(c.get() + 1));
+            unsafe { System.alloc(layout) }
+        }
+        unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
+            unsafe { System.dealloc(ptr, layout) }
+        }
+        unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
+            let _ = COUNT.try_with(|c| c.set(c.get() + 1));
+            unsafe { System.realloc(ptr, layout, new_size) }
+        }
+    }
+
+    pub fn count() -> usize {
+        COUNT.with(|c| c.get())
+    }
+}
+
+#[global_allocator]
+static ALLOC: alloc_count::Counting = alloc_count::Counting;
+
+#[test]
+fn steady_state_windows_allocate_only_their_output() {
+    let rig = rig("lut-rig.toml");
+    let syn = Synthetic {
+        f_start: 10.0,
+        f_end: 10.0,
+        ..Synthetic::default()
+    };
+    let run = syn.generate();
+    let speed = SpeedTrack::from_analog(&run.tacho, 10_000.0, 2.5, 0.5, 1).unwrap();
+    let mut pipe = FeaturePipeline::new(&rig, 10_000.0).unwrap();
+    let x = &run.vibration;
+    let views = |w: usize| -> Vec<(&str, &[f32])> {
+        ["axial", "vertical", "horizontal"]
+            .iter()
+            .map(|n| (*n, &x[w * 10_000..(w + 1) * 10_000]))
+            .collect()
+    };
+    for w in 0..3 {
+        pipe.process_window(w as f64, &views(w), &speed).unwrap();
+    }
+    let v = views(5);
+    let before = alloc_count::count();
+    let out = pipe.process_window(5.0, &v, &speed).unwrap();
+    let made = alloc_count::count() - before;
+    // the output only: speed_source, one name + one Vec per channel, the map's node
+    assert!(made <= 1 + 2 * 3 + 1, "{made} allocations for one window");
+    assert_eq!(out.features.len(), 3);
+}

@@ -246,6 +246,11 @@ fn cwru_style_mat_round_trips_in_both_byte_orders_plain_and_compressed() {
                 rec.metadata.get("rig_id").map(String::as_str),
                 Some("cwru-de")
             );
+            assert_eq!(
+                RigConfig::parse(&rec.metadata["rig_config"]).unwrap(),
+                rig("cwru-de.toml"),
+                "the rig TOML travels along"
+            );
             // And through MCAP.
             let out = dir.path().join(format!("r_{be}_{z}.mcap"));
             mcap_layout::write_recording(&out, &rec).unwrap();

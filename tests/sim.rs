@@ -321,3 +321,44 @@ profile = { kind = "ramp", from_rpm = 600.0, to_rpm = 900.0, seconds = 0.5 }
         }
     }
 }
+
+/// Switchable effects for calibration: electrical line interference is frequency-locked (not
+/// order-locked) and off by default; slip shifts the lines down.
+#[test]
+fn line_interference_and_slip_are_switchable() {
+    let r = rig("lut-rig.toml");
+    let amp_at = |x: &[f32], fs: f64, f: f64| {
+        let (mut re, mut im) = (0.0f64, 0.0f64);
+        for (i, &v) in x.iter().enumerate() {
+            let p = std::f64::consts::TAU * f * i as f64 / fs;
+            re += v as f64 * p.cos();
+            im += v as f64 * p.sin();
+        }
+        2.0 * (re * re + im * im).sqrt() / x.len() as f64
+    };
+    let mut base = r.simulation.clone().unwrap();
+    let off = sim::simulate_with(&r, &base, &Scenario::constant(&[], 700.0, 1.0, 2)).unwrap();
+    base.structure.line_amplitudes_m_s2 = vec![0.5, 0.2];
+    for rpm in [700.0, 1100.0] {
+        let on = sim::simulate_with(&r, &base, &Scenario::constant(&[], rpm, 1.0, 2)).unwrap();
+        let a50 = amp_at(vertical(&on), on.sample_rate, 50.0);
+        let a100 = amp_at(vertical(&on), on.sample_rate, 100.0);
+        assert!(
+            (a50 - 0.5).abs() < 0.05 && (a100 - 0.2).abs() < 0.05,
+            "{rpm} rpm: {a50} {a100}"
+        );
+    }
+    assert!(amp_at(vertical(&off), off.sample_rate, 50.0) < 0.05);
+
+    let fr = 19.8;
+    let mut sc = Scenario::constant(&[Fault::OuterRace], fr * 60.0, 4.0, 6);
+    sc.overrides.slip = Some(0.02);
+    let rec = sim::simulate(&r, &sc).unwrap();
+    let bpfo = sim::model_fault_orders(&r, r.simulation.as_ref().unwrap()).bpfo * fr;
+    let (f, _) = env_spec(&rec, "vertical").peak_near(bpfo * 0.98, 0.01);
+    assert!(
+        (f / (bpfo * 0.98) - 1.0).abs() < 0.004,
+        "slipped BPFO {f} vs {}",
+        bpfo * 0.98
+    );
+}

@@ -9,6 +9,7 @@
 pub mod assembler;
 pub mod audio;
 pub mod can;
+pub mod can_protocol;
 pub mod emulator;
 pub mod file_replay;
 pub mod layout;
@@ -272,9 +273,9 @@ mod tests {
         assert_eq!(s.kind(), "serial");
         let SourceConfig::Serial(s) = s else { panic!() };
         assert_eq!(s.baud, 921_600);
-        let c = parse("[source]\ntype = \"can\"\ninterface = \"can0\"\nfd = true").unwrap();
+        let c = parse("[source]\ntype = \"can\"\ninterface = \"can0\"\nbase_id = 0x200").unwrap();
         let SourceConfig::Can(c) = c else { panic!() };
-        assert!(c.fd);
+        assert_eq!((c.base_id, c.max_lag_ms), (0x200, 500.0));
         let a = parse(
             "[source]\ntype = \"audio\"\ndevice = \"rigcap\"\nmap = { vertical = 0, tacho = 1 }",
         )

@@ -231,7 +231,7 @@ impl Source for SerialSource {
         stop: StopToken,
     ) -> Result<()> {
         let mut s = Session {
-            src: &*self,
+            src: &self,
             stats: &stats,
             decoder: Decoder::new(),
             seen: DecoderCounters::default(),

@@ -38,6 +38,19 @@ struct Line<'a> {
 }
 
 pub fn run(args: Args) -> Result<()> {
+    match features(args) {
+        // `rigmon features ... | head` is fine
+        Err(e)
+            if e.downcast_ref::<std::io::Error>()
+                .is_some_and(|io| io.kind() == std::io::ErrorKind::BrokenPipe) =>
+        {
+            Ok(())
+        }
+        r => r,
+    }
+}
+
+fn features(args: Args) -> Result<()> {
     let rig = RigConfig::load(&args.rig)?;
     let opts = ImportOptions {
         sample_rate: args.sample_rate,
@@ -58,7 +71,7 @@ pub fn run(args: Args) -> Result<()> {
     if !args.json {
         writeln!(
             out,
-            "{:>8} {:>8} {:>8} {:>9}  {:<24} quality",
+            "{:>8} {:>8} {:>8} {:>9}  {:<30} quality",
             "t_start",
             "t_end",
             "rpm",
@@ -75,7 +88,8 @@ pub fn run(args: Args) -> Result<()> {
                     bin_width: rig.features.bin_width_order,
                     max_order: rig.features.max_order,
                 },
-            )?;
+            )
+            .map_err(std::io::Error::from)?;
             writeln!(out)?;
         } else {
             let f = w.classifier_features(&rig);
@@ -84,12 +98,15 @@ pub fn run(args: Args) -> Result<()> {
             let top: Vec<String> = idx
                 .iter()
                 .take(3)
-                .map(|&k| format!("{:.1}", (k as f64 + 0.5) * rig.features.bin_width_order))
+                .map(|&k| {
+                    let w = rig.features.bin_width_order;
+                    format!("{:.1}-{:.1}", k as f64 * w, (k + 1) as f64 * w)
+                })
                 .collect();
             let flags = w.quality.flags();
             writeln!(
                 out,
-                "{:>8.3} {:>8.3} {:>8.1} {:>9}  {:<24} {}",
+                "{:>8.3} {:>8.3} {:>8.1} {:>9}  {:<30} {}",
                 w.t_start,
                 w.t_end,
                 w.rpm,

@@ -8,6 +8,7 @@ use crate::dsp::SpeedTrack;
 use crate::importers::{self, ImportOptions};
 use crate::plots::spectrum::{draw_order_spectrum, Marker, SpectrumPlot};
 use anyhow::{Context, Result};
+use std::io::Write;
 use std::path::PathBuf;
 
 /// Arguments of `rigmon inspect`.
@@ -39,6 +40,21 @@ pub struct Args {
 }
 
 pub fn run(args: Args) -> Result<()> {
+    match inspect(args) {
+        // `rigmon inspect ... | head` is fine
+        Err(e)
+            if e.downcast_ref::<std::io::Error>()
+                .is_some_and(|io| io.kind() == std::io::ErrorKind::BrokenPipe) =>
+        {
+            Ok(())
+        }
+        r => r,
+    }
+}
+
+fn inspect(args: Args) -> Result<()> {
+    let stdout = std::io::stdout();
+    let mut out = stdout.lock();
     let rig = RigConfig::load(&args.rig)?;
     let opts = ImportOptions {
         sample_rate: args.sample_rate,
@@ -99,7 +115,8 @@ pub fn run(args: Args) -> Result<()> {
             });
         }
     }
-    println!(
+    writeln!(
+        out,
         "{} channel {:?}: {:.1} s, {:.0} revolutions, mean speed {:.1} rpm (source: {}), order resolution {:.4}",
         args.recording.display(),
         ch.name,
@@ -108,12 +125,17 @@ pub fn run(args: Args) -> Result<()> {
         spec.rpm,
         speed.source(),
         spec.order_step
-    );
-    println!(
+    )?;
+    writeln!(
+        out,
         "fault orders: FTF {:.4}  BPFO {:.4}  BPFI {:.4}  2xBSF {:.4}",
         fo.ftf, fo.bpfo, fo.bpfi, fo.two_bsf
-    );
-    println!("{:>9} {:>12}  nearest fault order", "order", "amplitude");
+    )?;
+    writeln!(
+        out,
+        "{:>9} {:>12}  nearest fault order",
+        "order", "amplitude"
+    )?;
     let named: Vec<(String, f64)> = markers.iter().map(|m| (m.label.clone(), m.order)).collect();
     for p in spec.top_peaks(args.peaks, 0.3, max_order, 0.05) {
         let (name, o) = named
@@ -121,12 +143,13 @@ pub fn run(args: Args) -> Result<()> {
             .min_by(|a, b| (a.1 - p.order).abs().total_cmp(&(b.1 - p.order).abs()))
             .cloned()
             .unwrap_or_default();
-        println!(
+        writeln!(
+            out,
             "{:>9.3} {:>12.5}  {name} ({o:.3}, {:+.2} %)",
             p.order,
             p.amplitude,
             100.0 * (p.order / o - 1.0)
-        );
+        )?;
     }
     if let Some(png) = &args.png {
         let title = format!(
@@ -150,7 +173,7 @@ pub fn run(args: Args) -> Result<()> {
                 unit: &ch.unit,
             },
         )?;
-        println!("wrote {}", png.display());
+        writeln!(out, "wrote {}", png.display())?;
     }
     Ok(())
 }

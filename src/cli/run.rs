@@ -1,9 +1,73 @@
-//! `rigmon run` (placeholder until its owner fills it in).
+//! `rigmon run --config <rigmon.toml>`: the monitoring daemon (under systemd or by hand).
+//! SIGHUP reloads the config and swaps the model; SIGTERM/SIGINT stop cleanly.
+
+use crate::acquire::SourceConfig;
+use crate::config::daemon::DaemonConfig;
+use crate::daemon::{self, DaemonOptions, Output};
+use crate::publish::zenoh::ZenohArgs;
+use anyhow::Result;
+use std::path::PathBuf;
 
 /// Arguments of `rigmon run`.
 #[derive(clap::Args, Debug)]
-pub struct Args {}
+pub struct Args {
+    /// Daemon config file.
+    #[arg(long, short, default_value = "config/rigmon.toml")]
+    pub config: PathBuf,
+    /// Replay this recording instead of the config's source (keeps its other settings).
+    #[arg(long, value_name = "FILE")]
+    pub replay: Option<PathBuf>,
+    /// Also print one line per health message on stdout ("text" or "json").
+    #[arg(long, value_parser = ["text", "json"])]
+    pub print: Option<String>,
+    /// Check the config, rig, model and source, then exit.
+    #[arg(long)]
+    pub check: bool,
+    #[command(flatten)]
+    pub zenoh: ZenohArgs,
+}
 
-pub fn run(_args: Args) -> anyhow::Result<()> {
-    anyhow::bail!("rigmon run is not implemented yet")
+pub fn run(args: Args) -> Result<()> {
+    let mut config = DaemonConfig::load(&args.config)?;
+    if let Some(f) = &args.replay {
+        match &mut config.source {
+            SourceConfig::File(c) => c.path = f.clone(),
+            other => {
+                let mut c = crate::acquire::FileSourceConfig::new(f);
+                c.looping = false;
+                *other = SourceConfig::File(c);
+            }
+        }
+    }
+    config.zenoh = args.zenoh.apply(config.zenoh.clone());
+    config.validate()?;
+    if args.check {
+        let rig = config.load_rig()?;
+        let model = crate::daemon::reload::load_model(&config.model.path, &rig)?;
+        let source = config.source.build(&rig)?;
+        println!(
+            "ok: rig {} ({}), model {} [{}], source {}, zenoh {} listen {:?} connect {:?}, recording {}",
+            rig.machine.id,
+            config.rig.display(),
+            config.model.path.display(),
+            model.meta().labels.join(","),
+            source.describe(),
+            config.zenoh.mode,
+            config.zenoh.listen,
+            config.zenoh.connect,
+            if config.recording.enabled { config.recording.dir.display().to_string() } else { "off".into() }
+        );
+        return Ok(());
+    }
+    let mut opts = DaemonOptions::new(config);
+    opts.config_path = Some(args.config.clone());
+    opts.use_signals = true;
+    opts.output = match args.print.as_deref() {
+        Some("json") => Output::Json,
+        Some(_) => Output::Lines,
+        None => Output::None,
+    };
+    let summary = daemon::run(opts)?;
+    tracing::info!("{}", summary.text());
+    Ok(())
 }

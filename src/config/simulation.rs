@@ -287,6 +287,12 @@ pub struct StructureConfig {
     pub resonances: Vec<ResonanceConfig>,
     /// White sensor noise, RMS in m/s^2 per channel (up to Nyquist).
     pub noise_rms_m_s2: f64,
+    /// DAQ resolution (quantisation step) in m/s^2, rounded to a power of two; 0 = none.
+    pub adc_resolution_m_s2: f64,
+    /// Electrical line frequency for interference pick-up, Hz (not locked to shaft speed).
+    pub line_hz: f64,
+    /// Interference amplitude (m/s^2) at 1x, 2x, ... the line frequency; empty = off.
+    pub line_amplitudes_m_s2: Vec<f64>,
 }
 
 impl Default for StructureConfig {
@@ -311,6 +317,9 @@ impl Default for StructureConfig {
                 },
             ],
             noise_rms_m_s2: 0.3,
+            adc_resolution_m_s2: 0.0,
+            line_hz: 50.0,
+            line_amplitudes_m_s2: Vec::new(),
         }
     }
 }
@@ -483,6 +492,10 @@ impl SimulationConfig {
             )?;
         }
         nonneg("structure.noise_rms_m_s2", self.structure.noise_rms_m_s2)?;
+        nonneg(
+            "structure.adc_resolution_m_s2",
+            self.structure.adc_resolution_m_s2,
+        )?;
         pos("tacho.high_v", self.tacho.high_v)?;
         if !(self.tacho.duty > 0.0 && self.tacho.duty < 1.0) {
             bail!(

@@ -125,15 +125,14 @@ impl FeaturePipeline {
                     x[i]
                 );
             }
-            let name = name.to_string();
             if s.flat {
-                quality.flat.push(name);
+                quality.flat.push(name.to_string());
             } else {
                 if s.clipped {
-                    quality.clipped.push(name.clone());
+                    quality.clipped.push(name.to_string());
                 }
                 if s.dropout {
-                    quality.dropout.push(name);
+                    quality.dropout.push(name.to_string());
                 }
             }
         }
@@ -149,7 +148,7 @@ impl FeaturePipeline {
             || self.rpm_limits.is_some_and(|(lo, hi)| rpm < lo || rpm > hi);
         let count = info.count;
         if self.angle.len() < count {
-            self.angle.resize(count, 0.0);
+            self.angle.resize(count + count / 4, 0.0);
         }
         let spr = self.tracker.samples_per_rev();
         let mut features = BTreeMap::new();

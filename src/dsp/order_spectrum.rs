@@ -43,10 +43,16 @@ impl OrderFft {
     fn transform(&mut self, x: &[f32]) -> usize {
         let n = x.len();
         if self.window.len() != n {
+            // Hann window by a rotation recurrence (the length follows the speed, so this runs
+            // often; no trigonometry per sample). Headroom avoids regrowing by a sample or two.
             self.window.clear();
-            self.window.extend((0..n).map(|i| {
-                (0.5 - 0.5 * (2.0 * std::f64::consts::PI * i as f64 / n as f64).cos()) as f32
-            }));
+            self.window.reserve(n + n / 4);
+            let (sd, cd) = (2.0 * std::f64::consts::PI / n as f64).sin_cos();
+            let (mut c, mut s) = (1.0f64, 0.0f64);
+            for _ in 0..n {
+                self.window.push((0.5 - 0.5 * c) as f32);
+                (c, s) = (c * cd - s * sd, s * cd + c * sd);
+            }
             self.window_sum = self.window.iter().sum();
             self.window_sq = self.window.iter().map(|w| w * w).sum();
         }

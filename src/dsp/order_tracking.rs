@@ -130,8 +130,9 @@ impl OrderTracker {
         }
         self.keep = keep;
         if self.times.len() < count {
-            self.times.resize(count, 0.0);
-            self.pos.resize(count, 0.0);
+            // headroom: the count follows the speed; do not regrow for a sample or two
+            self.times.resize(count + count / 4, 0.0);
+            self.pos.resize(count + count / 4, 0.0);
         }
         self.count = count;
         speed.times_at_angles(th0, 1.0 / s, &mut self.times[..count]);

@@ -1,1 +1,106 @@
-//! (placeholder: filled in by its owner)
+//! Recording sink: what the daemon saw, to MCAP with zstd chunks, rotated by size and time.
+//! Each segment is a pair of files sharing a stem:
+//! - `<stem>.mcap`: the raw samples in the rigmon layout ([`crate::recording::mcap_layout`],
+//!   written with the importers' streaming writer), so `rigmon replay <stem>.mcap` replays it;
+//! - `<stem>.events.mcap`: features (`/features`) and health (`/health`) as JSON messages.
+//!
+//! Chunks are closed every `flush_s` seconds, so after a kill -9 everything up to the last
+//! flush reads back; SIGTERM finishes both files cleanly. Write errors (disk full) are counted
+//! and retried with a new segment later; they never stop monitoring.
+
+pub mod mcap;
+
+use anyhow::{bail, Result};
+use serde::{Deserialize, Serialize};
+use std::path::PathBuf;
+
+pub use self::mcap::{RecordEvent, RecordStats, Recorder};
+
+/// `[recording]` section of the daemon config.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RecordConfig {
+    #[serde(default)]
+    pub enabled: bool,
+    /// Folder for the segments (relative: under `$STATE_DIRECTORY`, else the config's folder).
+    #[serde(default = "default_dir")]
+    pub dir: PathBuf,
+    /// Start a new segment when the raw file reaches this size, MB.
+    #[serde(default = "default_max_mb")]
+    pub max_file_mb: f64,
+    /// Start a new segment after this many seconds.
+    #[serde(default = "default_max_s")]
+    pub max_file_s: f64,
+    /// Close the current chunk at least this often (bounds the loss on a crash), s.
+    #[serde(default = "default_flush_s")]
+    pub flush_s: f64,
+    /// Uncompressed bytes per MCAP chunk.
+    #[serde(default = "default_chunk_kb")]
+    pub chunk_kb: u64,
+    /// What to record.
+    #[serde(default = "yes")]
+    pub raw: bool,
+    #[serde(default = "yes")]
+    pub features: bool,
+    #[serde(default = "yes")]
+    pub health: bool,
+}
+
+fn default_dir() -> PathBuf {
+    PathBuf::from("recordings")
+}
+fn default_max_mb() -> f64 {
+    256.0
+}
+fn default_max_s() -> f64 {
+    3600.0
+}
+fn default_flush_s() -> f64 {
+    2.0
+}
+fn default_chunk_kb() -> u64 {
+    1024
+}
+fn yes() -> bool {
+    true
+}
+
+impl Default for RecordConfig {
+    fn default() -> Self {
+        RecordConfig {
+            enabled: false,
+            dir: default_dir(),
+            max_file_mb: default_max_mb(),
+            max_file_s: default_max_s(),
+            flush_s: default_flush_s(),
+            chunk_kb: default_chunk_kb(),
+            raw: true,
+            features: true,
+            health: true,
+        }
+    }
+}
+
+impl RecordConfig {
+    pub fn validate(&self) -> Result<()> {
+        for (k, v) in [
+            ("max_file_mb", self.max_file_mb),
+            ("max_file_s", self.max_file_s),
+            ("flush_s", self.flush_s),
+        ] {
+            if !(v.is_finite() && v > 0.0) {
+                bail!("recording.{k} = {v}: must be a positive number");
+            }
+        }
+        if self.chunk_kb == 0 || self.chunk_kb > 1 << 20 {
+            bail!(
+                "recording.chunk_kb = {}: must be between 1 and 1048576",
+                self.chunk_kb
+            );
+        }
+        if self.enabled && !(self.raw || self.features || self.health) {
+            bail!("recording.enabled = true but raw, features and health are all false; record something or disable recording");
+        }
+        Ok(())
+    }
+}

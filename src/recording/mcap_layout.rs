@@ -73,8 +73,13 @@ offset  type    field\n\
 20      f64[n]  times_s          edge times, seconds since the recording start\n";
 
 /// Largest record (or decompressed chunk) the reader accepts, bytes: a damaged length field
-/// gives an error instead of a huge allocation.
-const MAX_RECORD_BYTES: usize = 1 << 30;
+/// gives an error instead of a huge allocation (the reader allocates a chunk's declared
+/// uncompressed size up front). Writers close chunks at 512 KiB; blocks are ~0.1 s.
+const MAX_RECORD_BYTES: usize = 64 << 20;
+/// Lost blocks are zero-filled, up to this many times the samples a stream really holds ...
+const MAX_FILL_RATIO: u64 = 16;
+/// ... plus this many samples.
+const MAX_FILL_EXTRA: u64 = 1 << 20;
 
 /// Samples per message when [`write_recording`] splits a recording into blocks: about 0.1 s.
 fn default_block_len(sample_rate: f64) -> usize {
@@ -586,6 +591,119 @@ struct Stream {
     blocks: Vec<(u64, Vec<f32>)>,
 }
 
+/// The `mcap` crate allocates a string's or map's declared length before reading it, so a
+/// damaged length prefix could ask for gigabytes (found by fuzzing). Check every length prefix
+/// of the records [`read_recording_bytes`] parses (Schema, Channel, Metadata) against the
+/// record's own size first.
+fn lengths_fit(opcode: u8, d: &[u8]) -> std::result::Result<(), String> {
+    fn skip(d: &[u8], at: &mut usize, n: usize) -> bool {
+        match at.checked_add(n) {
+            Some(e) if e <= d.len() => {
+                *at = e;
+                true
+            }
+            _ => false,
+        }
+    }
+    fn len(d: &[u8], at: &mut usize) -> Option<usize> {
+        let b = d.get(*at..*at + 4)?;
+        *at += 4;
+        Some(u32::from_le_bytes(b.try_into().unwrap()) as usize)
+    }
+    fn string(d: &[u8], at: &mut usize) -> bool {
+        len(d, at).is_some_and(|n| skip(d, at, n))
+    }
+    fn map(d: &[u8], at: &mut usize) -> bool {
+        let Some(n) = len(d, at) else { return false };
+        let end = match at.checked_add(n) {
+            Some(e) if e <= d.len() => e,
+            _ => return false,
+        };
+        while *at < end {
+            if !(string(d, at) && string(d, at)) {
+                return false;
+            }
+        }
+        *at == end
+    }
+    let mut at = 0;
+    use mcap::records::op;
+    let ok = match opcode {
+        // Schema: id, name, encoding, data.
+        op::SCHEMA => {
+            skip(d, &mut at, 2) && string(d, &mut at) && string(d, &mut at) && string(d, &mut at)
+        }
+        // Channel: id, schema id, topic, message encoding, metadata.
+        op::CHANNEL => {
+            skip(d, &mut at, 4) && string(d, &mut at) && string(d, &mut at) && map(d, &mut at)
+        }
+        // Metadata: name, metadata.
+        op::METADATA => string(d, &mut at) && map(d, &mut at),
+        _ => true,
+    };
+    if ok {
+        Ok(())
+    } else {
+        Err(format!(
+            "record (opcode 0x{opcode:02x}, {} bytes) declares a field longer than itself",
+            d.len()
+        ))
+    }
+}
+
+/// The offset of the first uncompressed chunk whose inner records overrun the chunk, with a
+/// reason. `mcap` 0.26's reader panics on such a chunk (an unchecked subtraction, found by
+/// fuzzing), so the bytes from there on are treated like a file cut short.
+fn first_overrunning_chunk(bytes: &[u8]) -> Option<(usize, String)> {
+    let u64_at = |at: usize| -> Option<u64> {
+        Some(u64::from_le_bytes(
+            bytes.get(at..at.checked_add(8)?)?.try_into().unwrap(),
+        ))
+    };
+    let u32_at = |at: usize| -> Option<u32> {
+        Some(u32::from_le_bytes(
+            bytes.get(at..at.checked_add(4)?)?.try_into().unwrap(),
+        ))
+    };
+    let mut at = mcap::MAGIC.len();
+    while at < bytes.len() {
+        let op = bytes[at];
+        let len = usize::try_from(u64_at(at + 1)?).ok()?;
+        let body = at + 9;
+        let end = body.checked_add(len)?;
+        if end > bytes.len() {
+            return None; // cut short: the reader reports it
+        }
+        if op == mcap::records::op::CHUNK {
+            // start time, end time, uncompressed size, uncompressed crc, compression, records
+            let c_len = u32_at(body + 28)? as usize;
+            let recs_len_at = (body + 32).checked_add(c_len)?;
+            let recs_len = usize::try_from(u64_at(recs_len_at)?).ok()?;
+            let recs = recs_len_at + 8;
+            if c_len == 0 && recs.checked_add(recs_len).is_some_and(|e| e <= end) {
+                let mut r = 0usize;
+                while r < recs_len {
+                    let inner = u64_at(recs + r + 1).filter(|_| r + 9 <= recs_len);
+                    match inner.and_then(|l| usize::try_from(l).ok()) {
+                        Some(l) if l <= recs_len - r - 9 => r += 9 + l,
+                        _ => {
+                            return Some((
+                                at,
+                                format!(
+                                    "chunk at byte {at}: a record inside overruns the chunk's \
+                                     {recs_len} bytes"
+                                ),
+                            ))
+                        }
+                    }
+                }
+            }
+        }
+        at = end;
+    }
+    None
+}
+
 /// [`read_recording`] from bytes in memory.
 pub fn read_recording_bytes(bytes: &[u8]) -> Result<Recording> {
     if bytes.is_empty() {
@@ -611,6 +729,10 @@ pub fn read_recording_bytes(bytes: &[u8]) -> Result<Recording> {
             .with_record_length_limit(MAX_RECORD_BYTES),
     );
     let mut rest = bytes;
+    if let Some((at, why)) = first_overrunning_chunk(bytes) {
+        cut_short = Some(why);
+        rest = &bytes[..at];
+    }
     while let Some(event) = reader.next_event() {
         let (opcode, data) = match event {
             Ok(mcap::sans_io::LinearReadEvent::ReadRequest(need)) => {
@@ -622,14 +744,26 @@ pub fn read_recording_bytes(bytes: &[u8]) -> Result<Recording> {
             }
             Ok(mcap::sans_io::LinearReadEvent::Record { opcode, data }) => (opcode, data),
             Err(e) => {
-                cut_short = Some(e.to_string());
+                cut_short.get_or_insert(e.to_string());
                 break;
             }
         };
+        // Only the records this reader uses are parsed (others cannot stop the read).
+        use mcap::records::op;
+        if !matches!(
+            opcode,
+            op::FOOTER | op::SCHEMA | op::CHANNEL | op::MESSAGE | op::METADATA
+        ) {
+            continue;
+        }
+        if let Err(e) = lengths_fit(opcode, data) {
+            cut_short.get_or_insert(e);
+            break;
+        }
         let rec = match mcap::parse_record(opcode, data) {
             Ok(r) => r,
             Err(e) => {
-                cut_short = Some(e.to_string());
+                cut_short.get_or_insert(e.to_string());
                 break;
             }
         };
@@ -710,8 +844,22 @@ pub fn read_recording_bytes(bytes: &[u8]) -> Result<Recording> {
             return Ok(Vec::new());
         };
         s.blocks.sort_by_key(|b| b.0);
-        let total = s.blocks.last().map_or(0, |(f, v)| *f as usize + v.len());
-        let mut out = Vec::with_capacity(total);
+        let total = s
+            .blocks
+            .last()
+            .map_or(0, |(f, v)| f.saturating_add(v.len() as u64));
+        // Zero-filling is for lost blocks; a damaged first_sample must not make a tiny file
+        // claim gigabytes (found by fuzzing).
+        let present: u64 = s.blocks.iter().map(|(_, v)| v.len() as u64).sum();
+        let fill_limit = present.saturating_mul(MAX_FILL_RATIO) + MAX_FILL_EXTRA;
+        if total - present.min(total) > fill_limit {
+            bail!(
+                "{topic}: a block starts at sample {} but only {present} samples are recorded: \
+                 filling the gap with zeros would exceed {fill_limit} samples; the file is damaged",
+                s.blocks.last().map_or(0, |b| b.0)
+            );
+        }
+        let mut out = Vec::with_capacity(total as usize);
         for (first, v) in s.blocks {
             let first = first as usize;
             if first < out.len() {
@@ -752,7 +900,12 @@ pub fn read_recording_bytes(bytes: &[u8]) -> Result<Recording> {
     if let Some(a) = &analog {
         n = n.min(a.len());
     }
-    let longest = channels.iter().map(|c| c.samples.len()).max().unwrap_or(0);
+    let longest = channels
+        .iter()
+        .map(|c| c.samples.len())
+        .chain(analog.as_ref().map(Vec::len))
+        .max()
+        .unwrap_or(0);
     if longest != n {
         notes.push(format!(
             "channels end at different samples (shortest {n}, longest {longest}); all cut to {n}"

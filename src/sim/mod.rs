@@ -196,12 +196,43 @@ pub fn simulate_with(
 
     // Sensor noise, units.
     let mut channels = Vec::with_capacity(chans.len());
+    let adc = sim.structure.adc_resolution_m_s2;
+    // electrical line interference: harmonics of the line frequency, random phases
+    let lines: Vec<(f64, f64, f64)> = sim
+        .structure
+        .line_amplitudes_m_s2
+        .iter()
+        .enumerate()
+        .map(|(h, &a)| {
+            (
+                a,
+                std::f64::consts::TAU * sim.structure.line_hz * (h + 1) as f64 / fs,
+                rng.random_range(0.0..std::f64::consts::TAU),
+            )
+        })
+        .collect();
     for ((c, _, scale), sig) in chans.iter().zip(out.signals) {
+        // quantisation step in the channel's unit, a power of two (exact in f32)
+        let lsb = if adc > 0.0 {
+            2f64.powf((adc * scale).log2().round())
+        } else {
+            0.0
+        };
         let samples: Vec<f32> = sig
             .iter()
-            .map(|&a| {
+            .enumerate()
+            .map(|(i, &a)| {
                 let z: f64 = rng.sample(StandardNormal);
-                ((a + sim.structure.noise_rms_m_s2 * z) * scale) as f32
+                let hum: f64 = lines
+                    .iter()
+                    .map(|&(amp, w, ph)| amp * (w * i as f64 + ph).sin())
+                    .sum();
+                let y = (a + hum + sim.structure.noise_rms_m_s2 * z) * scale;
+                (if lsb > 0.0 {
+                    (y / lsb).round() * lsb
+                } else {
+                    y
+                }) as f32
             })
             .collect();
         channels.push(Channel {
@@ -223,8 +254,10 @@ pub fn simulate_with(
                     let pb = out.boundary_angles[i + 1] * ppr / std::f64::consts::TAU;
                     let frac = high_fraction(pa, pb, duty);
                     let z: f64 = rng.sample(StandardNormal);
-                    ((sim.tacho.high_v * frac + sim.tacho.noise_v * z)
-                        / tc.sensitivity.max(f64::MIN_POSITIVE)) as f32
+                    let y = (sim.tacho.high_v * frac + sim.tacho.noise_v * z)
+                        / tc.sensitivity.max(f64::MIN_POSITIVE);
+                    // a 16-bit tacho input over +-8 V: 2^-12 V steps
+                    ((y * 4096.0).round() / 4096.0) as f32
                 })
                 .collect();
             Some(Tacho::Analog {

@@ -1,0 +1,403 @@
+//! One window -> one health message: speed track for the window, data-quality checks,
+//! envelope order spectrum features, the classifier, the health state machine, fault-band
+//! amplitudes and the ISO 20816-3 velocity advisory. Buffers are made once and reused.
+
+use super::speed_window::SpeedWindow;
+use super::velocity::VelocityRms;
+use super::windows::WindowView;
+use crate::bearing::FaultOrders;
+use crate::config::RigConfig;
+use crate::dsp::features::{FeaturePipeline, FeatureWindow};
+use crate::health::message::{
+    FaultBands, HealthMessage, ModelInfo, QualityReport, WindowTimes, SCHEMA, SCHEMA_VERSION,
+};
+use crate::health::{HealthPolicy, HealthStateMachine, UnknownReason, WindowVerdict};
+use crate::model::onnx::OnnxClassifier;
+use anyhow::{Context, Result};
+use std::collections::BTreeMap;
+
+/// A window's results.
+pub struct WindowOutput {
+    /// The features (None when the window could not be computed: no speed, failure).
+    pub features: Option<FeatureWindow>,
+    pub health: HealthMessage,
+}
+
+/// Everything that turns a window into a health message.
+pub struct Analyzer {
+    rig: RigConfig,
+    pipeline: FeaturePipeline,
+    model: OnnxClassifier,
+    model_id: String,
+    health: HealthStateMachine,
+    velocity: VelocityRms,
+    speed: SpeedWindow,
+    /// Rig acceleration channel names and units, in source order.
+    names: Vec<String>,
+    units: Vec<String>,
+    /// Channels the source cannot deliver (NaN in every block): skipped.
+    absent: Vec<bool>,
+    classifier: usize,
+    fault_orders: FaultOrders,
+    /// Sanitised copies of the window (NaN -> 0), one per channel.
+    scratch: Vec<Vec<f32>>,
+    sample_rate: f64,
+    start_time_ns: u64,
+    seq: u64,
+    /// Windows that failed in features or inference.
+    pub errors: u64,
+}
+
+impl Analyzer {
+    /// `absent` lists rig channels the source cannot deliver; `nominal_rpm` is the speed the
+    /// source knows up front (for `speed.source = "recording"`).
+    #[allow(clippy::too_many_arguments)]
+    pub fn new(
+        rig: &RigConfig,
+        sample_rate: f64,
+        model: OnnxClassifier,
+        model_id: &str,
+        policy: HealthPolicy,
+        absent: &[String],
+        nominal_rpm: Option<f64>,
+        start_time_ns: u64,
+    ) -> Result<Self> {
+        model
+            .check_rig(rig)
+            .with_context(|| format!("model {model_id}"))?;
+        let pipeline = FeaturePipeline::new(rig, sample_rate)?;
+        let len = pipeline.window_len();
+        let health = HealthStateMachine::new(policy, &model.meta().labels)?;
+        let chans: Vec<_> = rig.acceleration_channels().collect();
+        let names: Vec<String> = chans.iter().map(|c| c.name.clone()).collect();
+        let units: Vec<String> = chans.iter().map(|c| c.unit.clone()).collect();
+        let cls = rig
+            .classifier_channel()
+            .context("the rig file names no classifier channel")?;
+        let classifier = names
+            .iter()
+            .position(|n| n == &cls.name)
+            .context("classifier channel missing")?;
+        if absent.iter().any(|a| a == &cls.name) {
+            anyhow::bail!(
+                "the source cannot deliver channel {:?}, which features.classifier_axis selects for the classifier; pick another channel or source",
+                cls.name
+            );
+        }
+        Ok(Analyzer {
+            pipeline,
+            model,
+            model_id: model_id.to_string(),
+            health,
+            velocity: VelocityRms::new(len, sample_rate),
+            speed: SpeedWindow::new(rig, sample_rate, nominal_rpm)?,
+            absent: names.iter().map(|n| absent.contains(n)).collect(),
+            scratch: names.iter().map(|_| vec![0.0; len]).collect(),
+            names,
+            units,
+            classifier,
+            fault_orders: rig.bearing.fault_orders(),
+            sample_rate,
+            start_time_ns,
+            seq: 0,
+            errors: 0,
+            rig: rig.clone(),
+        })
+    }
+
+    pub fn model(&self) -> &OnnxClassifier {
+        &self.model
+    }
+
+    pub fn model_id(&self) -> &str {
+        &self.model_id
+    }
+
+    pub fn policy(&self) -> &HealthPolicy {
+        self.health.policy()
+    }
+
+    pub fn state(&self) -> &str {
+        self.health.state()
+    }
+
+    /// Swap the model and health policy (SIGHUP). The caller has already checked the model.
+    pub fn swap(
+        &mut self,
+        model: OnnxClassifier,
+        model_id: &str,
+        policy: HealthPolicy,
+    ) -> Result<()> {
+        model.check_rig(&self.rig)?;
+        self.health.reconfigure(policy, &model.meta().labels)?;
+        self.model = model;
+        self.model_id = model_id.to_string();
+        Ok(())
+    }
+
+    /// Analyse one window.
+    pub fn analyze(&mut self, view: &WindowView) -> WindowOutput {
+        self.seq += 1;
+        let mut quality = QualityReport {
+            ok: true,
+            ..Default::default()
+        };
+        if view.lost_samples > 0 {
+            quality.dropout_samples = view.lost_samples;
+            quality.flag("dropout");
+        }
+        // Copy, count and zero non-finite samples (the feature pipeline refuses them).
+        let mut bad_classifier = view.lost_samples > 0;
+        for (k, (src, dst)) in view
+            .channels
+            .iter()
+            .zip(self.scratch.iter_mut())
+            .enumerate()
+        {
+            if self.absent[k] {
+                continue;
+            }
+            let mut nan = 0u32;
+            for (d, &s) in dst.iter_mut().zip(src.iter()) {
+                *d = if s.is_finite() {
+                    s
+                } else {
+                    nan += 1;
+                    0.0
+                };
+            }
+            // Lost samples are NaN-filled by the windower; count only the other ones.
+            let extra = nan.saturating_sub(view.lost_samples);
+            if extra > 0 {
+                quality.nan_samples += extra;
+                quality.flag("nan");
+            }
+            if nan > 0 && k == self.classifier {
+                bad_classifier = true;
+            }
+        }
+
+        let speed = self.speed.track(view, &self.scratch[self.classifier]);
+        let labels = self.model.meta().labels.clone();
+        let mut features = None;
+        let mut probs: Vec<f32> = Vec::new();
+        let mut novelty = f32::NAN;
+        let mut rpm = None;
+        let mut speed_source = self.speed.source_name().to_string();
+        match &speed {
+            Err(e) => {
+                quality.flag("no_speed");
+                tracing::debug!(
+                    "window {:.1}-{:.1} s: no speed: {e:#}",
+                    view.t_start,
+                    view.t_end
+                );
+                bad_classifier = true;
+            }
+            Ok(track) => {
+                if self.speed.lost_pulses(track, view.t_start, view.t_end) {
+                    quality.flag("tacho_lost");
+                    bad_classifier = true;
+                }
+                let chans: Vec<(&str, &[f32])> = self
+                    .names
+                    .iter()
+                    .zip(&self.scratch)
+                    .zip(&self.absent)
+                    .filter(|(_, absent)| !**absent)
+                    .map(|((n, s), _)| (n.as_str(), s.as_slice()))
+                    .collect();
+                match self.pipeline.process_window(view.t_start, &chans, track) {
+                    Ok(fw) => {
+                        rpm = Some(fw.rpm).filter(|r| r.is_finite());
+                        speed_source = fw.speed_source.clone();
+                        let q = &fw.quality;
+                        let cls = &self.names[self.classifier];
+                        for (flag, list) in [
+                            ("clipping", &q.clipped),
+                            ("flat", &q.flat),
+                            ("dropout", &q.dropout),
+                            ("nan", &q.non_finite),
+                        ] {
+                            if !list.is_empty() {
+                                quality.flag(flag);
+                                if list.contains(cls) {
+                                    bad_classifier = true;
+                                }
+                            }
+                        }
+                        quality.flat_channels = q.flat.clone();
+                        quality.clipped_samples = q.clipped.len() as u32;
+                        quality.missing_tacho_pulses = q.missing_pulses;
+                        if q.missing_pulses > 0 {
+                            quality.flag("missing_tacho_pulses");
+                        }
+                        if q.speed_out_of_range {
+                            quality.flag("speed_out_of_range");
+                            bad_classifier = true;
+                        }
+                        quality.dsp = serde_json::to_value(q).unwrap_or_default();
+                        match self.model.predict(fw.classifier_features(&self.rig)) {
+                            Ok(p) => {
+                                probs = p.probs;
+                                novelty = p.novelty;
+                            }
+                            Err(e) => {
+                                self.errors += 1;
+                                tracing::warn!(
+                                    "window {:.1}-{:.1} s: inference failed: {e:#}",
+                                    view.t_start,
+                                    view.t_end
+                                );
+                                bad_classifier = true;
+                            }
+                        }
+                        features = Some(fw);
+                    }
+                    Err(e) => {
+                        self.errors += 1;
+                        quality.flag("features_failed");
+                        tracing::warn!(
+                            "window {:.1}-{:.1} s: features failed: {e:#}",
+                            view.t_start,
+                            view.t_end
+                        );
+                        bad_classifier = true;
+                    }
+                }
+            }
+        }
+
+        let threshold = self
+            .health
+            .policy()
+            .novelty_threshold
+            .unwrap_or(self.model.meta().novelty_threshold);
+        let smoothed = self.health.update(&WindowVerdict {
+            t_end: view.t_end,
+            labels: &labels,
+            probs: &probs,
+            novelty: if novelty.is_nan() { 0.0 } else { novelty },
+            novelty_threshold: threshold,
+            bad_quality: bad_classifier,
+        });
+        // None when the window has non-finite samples or the unit is not an acceleration.
+        let velocity = self
+            .velocity
+            .mm_per_s(view.channels[self.classifier], &self.units[self.classifier]);
+        let zone = velocity.and_then(|v| self.health.policy().iso20816.zone(v));
+        let fault_bands = features
+            .as_ref()
+            .map(|fw| self.fault_bands(fw))
+            .unwrap_or_default();
+        let meta = self.model.meta();
+        let ns = |t: f64| self.start_time_ns.saturating_add((t * 1e9).round() as u64);
+        let health = HealthMessage {
+            schema: SCHEMA.into(),
+            schema_version: SCHEMA_VERSION,
+            rig: self.rig.machine.id.clone(),
+            asset: self.rig.machine.asset.clone(),
+            point: self.rig.machine.point.clone(),
+            seq: self.seq,
+            window: WindowTimes {
+                start_s: view.t_start,
+                end_s: view.t_end,
+                start_ns: ns(view.t_start),
+                end_ns: ns(view.t_end),
+            },
+            publish_time_ns: now_ns(),
+            rpm,
+            speed_source,
+            quality,
+            probabilities: labels
+                .iter()
+                .cloned()
+                .zip(probs.iter().copied())
+                .collect::<BTreeMap<_, _>>(),
+            window_state: smoothed.window_state,
+            unknown_reason: smoothed.unknown_reason.or(if probs.is_empty() {
+                Some(UnknownReason::BadQuality)
+            } else {
+                None
+            }),
+            state: smoothed.state,
+            state_since_s: smoothed.since_s,
+            state_changed: smoothed.changed,
+            confidence: smoothed.confidence,
+            novelty: if novelty.is_finite() { novelty } else { 0.0 },
+            novelty_threshold: threshold,
+            fault_bands,
+            velocity_rms_mm_s: velocity,
+            iso_zone: zone,
+            model: ModelInfo {
+                id: self.model_id.clone(),
+                sha256: meta.sha256.clone(),
+                labels,
+            },
+            calibration_id: self
+                .rig
+                .calibration
+                .as_ref()
+                .map(|c| c.id.clone())
+                .or_else(|| {
+                    Some(meta.calibration_id.clone()).filter(|c| !c.is_empty() && c != "none")
+                }),
+            software_version: env!("CARGO_PKG_VERSION").to_string(),
+        };
+        WindowOutput { features, health }
+    }
+
+    /// Bin RMS at harmonics 1..3 of BPFO, BPFI and 2xBSF in the classifier channel.
+    fn fault_bands(&self, fw: &FeatureWindow) -> FaultBands {
+        let name = &self.names[self.classifier];
+        let Some(bins) = fw.features.get(name) else {
+            return FaultBands::default();
+        };
+        let w = self.rig.features.bin_width_order;
+        let at = |order: f64| -> f32 {
+            let k = (order / w).ceil() as usize;
+            if k == 0 {
+                return f32::NAN;
+            }
+            bins.get(k - 1).copied().unwrap_or(f32::NAN)
+        };
+        let harmonics = |o: f64| -> Vec<f32> {
+            (1..=3)
+                .map(|h| at(o * h as f64))
+                .filter(|x| x.is_finite())
+                .collect()
+        };
+        let mut sorted: Vec<f32> = bins.iter().copied().filter(|x| x.is_finite()).collect();
+        sorted.sort_by(|a, b| a.total_cmp(b));
+        let floor = sorted.get(sorted.len() / 2).copied().unwrap_or(0.0);
+        let fo = &self.fault_orders;
+        FaultBands {
+            channel: name.clone(),
+            orders: [
+                ("bpfo", fo.bpfo),
+                ("bpfi", fo.bpfi),
+                ("two_bsf", fo.two_bsf),
+                ("ftf", fo.ftf),
+            ]
+            .into_iter()
+            .map(|(k, v)| (k.to_string(), v))
+            .collect(),
+            bpfo: harmonics(fo.bpfo),
+            bpfi: harmonics(fo.bpfi),
+            two_bsf: harmonics(fo.two_bsf),
+            floor,
+        }
+    }
+
+    pub fn sample_rate(&self) -> f64 {
+        self.sample_rate
+    }
+}
+
+/// Wall clock, ns since the Unix epoch.
+pub fn now_ns() -> u64 {
+    std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map(|d| d.as_nanos() as u64)
+        .unwrap_or(0)
+}

@@ -1,0 +1,94 @@
+//! The status message (`rigmon/<rig>/<asset>/<point>/status`, JSON, schema `rigmon.status`
+//! version 1): what the daemon is doing and everything it counted — source trouble (bad
+//! frames, sequence gaps, reconnects), samples lost or dropped because processing fell
+//! behind, sink drops, reloads, recording errors and publish latency.
+
+use crate::publish::zenoh::PublishStats;
+use crate::record::RecordStats;
+use serde::{Deserialize, Serialize};
+
+pub const SCHEMA: &str = "rigmon.status";
+pub const SCHEMA_VERSION: u32 = 1;
+
+/// Life-cycle phase of the daemon.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Phase {
+    Starting,
+    Running,
+    Reloading,
+    Stopping,
+    Finished,
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct StatusMessage {
+    pub schema: String,
+    pub schema_version: u32,
+    pub rig: String,
+    pub asset: String,
+    pub point: String,
+    pub time_ns: u64,
+    pub uptime_s: f64,
+    pub phase: Phase,
+    pub software_version: String,
+    pub source: SourceStatus,
+    pub pipeline: PipelineStatus,
+    pub model: ModelStatus,
+    pub sinks: SinkStatus,
+    pub publish: Option<PublishStats>,
+    pub recording: Option<RecordStats>,
+    /// Last health state, for a quick look.
+    pub state: Option<String>,
+}
+
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct SourceStatus {
+    pub describe: String,
+    pub connected: bool,
+    pub blocks: u64,
+    pub samples: u64,
+    pub bad_frames: u64,
+    pub sequence_gaps: u64,
+    /// Samples the source knows it lost (gaps, or dropped because the pipeline queue was full).
+    pub samples_lost: u64,
+    pub reconnects: u64,
+    /// The source ended (end of file) or failed; `error` says why when it failed.
+    pub finished: bool,
+    pub error: Option<String>,
+}
+
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct PipelineStatus {
+    pub windows: u64,
+    pub samples_in: u64,
+    /// Samples missing on the sample clock as seen by the windower.
+    pub samples_lost: u64,
+    pub gaps: u64,
+    pub restarts: u64,
+    /// Windows whose features or inference failed (counted, skipped).
+    pub window_errors: u64,
+    /// True while processing is behind real time (the source is dropping or the lag grows).
+    pub behind: bool,
+    /// Seconds of signal between the newest sample received and the last window computed.
+    pub lag_s: f64,
+    /// Window end -> health handed to the sinks, ms (last and max).
+    pub latency_ms_last: f64,
+    pub latency_ms_max: f64,
+}
+
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct ModelStatus {
+    pub id: String,
+    pub sha256: String,
+    pub reloads: u64,
+    pub reloads_rejected: u64,
+    pub last_reload_error: Option<String>,
+}
+
+/// Messages dropped because a sink's queue was full.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct SinkStatus {
+    pub zenoh_dropped: u64,
+    pub record_dropped: u64,
+}

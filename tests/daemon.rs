@@ -1,0 +1,700 @@
+//! The daemon end to end, with real parts: the built `rigmon` binary, the shipped replays and
+//! model, Zenoh sessions on loopback TCP (explicit endpoints, multicast scouting off), the
+//! Python eclipse-zenoh client, a NOTIFY_SOCKET datagram socket, Unix signals, MCAP files read
+//! back, and `systemd-analyze verify`.
+
+use rigmon::health::message::HealthMessage;
+use std::collections::BTreeMap;
+use std::io::{BufRead, BufReader, Read};
+use std::os::unix::net::UnixDatagram;
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, Stdio};
+use std::sync::mpsc::{channel, Receiver};
+use std::time::{Duration, Instant};
+
+fn repo() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+}
+
+fn bin() -> &'static str {
+    env!("CARGO_BIN_EXE_rigmon")
+}
+
+fn model() -> PathBuf {
+    let m = repo().join("models/lut-rig.onnx");
+    assert!(
+        m.exists(),
+        "{} is missing: the trained model is part of the repository (rigmon train writes it)",
+        m.display()
+    );
+    m
+}
+
+/// The shipped replays with their labels (file names `lut-rig-<label>-<speed>hz.mcap`).
+fn replays() -> Vec<(PathBuf, String)> {
+    let dir = repo().join("replay");
+    let mut out: Vec<(PathBuf, String)> = std::fs::read_dir(&dir)
+        .unwrap_or_else(|e| {
+            panic!(
+                "{}: {e}; the shipped replays are part of the repository",
+                dir.display()
+            )
+        })
+        .filter_map(|e| e.ok().map(|e| e.path()))
+        .filter(|p| p.extension().is_some_and(|x| x == "mcap"))
+        .filter_map(|p| {
+            let name = p.file_stem()?.to_string_lossy().into_owned();
+            let rest = name.strip_prefix("lut-rig-")?;
+            let label = rest.rsplit_once('-')?.0.to_string();
+            Some((p, label))
+        })
+        .collect();
+    out.sort();
+    assert!(
+        !out.is_empty(),
+        "no replay/lut-rig-*.mcap files found in {}",
+        dir.display()
+    );
+    out
+}
+
+fn free_port() -> u16 {
+    std::net::TcpListener::bind("127.0.0.1:0")
+        .unwrap()
+        .local_addr()
+        .unwrap()
+        .port()
+}
+
+fn rig() -> rigmon::config::RigConfig {
+    rigmon::config::RigConfig::load(&repo().join("config/lut-rig.toml")).unwrap()
+}
+
+/// Windows a recording yields with the rig's window/hop.
+fn expected_windows(path: &Path) -> usize {
+    let rig = rig();
+    let rec = rigmon::importers::load(path, &rig, &Default::default()).unwrap();
+    let fs = rec.sample_rate;
+    let (w, h) = (
+        (rig.features.window_s * fs).round() as usize,
+        (rig.features.hop_s * fs).round() as usize,
+    );
+    (rec.len() - w) / h + 1
+}
+
+/// Lines of a child's pipe, delivered through a channel by a reader thread.
+fn lines(r: impl Read + Send + 'static) -> Receiver<String> {
+    let (tx, rx) = channel();
+    std::thread::spawn(move || {
+        for l in BufReader::new(r).lines() {
+            let Ok(l) = l else { break };
+            if tx.send(l).is_err() {
+                break;
+            }
+        }
+    });
+    rx
+}
+
+/// Wait for a line containing `needle`, collecting everything seen.
+fn wait_line(
+    rx: &Receiver<String>,
+    needle: &str,
+    timeout: Duration,
+    seen: &mut Vec<String>,
+) -> bool {
+    let deadline = Instant::now() + timeout;
+    while Instant::now() < deadline {
+        if let Ok(l) = rx.recv_timeout(Duration::from_millis(100)) {
+            let hit = l.contains(needle);
+            seen.push(l);
+            if hit {
+                return true;
+            }
+        }
+    }
+    false
+}
+
+fn wait_exit(child: &mut Child, timeout: Duration) -> std::process::ExitStatus {
+    let deadline = Instant::now() + timeout;
+    loop {
+        if let Some(s) = child.try_wait().unwrap() {
+            return s;
+        }
+        if Instant::now() > deadline {
+            let _ = child.kill();
+            panic!("process {} did not exit within {timeout:?}", child.id());
+        }
+        std::thread::sleep(Duration::from_millis(50));
+    }
+}
+
+fn signal(child: &Child, sig: i32) {
+    // SAFETY: plain kill(2) on our own child.
+    assert_eq!(unsafe { libc::kill(child.id() as i32, sig) }, 0);
+}
+
+/// Kills a child when dropped (a failing assertion must not leave daemons behind).
+struct Guard(Child);
+impl Drop for Guard {
+    fn drop(&mut self) {
+        let _ = self.0.kill();
+        let _ = self.0.wait();
+    }
+}
+
+#[test]
+fn replays_reach_watch_and_python_over_zenoh_with_expected_states() {
+    model();
+    for (file, label) in replays() {
+        let n = expected_windows(&file);
+        let (p1, p2) = (free_port(), free_port());
+        let (e1, e2) = (format!("tcp/127.0.0.1:{p1}"), format!("tcp/127.0.0.1:{p2}"));
+        let tmp = tempfile::tempdir().unwrap();
+        let ready = tmp.path().join("py.ready");
+
+        // Subscribers listen; the replaying daemon connects to both.
+        let mut watch = Command::new(bin())
+            .args([
+                "watch",
+                "--json",
+                "--listen",
+                &e1,
+                "--count",
+                &n.to_string(),
+                "--timeout",
+                "60",
+            ])
+            .stdout(Stdio::piped())
+            .stderr(Stdio::piped())
+            .spawn()
+            .unwrap();
+        let watch_out = lines(watch.stdout.take().unwrap());
+        let watch_err = lines(watch.stderr.take().unwrap());
+        let mut watch = Guard(watch);
+        let py = Command::new("python3")
+            .arg(repo().join("tests/python/zenoh_sub.py"))
+            .args([
+                "--listen",
+                &e2,
+                "--count",
+                &n.to_string(),
+                "--timeout",
+                "60",
+                "--ready-file",
+            ])
+            .arg(&ready)
+            .stdout(Stdio::piped())
+            .stderr(Stdio::piped())
+            .spawn()
+            .expect("python3 with eclipse-zenoh (tests/python/requirements.txt) is needed");
+        let mut py = Guard(py);
+        let mut seen = Vec::new();
+        assert!(
+            wait_line(
+                &watch_err,
+                "subscribed to",
+                Duration::from_secs(20),
+                &mut seen
+            ),
+            "watch did not start: {seen:?}"
+        );
+        let t = Instant::now();
+        while !ready.exists() {
+            assert!(
+                t.elapsed() < Duration::from_secs(20),
+                "python subscriber did not start"
+            );
+            std::thread::sleep(Duration::from_millis(50));
+        }
+
+        let out = Command::new(bin())
+            .arg("replay")
+            .arg(&file)
+            .args([
+                "--json",
+                "--speed",
+                "max",
+                "--wait-subscriber",
+                "10",
+                "--connect",
+                &e1,
+                "--connect",
+                &e2,
+            ])
+            .args([
+                "--rig",
+                repo().join("config/lut-rig.toml").to_str().unwrap(),
+                "--model",
+                model().to_str().unwrap(),
+            ])
+            .output()
+            .unwrap();
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert!(
+            out.status.success(),
+            "replay {} failed: {stderr}",
+            file.display()
+        );
+        let printed: Vec<HealthMessage> = String::from_utf8_lossy(&out.stdout)
+            .lines()
+            .map(|l| serde_json::from_str(l).unwrap())
+            .collect();
+        assert_eq!(
+            printed.len(),
+            n,
+            "replay printed {} health lines for {n} windows: {stderr}",
+            printed.len()
+        );
+
+        // (a) rigmon watch --json.
+        let status = wait_exit(&mut watch.0, Duration::from_secs(30));
+        let got: Vec<HealthMessage> = watch_out
+            .try_iter()
+            .map(|l| serde_json::from_str(&l).unwrap())
+            .collect();
+        assert!(
+            status.success(),
+            "watch failed after {} messages: {:?}",
+            got.len(),
+            watch_err.try_iter().collect::<Vec<_>>()
+        );
+        assert_eq!(got.len(), n, "watch got {} of {n}", got.len());
+        assert_eq!(
+            got, printed,
+            "watch must see exactly what the daemon published"
+        );
+        let seqs: Vec<u64> = got.iter().map(|m| m.seq).collect();
+        assert_eq!(seqs, (1..=n as u64).collect::<Vec<_>>());
+        let final_state = &got.last().unwrap().state;
+        assert_eq!(
+            final_state,
+            &label,
+            "{}: final smoothed state",
+            file.display()
+        );
+        let agree = got.iter().filter(|m| m.state == label).count();
+        assert!(
+            agree * 2 > n,
+            "{}: only {agree} of {n} windows in state {label}",
+            file.display()
+        );
+        assert!(got
+            .iter()
+            .all(|m| m.rig == "lut-rig" && m.model.labels.contains(&label)));
+
+        // (b) the independent Python client.
+        let status = wait_exit(&mut py.0, Duration::from_secs(30));
+        let mut s = String::new();
+        py.0.stdout.take().unwrap().read_to_string(&mut s).unwrap();
+        let mut e = String::new();
+        py.0.stderr.take().unwrap().read_to_string(&mut e).unwrap();
+        assert!(status.success(), "python subscriber: {s} {e}");
+        let v: serde_json::Value = serde_json::from_str(s.trim()).unwrap();
+        assert_eq!(v["count"], n as u64, "{v}");
+        assert_eq!(v["final_state"], label.as_str(), "{v}");
+        assert_eq!(v["keys"][0], "rigmon/lut-rig/shaft/nde/health", "{v}");
+        let py_states: BTreeMap<String, u64> = serde_json::from_value(v["states"].clone()).unwrap();
+        assert_eq!(
+            py_states.get(&label).copied().unwrap_or(0) as usize,
+            agree,
+            "{v}"
+        );
+    }
+}
+
+/// A daemon config in `dir` replaying `file` (looping, at `speed`) with the given model path.
+fn daemon_config(
+    dir: &Path,
+    file: &Path,
+    model: &Path,
+    speed: &str,
+    port: u16,
+    record: bool,
+) -> PathBuf {
+    let text = format!(
+        r#"rig = "{rig}"
+[model]
+path = "{model}"
+[source]
+type = "file"
+path = "{file}"
+speed = {speed}
+loop = true
+[health]
+vote_n = 5
+vote_k = 3
+dwell_s = 1.0
+[pipeline]
+status_every_s = 0.5
+[zenoh]
+mode = "peer"
+listen = ["tcp/127.0.0.1:{port}"]
+[recording]
+enabled = {record}
+dir = "{rec}"
+flush_s = 0.5
+chunk_kb = 64
+"#,
+        rig = repo().join("config/lut-rig.toml").display(),
+        model = model.display(),
+        file = file.display(),
+        rec = dir.join("rec").display(),
+    );
+    let p = dir.join("rigmon.toml");
+    std::fs::write(&p, text).unwrap();
+    p
+}
+
+#[test]
+fn sd_notify_ready_watchdog_status_then_sigterm_stops_cleanly_and_closes_the_recording() {
+    let tmp = tempfile::tempdir().unwrap();
+    let sock_path = tmp.path().join("notify.sock");
+    let sock = UnixDatagram::bind(&sock_path).unwrap();
+    sock.set_read_timeout(Some(Duration::from_millis(200)))
+        .unwrap();
+    let (file, _) = replays().into_iter().next().unwrap();
+    let cfg = daemon_config(tmp.path(), &file, &model(), "1.0", free_port(), true);
+    let child = Command::new(bin())
+        .args(["run", "--config", cfg.to_str().unwrap()])
+        .env("NOTIFY_SOCKET", &sock_path)
+        .env("WATCHDOG_USEC", "600000")
+        .env_remove("WATCHDOG_PID")
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut child = Guard(child);
+    let err = lines(child.0.stderr.take().unwrap());
+
+    let mut got: Vec<String> = Vec::new();
+    let mut buf = vec![0u8; 4096];
+    let deadline = Instant::now() + Duration::from_secs(30);
+    let has = |got: &Vec<String>, s: &str| got.iter().any(|m| m.lines().any(|l| l.starts_with(s)));
+    while Instant::now() < deadline
+        && !(has(&got, "READY=1")
+            && got.iter().filter(|m| m.contains("WATCHDOG=1")).count() >= 3
+            && has(&got, "STATUS=running"))
+    {
+        if let Ok(n) = sock.recv(&mut buf) {
+            got.push(String::from_utf8_lossy(&buf[..n]).into_owned());
+        }
+    }
+    assert!(has(&got, "READY=1"), "no READY=1: {got:?}");
+    assert!(has(&got, "STATUS="), "no STATUS=: {got:?}");
+    assert!(
+        got.iter().filter(|m| m.contains("WATCHDOG=1")).count() >= 3,
+        "watchdog not petted: {got:?}"
+    );
+    let ready_at = got.iter().position(|m| m.contains("READY=1")).unwrap();
+    let first_pet = got.iter().position(|m| m.contains("WATCHDOG=1")).unwrap();
+    assert!(ready_at <= first_pet, "READY=1 must come first: {got:?}");
+    // Let at least one recording flush happen, then stop.
+    std::thread::sleep(Duration::from_millis(1500));
+    signal(&child.0, libc::SIGTERM);
+    let deadline = Instant::now() + Duration::from_secs(15);
+    while Instant::now() < deadline && !has(&got, "STOPPING=1") {
+        if let Ok(n) = sock.recv(&mut buf) {
+            got.push(String::from_utf8_lossy(&buf[..n]).into_owned());
+        }
+    }
+    assert!(has(&got, "STOPPING=1"), "no STOPPING=1: {got:?}");
+    let status = wait_exit(&mut child.0, Duration::from_secs(15));
+    assert!(
+        status.success(),
+        "daemon exit {status:?}: {:?}",
+        err.try_iter().collect::<Vec<_>>()
+    );
+
+    // The recording was closed cleanly: both files read back, with summaries.
+    let rec_dir = tmp.path().join("rec");
+    let files: Vec<PathBuf> = std::fs::read_dir(&rec_dir)
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .collect();
+    let raw = files
+        .iter()
+        .find(|p| {
+            p.to_string_lossy().ends_with(".mcap") && !p.to_string_lossy().ends_with(".events.mcap")
+        })
+        .expect("raw file");
+    let events = files
+        .iter()
+        .find(|p| p.to_string_lossy().ends_with(".events.mcap"))
+        .expect("events file");
+    let rec = rigmon::recording::mcap_layout::read_recording(raw).unwrap();
+    assert_eq!(rec.channels.len(), 3);
+    assert!(rec.duration_s() >= 1.0, "recorded {} s", rec.duration_s());
+    let bytes = std::fs::read(events).unwrap();
+    let summary = mcap::Summary::read(&bytes)
+        .unwrap()
+        .expect("a cleanly closed MCAP has a summary");
+    let mut health = 0;
+    for m in mcap::MessageStream::new(&bytes).unwrap() {
+        let m = m.unwrap();
+        if m.channel.topic == "/health" {
+            let h: HealthMessage = serde_json::from_slice(&m.data).unwrap();
+            assert_eq!(h.rig, "lut-rig");
+            health += 1;
+        }
+    }
+    assert!(health >= 2, "only {health} health messages recorded");
+    assert!(summary.stats.is_some());
+}
+
+#[test]
+fn sighup_swaps_the_model_without_losing_windows_and_rejects_a_bad_one() {
+    let tmp = tempfile::tempdir().unwrap();
+    let live_model = tmp.path().join("model.onnx");
+    std::fs::copy(model(), &live_model).unwrap();
+    // A second valid model: the same network with one more metadata entry (so another hash),
+    // written by the onnx Python package and checked by its checker.
+    let variant = tmp.path().join("variant.onnx");
+    let py = Command::new("python3")
+        .args([
+            "-c",
+            "import onnx,sys; m=onnx.load(sys.argv[1]); p=m.metadata_props.add(); p.key='variant'; p.value='b'; onnx.checker.check_model(m); onnx.save(m, sys.argv[2])",
+        ])
+        .arg(model())
+        .arg(&variant)
+        .output()
+        .unwrap();
+    assert!(
+        py.status.success(),
+        "{}",
+        String::from_utf8_lossy(&py.stderr)
+    );
+
+    let (file, _) = replays().into_iter().next().unwrap();
+    let cfg = daemon_config(tmp.path(), &file, &live_model, "4.0", free_port(), false);
+    let child = Command::new(bin())
+        .args(["run", "--config", cfg.to_str().unwrap(), "--print", "json"])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut child = Guard(child);
+    let out = lines(child.0.stdout.take().unwrap());
+    let err = lines(child.0.stderr.take().unwrap());
+    let mut msgs: Vec<HealthMessage> = Vec::new();
+    let take = |msgs: &mut Vec<HealthMessage>, k: usize| {
+        for _ in 0..k {
+            let l = out
+                .recv_timeout(Duration::from_secs(20))
+                .expect("health line");
+            msgs.push(serde_json::from_str(&l).unwrap());
+        }
+    };
+    take(&mut msgs, 3);
+    let sha0 = msgs[0].model.sha256.clone();
+
+    // A corrupt model: rejected, the old one keeps running.
+    std::fs::write(&live_model, b"not an onnx model").unwrap();
+    signal(&child.0, libc::SIGHUP);
+    let mut seen = Vec::new();
+    assert!(
+        wait_line(&err, "reload rejected", Duration::from_secs(20), &mut seen),
+        "{seen:?}"
+    );
+    take(&mut msgs, 3);
+    assert!(msgs.iter().all(|m| m.model.sha256 == sha0));
+
+    // A good new model: swapped in between two windows.
+    std::fs::copy(&variant, &live_model).unwrap();
+    signal(&child.0, libc::SIGHUP);
+    let deadline = Instant::now() + Duration::from_secs(30);
+    while msgs.last().unwrap().model.sha256 == sha0 {
+        assert!(Instant::now() < deadline, "model never swapped");
+        take(&mut msgs, 1);
+    }
+    take(&mut msgs, 2);
+    signal(&child.0, libc::SIGTERM);
+    let status = wait_exit(&mut child.0, Duration::from_secs(15));
+    assert!(status.success());
+    for l in out.try_iter() {
+        msgs.push(serde_json::from_str(&l).unwrap());
+    }
+    let seqs: Vec<u64> = msgs.iter().map(|m| m.seq).collect();
+    assert_eq!(
+        seqs,
+        (1..=msgs.len() as u64).collect::<Vec<_>>(),
+        "no window may be lost across reloads"
+    );
+    assert!(
+        msgs.iter().all(|m| m.quality.dropout_samples == 0),
+        "no samples may be lost across reloads"
+    );
+    let shas: std::collections::BTreeSet<&str> =
+        msgs.iter().map(|m| m.model.sha256.as_str()).collect();
+    assert_eq!(shas.len(), 2);
+}
+
+#[test]
+fn systemd_unit_passes_systemd_analyze_verify() {
+    let unit = std::fs::read_to_string(repo().join("systemd/rigmon.service")).unwrap();
+    for key in [
+        "Type=notify",
+        "WatchdogSec=",
+        "Restart=on-failure",
+        "ProtectSystem=strict",
+        "StateDirectory=",
+        "NoNewPrivileges=yes",
+        "AF_CAN",
+        "DeviceAllow=",
+        "SupplementaryGroups=",
+    ] {
+        assert!(unit.contains(key), "unit lacks {key}");
+    }
+    // verify checks that ExecStart exists: point it at the binary under test.
+    let tmp = tempfile::tempdir().unwrap();
+    let p = tmp.path().join("rigmon.service");
+    std::fs::write(&p, unit.replace("/usr/local/bin/rigmon", bin())).unwrap();
+    let out = Command::new("systemd-analyze")
+        .args(["verify", "--man=no"])
+        .arg(&p)
+        .output()
+        .expect("systemd-analyze is needed (apt-get install systemd)");
+    let text = format!(
+        "{}{}",
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(
+        out.status.success() && !text.contains("rigmon.service:"),
+        "systemd-analyze verify: {text}"
+    );
+}
+
+const PY_ROUTER: &str = r#"
+import json, sys, time, zenoh
+c = zenoh.Config()
+c.insert_json5("mode", '"router"')
+c.insert_json5("listen/endpoints", json.dumps(["tcp/127.0.0.1:" + sys.argv[1]]))
+c.insert_json5("connect/endpoints", "[]")
+c.insert_json5("scouting/multicast/enabled", "false")
+s = zenoh.open(c)
+print("up", flush=True)
+while True:
+    time.sleep(1)
+"#;
+
+fn router(port: u16) -> Guard {
+    let mut c = Command::new("python3")
+        .args(["-c", PY_ROUTER, &port.to_string()])
+        .stdout(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let out = lines(c.stdout.take().unwrap());
+    assert_eq!(
+        out.recv_timeout(Duration::from_secs(20))
+            .expect("python zenoh router did not start"),
+        "up"
+    );
+    Guard(c)
+}
+
+#[test]
+fn survives_a_router_restart_and_answers_queries_and_liveliness() {
+    let tmp = tempfile::tempdir().unwrap();
+    let port = free_port();
+    let ep = format!("tcp/127.0.0.1:{port}");
+    let mut r = router(port);
+    let (file, label) = replays().into_iter().find(|(_, l)| l != "healthy").unwrap();
+    let cfg = daemon_config(tmp.path(), &file, &model(), "2.0", free_port(), false);
+    // Client mode through the router (the config's listen endpoint is replaced by none).
+    let daemon = Command::new(bin())
+        .args([
+            "run",
+            "--config",
+            cfg.to_str().unwrap(),
+            "--mode",
+            "client",
+            "--connect",
+            &ep,
+        ])
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut daemon = Guard(daemon);
+    let _daemon_err = lines(daemon.0.stderr.take().unwrap());
+    let watch = Command::new(bin())
+        .args(["watch", "--json", "--mode", "client", "--connect", &ep])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::null())
+        .spawn()
+        .unwrap();
+    let mut watch = Guard(watch);
+    let got = lines(watch.0.stdout.take().unwrap());
+    for _ in 0..3 {
+        got.recv_timeout(Duration::from_secs(20))
+            .expect("health through the router");
+    }
+
+    // Kill the router, restart it, and time how long until health flows again.
+    r.0.kill().unwrap();
+    r.0.wait().unwrap();
+    std::thread::sleep(Duration::from_millis(500));
+    while got.try_recv().is_ok() {}
+    let t = Instant::now();
+    let _r2 = router(port);
+    let first: HealthMessage = serde_json::from_str(
+        &got.recv_timeout(Duration::from_secs(30))
+            .expect("health resumed after the router restart"),
+    )
+    .unwrap();
+    eprintln!(
+        "health resumed {:.1} s after the router restarted",
+        t.elapsed().as_secs_f64()
+    );
+    assert_eq!(first.state, label);
+
+    // Read-only queryables: the latest health and the running config.
+    let q = |key: &str| {
+        let out = Command::new(bin())
+            .args([
+                "watch",
+                "--query",
+                "--json",
+                "--mode",
+                "client",
+                "--connect",
+                &ep,
+                key,
+            ])
+            .output()
+            .unwrap();
+        assert!(
+            out.status.success(),
+            "query {key}: {}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        String::from_utf8(out.stdout).unwrap()
+    };
+    let latest: HealthMessage =
+        serde_json::from_str(q("rigmon/lut-rig/shaft/nde/health").trim()).unwrap();
+    assert_eq!(latest.rig, "lut-rig");
+    let config: serde_json::Value =
+        serde_json::from_str(q("rigmon/lut-rig/shaft/nde/config").trim()).unwrap();
+    assert_eq!(config["zenoh"]["mode"], "client", "{config}");
+    assert_eq!(config["health"]["vote_k"], 3, "{config}");
+    // The liveliness token, seen by the independent Python client.
+    let live = Command::new("python3")
+        .args([
+            "-c",
+            "import json,sys,zenoh\nc=zenoh.Config()\nc.insert_json5('mode','\"client\"')\nc.insert_json5('connect/endpoints',json.dumps([sys.argv[1]]))\nc.insert_json5('scouting/multicast/enabled','false')\nwith zenoh.open(c) as s:\n    print(sorted(str(r.ok.key_expr) for r in s.liveliness().get('rigmon/**', timeout=5.0) if r.ok))",
+            &ep,
+        ])
+        .output()
+        .unwrap();
+    let text = String::from_utf8_lossy(&live.stdout);
+    assert!(
+        text.contains("rigmon/lut-rig/shaft/nde/alive"),
+        "liveliness: {text} {}",
+        String::from_utf8_lossy(&live.stderr)
+    );
+    signal(&daemon.0, libc::SIGTERM);
+    assert!(wait_exit(&mut daemon.0, Duration::from_secs(15)).success());
+    let _ = watch.0.kill();
+}
