@@ -1108,7 +1108,7 @@ fn can_take_aligned_terminates_with_pending_edges() {
 /// Found by `fuzz_serial_decoder`: `DecoderCounters::samples_lost` is summed without
 /// saturation (src/acquire/serial_protocol.rs, `Decoder::account`), so a stream whose sample
 /// clock jumps far ahead twice (with a reset between) overflows it: a panic in debug builds,
-/// a wrapped counter in release. Owned by the sources helper; this test stays red until fixed.
+/// a wrapped counter in release. Fixed: the counter now saturates.
 #[test]
 fn serial_lost_sample_counter_survives_clock_jumps() {
     let enc = FrameEncoder {
