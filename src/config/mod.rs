@@ -165,6 +165,9 @@ pub struct FeatureSettings {
     pub classifier_axis: String,
 }
 
+/// Upper limit on order bins per channel (the thesis recipe uses 100).
+pub const MAX_FEATURE_BINS: usize = 10_000;
+
 fn default_lowpass() -> f64 {
     4000.0
 }
@@ -292,6 +295,11 @@ impl RigConfig {
             bail!("features: need 0 < bin_width_order < max_order");
         }
         let fit = f.max_order / f.bin_width_order;
+        if !(fit.is_finite() && fit <= MAX_FEATURE_BINS as f64) {
+            bail!(
+                "features: max_order / bin_width_order = {fit} bins; at most {MAX_FEATURE_BINS} are supported (the default recipe has 100)"
+            );
+        }
         if (fit - fit.round()).abs() > 1e-9 {
             bail!(
                 "features.max_order ({}) must be a whole number of bins of width {}",
@@ -392,6 +400,14 @@ mod tests {
         let err = format!("{:#}", RigConfig::parse(&bad).unwrap_err());
         assert!(err.contains("lowpas_hz"), "{err}");
         assert!(err.contains("line"), "{err}");
+    }
+
+    #[test]
+    fn absurd_bin_counts_are_refused() {
+        let text = std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("config/lut-rig.toml")).unwrap();
+        let bad = text.replacen("bin_width_order = 0.5", "bin_width_order = 1e-300", 1);
+        let err = format!("{:#}", RigConfig::parse(&bad).unwrap_err());
+        assert!(err.contains("at most 10000"), "{err}");
     }
 
     #[test]
