@@ -1498,7 +1498,7 @@ fn mat_seeds() {
         write_seed(
             "mat",
             &format!("mfpt-{tag}-struct.mat"),
-            &m.file(&[bearing.clone()]),
+            &m.file(std::slice::from_ref(&bearing)),
         );
         write_seed(
             "mat",
@@ -1525,13 +1525,8 @@ fn wav_seeds() {
         let p = dir.path().join(file);
         let mut w = hound::WavWriter::create(&p, spec).unwrap();
         let cols: Vec<Vec<f64>> = (0..3).map(|k| signal(n, k as f64)).collect();
-        for i in 0..n {
-            let frame = [
-                cols[0][i] * 0.9,
-                cols[1][i] * 0.9,
-                cols[2][i] * 0.9,
-                (i % 50 < 5) as u8 as f64 * 0.9,
-            ];
+        for (i, ((a, v), h)) in cols[0].iter().zip(&cols[1]).zip(&cols[2]).enumerate() {
+            let frame = [a * 0.9, v * 0.9, h * 0.9, (i % 50 < 5) as u8 as f64 * 0.9];
             for x in frame {
                 match fmt {
                     hound::SampleFormat::Float => w.write_sample(x as f32).unwrap(),
@@ -1579,6 +1574,11 @@ fn rig_seeds() {
             &std::fs::read(manifest().join("config").join(f)).unwrap(),
         );
     }
+    write_seed(
+        "daemon",
+        "rigmon.toml",
+        &std::fs::read(manifest().join("config/rigmon.toml")).unwrap(),
+    );
 }
 
 /// Writes `tests/corpus/` from the encoders and writers (run by hand, then commit).
