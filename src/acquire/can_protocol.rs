@@ -343,10 +343,12 @@ impl CanDecoder {
             }
         }
         let n = self.chans.iter().map(|c| c.buf.len()).min().unwrap_or(0);
-        if n == 0 && self.edges.is_empty() {
+        let end = emitted as f64 + n as f64;
+        // Nothing to hand out: no samples, and no edge that is already due (edges ahead of
+        // the samples wait for them; returning an empty block here would spin the caller).
+        if n == 0 && !self.edges.iter().any(|&e| e < end) {
             return None;
         }
-        let end = emitted as f64 + n as f64;
         let (now, later): (Vec<f64>, Vec<f64>) = self.edges.drain(..).partition(|&e| e < end);
         self.edges = later;
         self.emitted = Some(emitted + n as u64);

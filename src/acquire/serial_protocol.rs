@@ -429,7 +429,10 @@ impl Decoder {
         }
         if let Some(x) = self.expect_sample {
             if f.first_sample > x {
-                self.counters.samples_lost = self.counters.samples_lost.saturating_add(f.first_sample - x);
+                self.counters.samples_lost = self
+                    .counters
+                    .samples_lost
+                    .saturating_add(f.first_sample - x);
             } else if f.first_sample < x {
                 self.counters.clock_resets += 1;
             }

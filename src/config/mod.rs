@@ -240,7 +240,23 @@ impl RigConfig {
 
     /// Consistency checks that serde cannot express.
     pub fn validate(&self) -> Result<()> {
+        if let Some(key) = toml::Value::try_from(self)
+            .ok()
+            .as_ref()
+            .and_then(|v| first_non_finite(v, ""))
+        {
+            bail!("{key} is not a finite number (nan and inf are not allowed in a rig file)");
+        }
         self.bearing.validate().map_err(anyhow::Error::msg)?;
+        if !(self.features.lowpass_hz > 0.0) {
+            bail!(
+                "features.lowpass_hz = {}: must be a positive frequency",
+                self.features.lowpass_hz
+            );
+        }
+        if let Some(sim) = &self.simulation {
+            sim.validate()?;
+        }
         if self.machine.id.is_empty() || self.machine.id.contains(['/', '*', '$', '#', '?', ' ']) {
             bail!("machine.id = {:?}: must be non-empty and free of / * $ # ? and spaces (it becomes a Zenoh key)", self.machine.id);
         }
@@ -347,6 +363,30 @@ impl RigConfig {
     }
 }
 
+/// The dotted key of the first NaN or infinite float in a TOML tree, if any.
+fn first_non_finite(v: &toml::Value, path: &str) -> Option<String> {
+    let join = |k: &str| {
+        if path.is_empty() {
+            k.to_string()
+        } else {
+            format!("{path}.{k}")
+        }
+    };
+    match v {
+        toml::Value::Float(f) if !f.is_finite() => Some(if path.is_empty() {
+            "a value".into()
+        } else {
+            path.to_string()
+        }),
+        toml::Value::Table(t) => t.iter().find_map(|(k, x)| first_non_finite(x, &join(k))),
+        toml::Value::Array(a) => a
+            .iter()
+            .enumerate()
+            .find_map(|(i, x)| first_non_finite(x, &format!("{path}[{i}]"))),
+        _ => None,
+    }
+}
+
 /// Resolve a path given in a config file relative to that file's folder.
 pub fn resolve_relative(base_file: &Path, p: &Path) -> PathBuf {
     if p.is_absolute() {
@@ -403,8 +443,24 @@ mod tests {
     }
 
     #[test]
+    fn non_finite_numbers_are_refused_by_key() {
+        let text = std::fs::read_to_string(
+            Path::new(env!("CARGO_MANIFEST_DIR")).join("config/lut-rig.toml"),
+        )
+        .unwrap();
+        let bad = text.replacen("lowpass_hz = 4000.0", "lowpass_hz = nan", 1);
+        let err = format!("{:#}", RigConfig::parse(&bad).unwrap_err());
+        assert!(err.contains("features.lowpass_hz"), "{err}");
+        let bad = text.replacen("max_order = 50.0", "max_order = inf", 1);
+        assert!(RigConfig::parse(&bad).is_err());
+    }
+
+    #[test]
     fn absurd_bin_counts_are_refused() {
-        let text = std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("config/lut-rig.toml")).unwrap();
+        let text = std::fs::read_to_string(
+            Path::new(env!("CARGO_MANIFEST_DIR")).join("config/lut-rig.toml"),
+        )
+        .unwrap();
         let bad = text.replacen("bin_width_order = 0.5", "bin_width_order = 1e-300", 1);
         let err = format!("{:#}", RigConfig::parse(&bad).unwrap_err());
         assert!(err.contains("at most 10000"), "{err}");
