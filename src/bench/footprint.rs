@@ -146,7 +146,7 @@ pub fn run(opts: &BenchOptions) -> Result<()> {
         .clone()
         .unwrap_or_else(|| PathBuf::from("config/lut-rig.toml"));
     let model = PathBuf::from("models/lut-rig.onnx");
-    let replay = PathBuf::from("replay/lut-rig-outer_race-9.8hz.mcap");
+    let replay = PathBuf::from("replay/lut-outer_race-588rpm.mcap");
     for (p, hint) in [
         (&rig_path, "--rig <toml>"),
         (&model, "train it with `rigmon train`"),

@@ -56,7 +56,7 @@ pub struct Args {
 
 pub fn run(args: Args) -> Result<()> {
     if !args.file.exists() {
-        bail!("{}: no such file; the shipped replays are in replay/ (e.g. replay/lut-rig-outer_race-9.8hz.mcap)", args.file.display());
+        bail!("{}: no such file; the shipped replays are in replay/ (e.g. replay/lut-outer_race-588rpm.mcap)", args.file.display());
     }
     for (what, p, hint) in [
         ("rig file", &args.rig, "pass --rig <toml> (config/lut-rig.toml for the shipped replays, config/cwru-de.toml for CWRU files)"),

@@ -297,7 +297,8 @@ pub fn run_with_source(mut opts: DaemonOptions, source: Box<dyn Source>) -> Resu
     let mut last_status = Instant::now() - status_every;
     let mut newest_t = 0.0f64;
     let mut first_block: Option<(Instant, f64)> = None;
-    let mut last_lost_at_source = 0u64;
+    let mut backlog_run = 0usize;
+    let live = cfg.source.kind() != "file";
     let mut behind_since: Option<Instant> = None;
     let mut stdout = std::io::stdout().lock();
     let mut stopping = false;
@@ -421,7 +422,18 @@ pub fn run_with_source(mut opts: DaemonOptions, source: Box<dyn Source>) -> Resu
             ));
         }
 
-        match rx.recv_timeout(Duration::from_millis(50)) {
+        // Blocks already waiting come first; an empty queue means we are keeping up.
+        let received = match rx.try_recv() {
+            Ok(b) => {
+                backlog_run += 1;
+                Ok(b)
+            }
+            Err(_) => {
+                backlog_run = 0;
+                rx.recv_timeout(Duration::from_millis(50))
+            }
+        };
+        match received {
             Ok(block) => {
                 let last_block_at = Instant::now();
                 notifier.progress();
@@ -484,24 +496,25 @@ pub fn run_with_source(mut opts: DaemonOptions, source: Box<dyn Source>) -> Resu
             }
         }
 
-        // Falling behind: the source is dropping blocks for us, or blocks wait in the queue.
-        let lost_at_source = stats.samples_lost.load(Ordering::Relaxed);
-        if lost_at_source > last_lost_at_source {
+        // Falling behind (live sources): blocks keep waiting in the queue, so every receive
+        // returns at once; past half the queue the source starts dropping (and counting) blocks.
+        let behind_now = live && backlog_run >= (cfg.pipeline.queue_blocks / 2).max(2);
+        if behind_now {
             if behind_since.is_none() {
                 tracing::warn!(
-                    "processing fell behind: the source dropped {} samples so far (status topic: source.samples_lost)",
-                    lost_at_source
+                    "processing is falling behind: {backlog_run} blocks waiting in a queue of {}; the source drops what does not fit (status: source.samples_lost = {})",
+                    cfg.pipeline.queue_blocks,
+                    stats.samples_lost.load(Ordering::Relaxed)
                 );
             }
             behind_since = Some(Instant::now());
-            last_lost_at_source = lost_at_source;
         } else if behind_since.is_some_and(|t| t.elapsed() > Duration::from_secs(5)) {
             tracing::info!("processing caught up");
             behind_since = None;
         }
         pipe.behind = behind_since.is_some();
         // Wall time minus signal time since the first block: grows when a live source outruns us.
-        if let Some((t0_wall, t0_sig)) = first_block {
+        if let Some((t0_wall, t0_sig)) = first_block.filter(|_| live) {
             pipe.lag_s = (t0_wall.elapsed().as_secs_f64() - (newest_t - t0_sig)).max(0.0);
         }
 
