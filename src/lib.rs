@@ -1,14 +1,13 @@
 //! rigmon: on-line condition monitoring of rotating machinery.
 //!
 //! Data flows one way: [`acquire`] (sources) -> [`dsp`] (features) -> [`model`] (inference)
-//! -> [`health`] (state machine) -> [`publish`], [`record`] (sinks). [`sim`], [`train`] and
-//! [`calibrate`] sit beside the stream and produce models and calibrated rig files.
+//! -> [`health`] (state machine) -> [`publish`], [`record`] (sinks). [`sim`] and [`train`]
+//! sit beside the stream and produce models (simulator calibration is still to come).
 //! Lower modules never import higher ones.
 
 pub mod acquire;
 pub mod bearing;
 pub mod bench;
-pub mod calibrate;
 pub mod cli;
 pub mod config;
 pub mod daemon;
