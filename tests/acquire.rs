@@ -11,30 +11,14 @@ use rigmon::acquire::{
 };
 use rigmon::config::RigConfig;
 use rigmon::recording::{Channel, Provenance, Recording, Tacho};
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::sync::atomic::Ordering;
 use std::sync::mpsc::Receiver;
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
-fn rig(name: &str) -> RigConfig {
-    RigConfig::load(
-        &Path::new(env!("CARGO_MANIFEST_DIR"))
-            .join("config")
-            .join(name),
-    )
-    .unwrap()
-}
-
-fn shared_data() -> PathBuf {
-    let p = Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/../shared/data"));
-    assert!(
-        p.join("cwru/97_Normal_0.mat").is_file(),
-        "shared data missing: {} must hold cwru/97_Normal_0.mat (CI always has it)",
-        p.display()
-    );
-    p.to_path_buf()
-}
+mod common;
+use common::{rig, shared_data};
 
 /// A lut-rig recording: three acceleration channels with awkward values and a 0/5 V tacho.
 fn lut_recording(seconds: f64) -> Recording {

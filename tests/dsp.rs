@@ -9,26 +9,9 @@ use rigmon::dsp::{extract_recording, speed_estimate, FeaturePipeline, SpeedTrack
 use rigmon::importers::{self, ImportOptions};
 use rigmon::recording::{Channel, Provenance, Recording, Tacho};
 use std::collections::BTreeMap;
-use std::path::{Path, PathBuf};
 
-fn rig(name: &str) -> RigConfig {
-    RigConfig::load(
-        &Path::new(env!("CARGO_MANIFEST_DIR"))
-            .join("config")
-            .join(name),
-    )
-    .unwrap()
-}
-
-fn shared_data() -> PathBuf {
-    let p = Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/../shared/data"));
-    assert!(
-        p.join("cwru").is_dir(),
-        "shared data missing: expected the CWRU files under {} (see its README)",
-        p.display()
-    );
-    p.to_path_buf()
-}
+mod common;
+use common::{rig, shared_data};
 
 /// A lut-rig recording: the synthetic signal on "vertical", noise on the other axes.
 fn lut_recording(syn: &Synthetic, tacho_as_edges: bool) -> (Recording, Vec<f64>) {

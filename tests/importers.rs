@@ -13,15 +13,8 @@ use std::path::{Path, PathBuf};
 
 // ---------------------------------------------------------------- helpers
 
-fn data_dir() -> PathBuf {
-    let p = PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../shared/data"));
-    assert!(
-        p.join("cwru/97_Normal_0.mat").is_file(),
-        "shared CWRU data missing at {} (../shared must link to /work/shared); these tests need it",
-        p.display()
-    );
-    p
-}
+mod common;
+use common::shared_data as data_dir;
 
 fn cwru(rel: &str) -> PathBuf {
     data_dir().join("cwru").join(rel)
