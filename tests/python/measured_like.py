@@ -1,0 +1,210 @@
+#!/usr/bin/env python3
+"""Measured-like recordings of the LUT rig from physics that is NOT rigmon's simulator.
+
+rigmon's simulator integrates a flexible rotor on a nonlinear Hertzian ball bearing. This
+generator knows nothing of that: it builds the signal the way a signal-processing text
+describes a faulty bearing -- trains of impacts at the kinematic fault frequencies, each
+ringing down through a few damped structural resonances, the inner-race train amplitude-
+modulated by the rotating load zone, random slip of each impact, white sensor noise, a 1x
+unbalance line that grows with speed squared and an analog once-per-rev tacho channel.
+
+Each case injects ONE effect with parameters that are written to truth.json and never given
+to `rigmon calibrate`; `baseline` injects nothing, `outside` injects a component that no
+effect in rigmon's catalog explains (an order-locked narrowband line at a non-integer order).
+
+    python3 measured_like.py --out DIR --case CASE [--seed N] [--seconds S]
+
+writes DIR/<label>-<rpm>rpm.csv (header `time,axial,vertical,horizontal,tacho`; m/s^2 and V;
+10 kHz; the channel names of config/lut-rig.toml), DIR/labels.csv (`path,label`) and
+DIR/truth.json = {"case", "effect", "params", "outside"}.
+
+Only numpy is needed.
+"""
+
+import argparse
+import json
+import os
+
+import numpy as np
+
+FS = 10_000.0
+SPEEDS_RPM = (600.0, 1200.0)  # whole cycles in 3 s: no scalloping of 1x
+LABELS = ("healthy", "outer_race", "inner_race")
+
+# LUT rig bearing, SKF 6007-2Z (config/lut-rig.toml [bearing])
+BALLS = 11
+BALL_D_MM = 7.94
+PITCH_D_MM = 48.0
+
+# The "real" rig this generator pretends to measure. Resonances: (Hz, damping ratio,
+# participation axial, vertical, horizontal).
+RESONANCES = [
+    (2900.0, 0.03, (0.15, 1.0, 0.25)),
+    (3700.0, 0.04, (0.3, 0.5, 0.5)),
+]
+NOISE_RMS = 0.3  # m/s^2, white, per channel
+UNBALANCE_1X_AT_1200 = 0.008  # m/s^2, vertical 1x amplitude at 1200 rpm (grows with speed^2)
+OR_IMPACT_AT_600 = 50.0  # m/s^2 peak of one outer-race impact response (vertical)
+IR_IMPACT_AT_600 = 30.0
+IMPACT_SPEED_EXPONENT = 1.0  # impact strength ~ speed
+JITTER = 0.01  # random impact-time slip, fraction of the impact spacing
+TACHO_HIGH_V = 5.0
+TACHO_DUTY = 0.1
+TACHO_NOISE_V = 0.01
+
+# Hidden parameters per case (a test must not pass them to calibrate).
+CASES = {
+    "baseline": (None, {}),
+    "slip": ("slip", {"slip": 0.02}),
+    "contact_angle": ("contact_angle", {"contact_angle_deg": 20.0}),
+    "resonance": ("resonance", {"hz": 2300.0, "damping": 0.03}),
+    "unbalance": ("unbalance", {"order1_m_s2": 0.25, "at_rpm": 1200.0}),
+    "line_interference": ("line_interference", {"line_hz": 60.0, "amplitude_m_s2": 0.6}),
+    "speed_fluctuation": ("speed_fluctuation", {"fraction": 0.04, "period_s": 0.8}),
+    "outside": (None, {}),
+}
+OUTSIDE = {"location": 17.3, "unit": "order", "locked_to": "speed", "amplitude_m_s2": 0.5}
+
+
+def shaft_revolutions(n, rpm, fluct):
+    """Shaft angle in revolutions at each sample, and the instantaneous speed in Hz."""
+    t = np.arange(n) / FS
+    f = rpm / 60.0 * np.ones(n)
+    if fluct is not None:
+        f = f * (1.0 + fluct["fraction"] * np.sin(2 * np.pi * t / fluct["period_s"]))
+    revs = np.concatenate(([0.0], np.cumsum(f[:-1]) / FS))
+    return revs, f
+
+
+def crossing_times(phase):
+    """Times (s) at which a monotonic phase (in cycles) crosses each integer, by linear
+    interpolation between samples."""
+    k = np.floor(phase)
+    idx = np.nonzero(np.diff(k) > 0)[0]
+    out = []
+    for i in idx:
+        target = k[i] + 1.0
+        frac = (target - phase[i]) / (phase[i + 1] - phase[i])
+        out.append((i + frac) / FS)
+    return np.array(out)
+
+
+def ring(n, times, amps, resonances, axis, rng):
+    """Sum of damped-resonance responses to impacts at `times` with strengths `amps`."""
+    y = np.zeros(n)
+    span = int(0.04 * FS)
+    tau = np.arange(span) / FS
+    for t0, a in zip(times, amps):
+        i0 = int(np.ceil(t0 * FS))
+        if i0 >= n:
+            continue
+        m = min(span, n - i0)
+        dt = (i0 - t0 * FS) / FS + tau[:m]
+        resp = np.zeros(m)
+        for hz, zeta, part in resonances:
+            w = 2 * np.pi * hz
+            wd = w * np.sqrt(1 - zeta * zeta)
+            sigma = zeta * w
+            # velocity-like ring-down: zero mean, so an impact adds nothing at DC or 1x
+            resp += part[axis] * np.exp(-sigma * dt) * (np.cos(wd * dt) - sigma / wd * np.sin(wd * dt))
+        y[i0 : i0 + m] += a * resp
+    return y
+
+
+def fault_impacts(label, revs, rpm, rng, slip, contact_deg):
+    """Impact times and strengths (before the resonance gains) of a localized defect."""
+    r = BALL_D_MM / PITCH_D_MM * np.cos(np.radians(contact_deg))
+    cage = revs * 0.5 * (1.0 - r) * (1.0 - slip)  # cage revolutions
+    speed_gain = (rpm / 600.0) ** IMPACT_SPEED_EXPONENT
+    if label == "outer_race":
+        times = crossing_times(BALLS * cage)
+        amps = OR_IMPACT_AT_600 * speed_gain * (1.0 + 0.1 * rng.standard_normal(len(times)))
+    elif label == "inner_race":
+        times = crossing_times(BALLS * (revs - cage))
+        # the defect turns with the shaft: strength follows the load zone at the bottom
+        shaft_angle = np.interp(times, np.arange(len(revs)) / FS, revs) * 2 * np.pi
+        load = np.clip(np.cos(shaft_angle), 0.0, None) ** 1.5
+        amps = IR_IMPACT_AT_600 * speed_gain * (0.15 + load) * (1.0 + 0.1 * rng.standard_normal(len(times)))
+    else:
+        return np.zeros(0), np.zeros(0)
+    spacing = np.median(np.diff(times)) if len(times) > 1 else 0.0
+    times = times + JITTER * spacing * rng.standard_normal(len(times))
+    keep = times > 0
+    return times[keep], amps[keep]
+
+
+def record(label, rpm, case, params, seconds, rng):
+    n = int(round(seconds * FS))
+    t = np.arange(n) / FS
+    fluct = params if case == "speed_fluctuation" else None
+    revs, _ = shaft_revolutions(n, rpm, fluct)
+    slip = params.get("slip", 0.0) if case == "slip" else 0.0
+    contact = params.get("contact_angle_deg", 0.0) if case == "contact_angle" else 0.0
+    resonances = list(RESONANCES)
+    if case == "resonance":
+        resonances[0] = (params["hz"], params["damping"], resonances[0][2])
+    times, amps = fault_impacts(label, revs, rpm, rng, slip, contact)
+    chans = []
+    for axis in range(3):
+        y = ring(n, times, amps, resonances, axis, rng)
+        if axis == 0 and contact > 0:
+            # an angular contact carries part of each impact axially
+            y += np.sin(np.radians(contact)) * ring(n, times, amps, resonances, 1, rng)
+        y += NOISE_RMS * rng.standard_normal(n)
+        chans.append(y)
+    # 1x unbalance, vertical and horizontal (90 degrees apart), amplitude ~ speed^2
+    a1 = UNBALANCE_1X_AT_1200 * (rpm / 1200.0) ** 2
+    if case == "unbalance":
+        a1 = params["order1_m_s2"] * (rpm / params["at_rpm"]) ** 2
+    chans[1] += a1 * np.cos(2 * np.pi * revs + 0.4)
+    chans[2] += 0.7 * a1 * np.sin(2 * np.pi * revs + 0.4)
+    if case == "line_interference":
+        ph = rng.uniform(0, 2 * np.pi)
+        for c, g in zip(chans, (0.5, 1.0, 0.8)):
+            c += g * params["amplitude_m_s2"] * np.sin(2 * np.pi * params["line_hz"] * t + ph)
+    if case == "outside":
+        # a gear-mesh-like component at a non-integer order, locked to the shaft
+        ph = rng.uniform(0, 2 * np.pi)
+        for c, g in zip(chans, (0.3, 1.0, 0.6)):
+            c += g * OUTSIDE["amplitude_m_s2"] * np.sin(2 * np.pi * OUTSIDE["location"] * revs + ph)
+    tacho = np.where(np.mod(revs, 1.0) < TACHO_DUTY, TACHO_HIGH_V, 0.0)
+    tacho = tacho + TACHO_NOISE_V * rng.standard_normal(n)
+    return t, chans, tacho
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--out", required=True)
+    ap.add_argument("--case", required=True, choices=sorted(CASES))
+    ap.add_argument("--seed", type=int, default=1)
+    ap.add_argument("--seconds", type=float, default=3.0)
+    a = ap.parse_args()
+    os.makedirs(a.out, exist_ok=True)
+    rng = np.random.default_rng(a.seed)
+    effect, params = CASES[a.case]
+    rows = ["path,label"]
+    for rpm in SPEEDS_RPM:
+        for label in LABELS:
+            t, chans, tacho = record(label, rpm, a.case, params, a.seconds, rng)
+            name = f"{label}-{int(rpm)}rpm.csv"
+            data = np.column_stack([t] + chans + [tacho])
+            np.savetxt(
+                os.path.join(a.out, name),
+                data,
+                delimiter=",",
+                header="time,axial,vertical,horizontal,tacho",
+                comments="",
+                fmt=["%.6f", "%.5f", "%.5f", "%.5f", "%.4f"],
+            )
+            rows.append(f"{name},{label}")
+    with open(os.path.join(a.out, "labels.csv"), "w") as f:
+        f.write("\n".join(rows) + "\n")
+    outside = None
+    if a.case == "outside":
+        outside = {k: OUTSIDE[k] for k in ("location", "unit", "locked_to")}
+    with open(os.path.join(a.out, "truth.json"), "w") as f:
+        json.dump({"case": a.case, "effect": effect, "params": params, "outside": outside}, f, indent=1)
+
+
+if __name__ == "__main__":
+    main()
