@@ -702,8 +702,12 @@ fn survives_a_router_restart_and_answers_queries_and_liveliness() {
     let _ = watch.0.kill();
 }
 
+/// Serial emulator on a real pty -> daemon (a child process) -> Zenoh on loopback: corrupt
+/// frames are counted, an unplug of 1.1 s shows as `connected: false`, the source reconnects
+/// once the pty is back and health resumes. Prints how long after the replug the source was
+/// reading again (from the daemon's "reconnected" log line).
 #[test]
-fn serial_emulator_with_corrupt_frames_is_counted_in_status_and_keeps_running() {
+fn serial_emulator_corrupt_frames_and_unplug_are_counted_in_status_and_health_resumes() {
     use rigmon::acquire::emulator::{EmulatorOptions, EmulatorPort, SerialEmulator};
     use rigmon::acquire::{FileSourceConfig, ReplaySpeed, StopToken};
     let tmp = tempfile::tempdir().unwrap();
@@ -715,8 +719,9 @@ fn serial_emulator_with_corrupt_frames_is_counted_in_status_and_keeps_running() 
     let opts = EmulatorOptions {
         speed: ReplaySpeed::Factor(2.0),
         corrupt_every: Some(400),
-        // An unplug/replug (unplug_after_s) is left out here: over this pty setup the serial
-        // source did not see the hang-up (reported to the sources owner); see README.
+        // Sample-clock seconds: 3 s of wall time at speed 2, after the daemon is up.
+        unplug_after_s: Some(6.0),
+        unplug_for_s: 1.1,
         looping: true,
         ..EmulatorOptions::default()
     };
@@ -731,7 +736,7 @@ fn serial_emulator_with_corrupt_frames_is_counted_in_status_and_keeps_running() 
                 &EmulatorPort::Pty { link: Some(link) },
                 &stop,
                 &mut |p: &str| {
-                    let _ = ptx.send(p.to_string());
+                    let _ = ptx.send((p.to_string(), Instant::now()));
                 },
             )
         })
@@ -739,7 +744,7 @@ fn serial_emulator_with_corrupt_frames_is_counted_in_status_and_keeps_running() 
     prx.recv_timeout(Duration::from_secs(10))
         .expect("emulator pty");
 
-    let port = free_port();
+    let port = 7600;
     let cfg = tmp.path().join("rigmon.toml");
     std::fs::write(
         &cfg,
@@ -753,12 +758,26 @@ fn serial_emulator_with_corrupt_frames_is_counted_in_status_and_keeps_running() 
     .unwrap();
     let daemon = Command::new(bin())
         .args(["run", "--config", cfg.to_str().unwrap()])
+        .env("RUST_LOG", "info")
         .stdout(Stdio::null())
         .stderr(Stdio::piped())
         .spawn()
         .unwrap();
     let mut daemon = Guard(daemon);
-    let derr = lines(daemon.0.stderr.take().unwrap());
+    // Daemon log lines with the time they arrived.
+    let derr = {
+        let (tx, rx) = channel();
+        let r = daemon.0.stderr.take().unwrap();
+        std::thread::spawn(move || {
+            for l in BufReader::new(r).lines() {
+                let Ok(l) = l else { break };
+                if tx.send((l, Instant::now())).is_err() {
+                    break;
+                }
+            }
+        });
+        rx
+    };
     let ep = format!("tcp/127.0.0.1:{port}");
     let watch = Command::new(bin())
         .args([
@@ -775,13 +794,14 @@ fn serial_emulator_with_corrupt_frames_is_counted_in_status_and_keeps_running() 
     let mut watch = Guard(watch);
     let got = lines(watch.0.stdout.take().unwrap());
 
-    // Run until the status shows bad frames and a reconnect, and health kept coming after it.
-    let deadline = Instant::now() + Duration::from_secs(40);
-    let (mut bad, mut reconnects, mut health_after_replug, mut lost): (u64, u64, usize, u64) =
-        (0u64, 0u64, 0usize, 0u64);
+    // Run until the status shows bad frames, the unplug and a reconnect, and health kept
+    // coming after the reconnect.
+    let deadline = Instant::now() + Duration::from_secs(60);
+    let (mut bad, mut reconnects, mut lost) = (0u64, 0u64, 0u64);
+    let (mut disconnected_seen, mut health_after_replug) = (0usize, 0usize);
     let mut states = Vec::new();
     let mut last_status = serde_json::Value::Null;
-    while Instant::now() < deadline && !(bad > 0 && health_after_replug >= 6) {
+    while Instant::now() < deadline && !(bad > 0 && reconnects > 0 && health_after_replug >= 6) {
         let Ok(l) = got.recv_timeout(Duration::from_secs(1)) else {
             continue;
         };
@@ -792,11 +812,14 @@ fn serial_emulator_with_corrupt_frames_is_counted_in_status_and_keeps_running() 
                 reconnects = v["source"]["reconnects"].as_u64().unwrap();
                 lost = v["source"]["samples_lost"].as_u64().unwrap()
                     + v["pipeline"]["samples_lost"].as_u64().unwrap();
+                if v["source"]["connected"] == serde_json::Value::Bool(false) {
+                    disconnected_seen += 1;
+                }
                 last_status = v;
             }
             Some("rigmon.health") => {
                 let m: HealthMessage = serde_json::from_value(v).unwrap();
-                if bad > 0 {
+                if reconnects > 0 {
                     health_after_replug += 1;
                 }
                 states.push(m.state);
@@ -804,18 +827,42 @@ fn serial_emulator_with_corrupt_frames_is_counted_in_status_and_keeps_running() 
             _ => {}
         }
     }
-    let log: Vec<String> = derr.try_iter().collect();
-    assert!(bad > 0, "no bad frames counted in status: {log:?}");
+    let log: Vec<(String, Instant)> = derr.try_iter().collect();
+    let text: Vec<&str> = log.iter().map(|(l, _)| l.as_str()).collect();
+    assert!(bad > 0, "no bad frames counted in status: {text:?}");
     assert!(
         lost > 0,
-        "corrupt frames must show up as lost samples: {last_status}"
+        "corrupt frames and the unplug must show up as lost samples: {last_status}"
+    );
+    assert!(
+        disconnected_seen > 0,
+        "no status with connected = false during the 1.1 s unplug: {last_status} {text:?}"
+    );
+    assert!(
+        reconnects >= 1,
+        "the source did not reconnect after the replug: {last_status} {text:?}"
     );
     assert!(
         health_after_replug >= 6,
-        "health did not continue after bad frames ({health_after_replug}): {log:?}"
+        "health did not resume after the reconnect ({health_after_replug}): {text:?}"
     );
-    let _ = reconnects;
+    assert!(
+        last_status["source"]["connected"].as_bool() == Some(true),
+        "{last_status}"
+    );
     assert_eq!(states.last().unwrap(), &label, "{states:?}");
+    // Reconnect delay: the emulator's second announce (pty back) to the daemon's log line.
+    let (_, replugged) = prx
+        .recv_timeout(Duration::from_secs(1))
+        .expect("the emulator announced no replug");
+    let (_, reconnected) = log
+        .iter()
+        .find(|(l, _)| l.contains("reconnected"))
+        .unwrap_or_else(|| panic!("no 'reconnected' line in the daemon log: {text:?}"));
+    println!(
+        "serial reconnect {:.0} ms after replug (reconnect_max_ms = 200), {disconnected_seen} status messages with connected = false, reconnects = {reconnects}, bad frames = {bad}",
+        reconnected.saturating_duration_since(replugged).as_secs_f64() * 1e3
+    );
     assert!(daemon.0.try_wait().unwrap().is_none(), "daemon exited");
     stop.stop();
     signal(&daemon.0, libc::SIGTERM);
@@ -823,4 +870,5 @@ fn serial_emulator_with_corrupt_frames_is_counted_in_status_and_keeps_running() 
     let _ = watch.0.kill();
     let report = emu_thread.join().unwrap().unwrap();
     assert!(report.corrupted > 0, "{report:?}");
+    assert_eq!(report.unplugs, 1, "{report:?}");
 }

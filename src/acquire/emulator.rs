@@ -249,6 +249,11 @@ fn open_port(port: &EmulatorPort, announce: &mut dyn FnMut(&str)) -> Result<Outp
         EmulatorPort::Pty { link } => {
             let (mut master, slave) =
                 serialport::TTYPort::pair().context("cannot create a pseudo-terminal pair")?;
+            // Children started later (a daemon spawned by the same process, as in the tests)
+            // must not inherit either end: a copy held elsewhere keeps the pty alive, so
+            // closing it here would not hang up the reader and an unplug would go unseen.
+            close_on_exec(&master).context("cannot mark the pty master close-on-exec")?;
+            close_on_exec(&slave).context("cannot mark the pty slave close-on-exec")?;
             master.set_timeout(Duration::from_millis(50))?;
             let name = slave.name().context("the pseudo-terminal has no name")?;
             match link {
@@ -272,6 +277,17 @@ fn open_port(port: &EmulatorPort, announce: &mut dyn FnMut(&str)) -> Result<Outp
             Ok(Output::Device(p))
         }
     }
+}
+
+/// Set FD_CLOEXEC on a descriptor (serialport opens its pty pair without it).
+fn close_on_exec(fd: &impl std::os::fd::AsRawFd) -> std::io::Result<()> {
+    let fd = fd.as_raw_fd();
+    // SAFETY: fcntl on a descriptor we own; F_GETFD/F_SETFD take no pointers.
+    let flags = unsafe { libc::fcntl(fd, libc::F_GETFD) };
+    if flags < 0 || unsafe { libc::fcntl(fd, libc::F_SETFD, flags | libc::FD_CLOEXEC) } < 0 {
+        return Err(std::io::Error::last_os_error());
+    }
+    Ok(())
 }
 
 fn replace_symlink(target: &Path, link: &Path) -> Result<()> {

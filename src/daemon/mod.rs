@@ -603,7 +603,7 @@ pub fn run_with_source(mut opts: DaemonOptions, source: Box<dyn Source>) -> Resu
 /// One status line for systemd (`systemctl status`).
 fn status_line(st: &StatusMessage) -> String {
     format!(
-        "{}: state {} | {} windows | source {} lost {} bad frames {} | model {}{}",
+        "{}: state {} | {} windows | source {} lost {} bad frames {} | model {}{}{}",
         match st.phase {
             Phase::Running => "running",
             Phase::Reloading => "reloading",
@@ -621,7 +621,11 @@ fn status_line(st: &StatusMessage) -> String {
         st.source.samples_lost + st.pipeline.samples_lost,
         st.source.bad_frames,
         st.model.id,
-        if st.pipeline.behind { " | BEHIND" } else { "" }
+        if st.pipeline.behind { " | BEHIND" } else { "" },
+        match st.recording.as_ref().and_then(|r| r.failed.as_deref()) {
+            Some(why) => format!(" | RECORDING FAILED: {why}"),
+            None => String::new(),
+        }
     )
 }
 

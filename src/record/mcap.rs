@@ -35,30 +35,52 @@ pub struct RecordStats {
     pub blocks: u64,
     pub messages: u64,
     pub write_errors: u64,
-    /// The last write failed for lack of space (ENOSPC).
+    /// The last write failed for lack of space (ENOSPC, EDQUOT or EFBIG).
     pub disk_full: bool,
     pub last_error: Option<String>,
-    /// Current raw file.
+    /// Set when a write failed and cleared once a new segment flushed: `<file>: <reason>`
+    /// (reason `disk full` for ENOSPC/EDQUOT/EFBIG), for the status topic and systemd STATUS.
+    #[serde(default)]
+    pub failed: Option<String>,
+    /// Current file.
     pub file: Option<PathBuf>,
     /// Events dropped because the recorder was behind or between segments after an error.
     pub dropped: u64,
 }
 
-struct EventsFile {
-    mcap: ::mcap::Writer<BufWriter<File>>,
+/// The MCAP writer of a segment: the raw layout's writer (raw recording on), or a plain one.
+enum SegWriter {
+    Raw(RecordingWriter),
+    Events(::mcap::Writer<BufWriter<File>>),
+}
+
+impl SegWriter {
+    fn mcap(&mut self) -> &mut ::mcap::Writer<BufWriter<File>> {
+        match self {
+            SegWriter::Raw(r) => r.mcap_mut(),
+            SegWriter::Events(m) => m,
+        }
+    }
+}
+
+/// Events waiting for the segment's first block (its start time names the raw layout).
+const MAX_PENDING: usize = 4096;
+
+struct Segment {
+    path: PathBuf,
+    writer: Option<SegWriter>,
+    /// Channel ids of `/features` and `/health` once the writer exists.
     features: u16,
     health: u16,
     seq: u32,
-}
-
-struct Segment {
-    raw: Option<RecordingWriter>,
-    raw_path: PathBuf,
-    events: Option<EventsFile>,
+    /// Features (`true`) and health events that came before the first block.
+    pending: Vec<(bool, u64, Vec<u8>)>,
     opened: Instant,
     opened_ns: u64,
     /// Source sample index of the segment's first sample (raw sample indices are rebased).
     first_sample: Option<u64>,
+    /// Something was written since the segment opened.
+    written: bool,
 }
 
 /// The rotating recorder.
@@ -120,14 +142,21 @@ impl Recorder {
 
     fn fail(&mut self, e: anyhow::Error) {
         self.stats.write_errors += 1;
-        self.stats.disk_full = e.chain().any(|c| {
-            c.downcast_ref::<std::io::Error>()
-                .is_some_and(|io| io.raw_os_error() == Some(libc::ENOSPC))
-                || c.to_string().contains("No space left")
-        });
+        let full = is_disk_full(&e);
+        self.stats.disk_full = full;
         let msg = format!("{e:#}");
+        let file = self
+            .seg
+            .as_ref()
+            .map(|s| s.path.display().to_string())
+            .unwrap_or_else(|| self.cfg.dir.display().to_string());
+        self.stats.failed = Some(if full {
+            format!("{file}: disk full ({msg})")
+        } else {
+            format!("{file}: {msg}")
+        });
         if self.stats.write_errors <= 3 || self.stats.write_errors.is_power_of_two() {
-            tracing::warn!("recording: {msg} ({} errors so far); monitoring continues, retrying with a new file in {RETRY:?}", self.stats.write_errors);
+            tracing::warn!("recording {file}: {msg} ({} errors so far){}; monitoring continues, retrying with a new file in {RETRY:?}", self.stats.write_errors, if full { " — disk full: free space or lower recording.max_file_mb" } else { "" });
         }
         self.stats.last_error = Some(msg);
         // Drop the broken segment without finishing it (its complete chunks stay readable).
@@ -145,66 +174,107 @@ impl Recorder {
         if self.seg.is_none() {
             self.open_segment()?;
         }
-        let seg = self.seg.as_mut().expect("segment opened above");
         match ev {
             RecordEvent::Block(b) => {
                 if !self.cfg.raw {
                     return Ok(());
                 }
+                let seg = self.seg.as_mut().expect("segment opened above");
                 let first = *seg.first_sample.get_or_insert(b.first_sample);
                 if b.first_sample < first {
                     // The source clock went backwards (a looping replay): new segment.
                     self.close_segment()?;
                     return self.try_handle(RecordEvent::Block(b));
                 }
-                if seg.raw.is_none() {
-                    // Created at the first block so the file's start time is that sample's time
-                    // and its sample indices start at 0.
-                    let mut info = self.info.clone();
-                    let start = if info.start_time_ns == 0 {
-                        seg.opened_ns
-                    } else {
-                        info.start_time_ns
-                    };
-                    info.start_time_ns =
-                        start + (first as f64 / b.sample_rate * 1e9).round() as u64;
-                    info.sample_rate = b.sample_rate;
-                    info.metadata.insert(
-                        "recorded_by".into(),
-                        format!("rigmon {}", env!("CARGO_PKG_VERSION")),
-                    );
-                    info.metadata
-                        .insert("source_first_sample".into(), first.to_string());
-                    let settings = WriterSettings {
-                        chunk_size: self.cfg.chunk_kb * 1024,
-                        ..WriterSettings::default()
-                    };
-                    seg.raw = Some(RecordingWriter::create_with(
-                        &seg.raw_path,
-                        &info,
-                        &settings,
-                    )?);
+                if seg.writer.is_none() {
+                    self.create_raw_writer(&b)?;
                 }
-                let raw = seg.raw.as_mut().expect("created above");
+                let seg = self.seg.as_mut().expect("segment opened above");
+                let Some(SegWriter::Raw(raw)) = seg.writer.as_mut() else {
+                    unreachable!("raw recording on: the writer is the raw layout's")
+                };
                 let rel = b.first_sample - first;
                 let shift = first as f64 / b.sample_rate;
                 let chans: Vec<&[f32]> = b.channels.iter().map(Vec::as_slice).collect();
                 let edges: Vec<f64> = b.tacho_edges.iter().map(|e| e - shift).collect();
                 raw.write_block(rel, &chans, b.tacho_analog.as_deref(), &edges)?;
+                seg.written = true;
                 self.stats.blocks += 1;
             }
             RecordEvent::Features { t_ns, json } => {
-                if let Some(ev) = &mut seg.events {
-                    write_event(ev, ev.features, t_ns, &json)?;
-                    self.stats.messages += 1;
+                if self.cfg.features {
+                    self.write_event(true, t_ns, json)?;
                 }
             }
             RecordEvent::Health { t_ns, json } => {
-                if let Some(ev) = &mut seg.events {
-                    write_event(ev, ev.health, t_ns, &json)?;
-                    self.stats.messages += 1;
+                if self.cfg.health {
+                    self.write_event(false, t_ns, json)?;
                 }
             }
+        }
+        Ok(())
+    }
+
+    /// Create the segment's file at its first block, so the file's start time is that
+    /// sample's time and its sample indices start at 0; then write the waiting events.
+    fn create_raw_writer(&mut self, b: &SampleBlock) -> Result<()> {
+        let seg = self.seg.as_mut().expect("segment open");
+        let first = seg.first_sample.unwrap_or(b.first_sample);
+        let mut info = self.info.clone();
+        let start = if info.start_time_ns == 0 {
+            seg.opened_ns
+        } else {
+            info.start_time_ns
+        };
+        info.start_time_ns = start + (first as f64 / b.sample_rate * 1e9).round() as u64;
+        info.sample_rate = b.sample_rate;
+        info.metadata.insert(
+            "recorded_by".into(),
+            format!("rigmon {}", env!("CARGO_PKG_VERSION")),
+        );
+        info.metadata
+            .insert("source_first_sample".into(), first.to_string());
+        let settings = WriterSettings {
+            chunk_size: self.cfg.chunk_kb * 1024,
+            ..WriterSettings::default()
+        };
+        let mut raw = RecordingWriter::create_with(&seg.path, &info, &settings)?;
+        (seg.features, seg.health) = add_event_channels(raw.mcap_mut())?;
+        seg.writer = Some(SegWriter::Raw(raw));
+        self.write_pending()
+    }
+
+    fn write_event(&mut self, features: bool, t_ns: u64, json: Vec<u8>) -> Result<()> {
+        let seg = self.seg.as_mut().expect("segment opened above");
+        if seg.writer.is_none() {
+            if seg.pending.len() >= MAX_PENDING {
+                self.stats.dropped += 1;
+            } else {
+                seg.pending.push((features, t_ns, json));
+            }
+            return Ok(());
+        }
+        let channel_id = if features { seg.features } else { seg.health };
+        seg.seq = seg.seq.wrapping_add(1);
+        let h = ::mcap::records::MessageHeader {
+            channel_id,
+            sequence: seg.seq,
+            log_time: t_ns,
+            publish_time: t_ns,
+        };
+        let w = seg.writer.as_mut().expect("checked above");
+        w.mcap()
+            .write_to_known_channel(&h, &json)
+            .with_context(|| format!("{}: writing", seg.path.display()))?;
+        seg.written = true;
+        self.stats.messages += 1;
+        Ok(())
+    }
+
+    fn write_pending(&mut self) -> Result<()> {
+        let pending = std::mem::take(&mut self.seg.as_mut().expect("segment open").pending);
+        for (features, t_ns, json) in pending {
+            self.write_event(features, t_ns, json)?;
         }
         Ok(())
     }
@@ -214,9 +284,7 @@ impl Recorder {
         let mut due = seg.opened.elapsed().as_secs_f64() >= self.cfg.max_file_s;
         if !due && self.last_size_check.elapsed() >= Duration::from_millis(500) {
             self.last_size_check = Instant::now();
-            let size = std::fs::metadata(&seg.raw_path)
-                .map(|m| m.len())
-                .unwrap_or(0);
+            let size = std::fs::metadata(&seg.path).map(|m| m.len()).unwrap_or(0);
             due = size as f64 >= self.cfg.max_file_mb * 1e6;
         }
         if due {
@@ -233,74 +301,94 @@ impl Recorder {
         let stamp = utc_stamp(now_ns);
         let mut stem = format!("{}-{stamp}", self.stem);
         let mut k = 1;
-        while self.cfg.dir.join(format!("{stem}.mcap")).exists()
-            || self.cfg.dir.join(format!("{stem}.events.mcap")).exists()
-        {
+        while self.cfg.dir.join(format!("{stem}.mcap")).exists() {
             k += 1;
             stem = format!("{}-{stamp}-{k}", self.stem);
         }
-        let raw_path = self.cfg.dir.join(format!("{stem}.mcap"));
-        let events = if self.cfg.features || self.cfg.health {
-            Some(open_events(
-                &self.cfg.dir.join(format!("{stem}.events.mcap")),
-                self.cfg.chunk_kb * 1024,
-            )?)
-        } else {
-            None
-        };
-        tracing::info!("recording to {}", raw_path.display());
-        self.stats.segments += 1;
-        self.stats.file = Some(raw_path.clone());
-        self.stats.disk_full = false;
-        self.retry_after = None;
-        self.seg = Some(Segment {
-            raw: None,
-            raw_path,
-            events,
+        let path = self.cfg.dir.join(format!("{stem}.mcap"));
+        let mut seg = Segment {
+            path,
+            writer: None,
+            features: 0,
+            health: 0,
+            seq: 0,
+            pending: Vec::new(),
             opened: Instant::now(),
             opened_ns: now_ns,
             first_sample: None,
-        });
+            written: false,
+        };
+        if !self.cfg.raw {
+            // No raw layout: a plain MCAP with the two JSON channels, created now.
+            let mut mcap = open_events(&seg.path, self.cfg.chunk_kb * 1024)?;
+            (seg.features, seg.health) = add_event_channels(&mut mcap)?;
+            seg.writer = Some(SegWriter::Events(mcap));
+        }
+        tracing::info!("recording to {}", seg.path.display());
+        self.stats.segments += 1;
+        self.stats.file = Some(seg.path.clone());
+        self.retry_after = None;
+        self.seg = Some(seg);
         Ok(())
     }
 
-    /// Close the current chunk of both files (bounded loss on a crash).
+    /// Close the current chunk (bounded loss on a crash) and push it to the file.
     pub fn flush(&mut self) {
         self.last_flush = Instant::now();
-        let r = (|| -> Result<()> {
+        let r = (|| -> Result<bool> {
             if let Some(seg) = &mut self.seg {
-                if let Some(raw) = &mut seg.raw {
-                    raw.flush()?;
-                }
-                if let Some(ev) = &mut seg.events {
-                    ev.mcap.flush()?;
+                if let Some(w) = &mut seg.writer {
+                    w.mcap()
+                        .flush()
+                        .with_context(|| format!("{}: writing", seg.path.display()))?;
+                    return Ok(seg.written);
                 }
             }
-            Ok(())
+            Ok(false)
         })();
-        if let Err(e) = r {
-            self.fail(e);
+        match r {
+            Ok(true) => {
+                // Data reached the file again: the failure is over.
+                self.stats.failed = None;
+                self.stats.disk_full = false;
+            }
+            Ok(false) => {}
+            Err(e) => self.fail(e),
         }
     }
 
     fn close_segment(&mut self) -> Result<()> {
-        if let Some(seg) = self.seg.take() {
+        if let Some(mut seg) = self.seg.take() {
             self.stats.file = None;
-            if let Some(raw) = seg.raw {
-                raw.finish()
-                    .with_context(|| format!("finishing {}", seg.raw_path.display()))?;
+            if seg.writer.is_none() && !seg.pending.is_empty() {
+                // Events but never a block (raw on, the source stopped): keep them anyway in a
+                // plain MCAP so nothing recorded is lost.
+                let mut mcap = open_events(&seg.path, self.cfg.chunk_kb * 1024)?;
+                (seg.features, seg.health) = add_event_channels(&mut mcap)?;
+                seg.writer = Some(SegWriter::Events(mcap));
+                self.seg = Some(seg);
+                self.write_pending()?;
+                seg = self.seg.take().expect("put back above");
             }
-            if let Some(mut ev) = seg.events {
-                ev.mcap.finish()?;
+            let path = seg.path.display().to_string();
+            match seg.writer {
+                Some(SegWriter::Raw(raw)) => {
+                    raw.finish().with_context(|| format!("{path}: finishing"))?
+                }
+                Some(SegWriter::Events(mut m)) => {
+                    m.finish().with_context(|| format!("{path}: finishing"))?;
+                }
+                None => {}
             }
         }
         Ok(())
     }
 
-    /// Finish the files cleanly (SIGTERM, end of replay).
+    /// Finish the file cleanly (SIGTERM, end of replay).
     pub fn finish(mut self) -> RecordStats {
         if let Err(e) = self.close_segment() {
             self.stats.write_errors += 1;
+            self.stats.disk_full = is_disk_full(&e);
             self.stats.last_error = Some(format!("{e:#}"));
             tracing::warn!("recording: closing the last file failed: {e:#}");
         }
@@ -308,38 +396,47 @@ impl Recorder {
     }
 }
 
-fn open_events(path: &Path, chunk_size: u64) -> Result<EventsFile> {
+/// ENOSPC, EDQUOT or EFBIG anywhere in the error chain (the MCAP writer wraps io errors).
+fn is_disk_full(e: &anyhow::Error) -> bool {
+    e.chain().any(|c| {
+        let io = c.downcast_ref::<std::io::Error>().or_else(|| {
+            c.downcast_ref::<::mcap::McapError>().and_then(|m| match m {
+                ::mcap::McapError::Io(io) => Some(io),
+                _ => None,
+            })
+        });
+        io.and_then(|io| io.raw_os_error())
+            .is_some_and(|c| c == libc::ENOSPC || c == libc::EDQUOT || c == libc::EFBIG)
+            || {
+                let s = c.to_string();
+                s.contains("No space left")
+                    || s.contains("File too large")
+                    || s.contains("quota exceeded")
+            }
+    })
+}
+
+fn open_events(path: &Path, chunk_size: u64) -> Result<::mcap::Writer<BufWriter<File>>> {
     let f = File::create(path).with_context(|| format!("{}: cannot create", path.display()))?;
-    let mut mcap = ::mcap::WriteOptions::new()
+    ::mcap::WriteOptions::new()
         .profile("rigmon")
         .library(concat!("rigmon ", env!("CARGO_PKG_VERSION")))
         .compression(Some(::mcap::Compression::Zstd))
         .chunk_size(Some(chunk_size))
         .create(BufWriter::with_capacity(1 << 16, f))
-        .with_context(|| format!("{}: cannot write MCAP", path.display()))?;
+        .with_context(|| format!("{}: cannot write MCAP", path.display()))
+}
+
+/// Add the `/features` and `/health` JSON channels; their ids.
+fn add_event_channels<W: std::io::Write + std::io::Seek>(
+    mcap: &mut ::mcap::Writer<W>,
+) -> Result<(u16, u16)> {
     let schema = br#"{"type":"object"}"#;
     let fs = mcap.add_schema("rigmon.FeatureWindow", "jsonschema", schema)?;
     let hs = mcap.add_schema(crate::health::message::SCHEMA, "jsonschema", schema)?;
     let features = mcap.add_channel(fs, "/features", "json", &BTreeMap::new())?;
     let health = mcap.add_channel(hs, "/health", "json", &BTreeMap::new())?;
-    Ok(EventsFile {
-        mcap,
-        features,
-        health,
-        seq: 0,
-    })
-}
-
-fn write_event(ev: &mut EventsFile, channel_id: u16, t_ns: u64, json: &[u8]) -> Result<()> {
-    ev.seq = ev.seq.wrapping_add(1);
-    let h = ::mcap::records::MessageHeader {
-        channel_id,
-        sequence: ev.seq,
-        log_time: t_ns,
-        publish_time: t_ns,
-    };
-    ev.mcap.write_to_known_channel(&h, json)?;
-    Ok(())
+    Ok((features, health))
 }
 
 /// `20261122T041300Z` from ns since the epoch.
@@ -368,6 +465,187 @@ fn utc_stamp(ns: u64) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::recording::mcap_layout::{read_recording, ChannelInfo, TachoInfo};
+
+    const FS: f64 = 1000.0;
+
+    fn info() -> RecordingInfo {
+        RecordingInfo {
+            sample_rate: FS,
+            start_time_ns: 1_795_314_780_000_000_000,
+            channels: ["a", "b"]
+                .iter()
+                .map(|n| ChannelInfo {
+                    name: n.to_string(),
+                    axis: "vertical".into(),
+                    unit: "m/s^2".into(),
+                })
+                .collect(),
+            tacho: TachoInfo::Edges,
+            rpm: None,
+            provenance: Default::default(),
+            metadata: BTreeMap::new(),
+        }
+    }
+
+    fn block(k: u64, n: usize) -> RecordEvent {
+        let first = k * n as u64;
+        RecordEvent::Block(Arc::new(SampleBlock {
+            first_sample: first,
+            sample_rate: FS,
+            channels: vec![
+                (0..n).map(|i| (first + i as u64) as f32).collect(),
+                (0..n).map(|i| -((first + i as u64) as f32)).collect(),
+            ],
+            tacho_analog: None,
+            tacho_edges: vec![first as f64 / FS + 0.01],
+        }))
+    }
+
+    fn cfg(dir: &Path) -> RecordConfig {
+        RecordConfig {
+            enabled: true,
+            dir: dir.to_path_buf(),
+            chunk_kb: 4,
+            ..RecordConfig::default()
+        }
+    }
+
+    fn mcaps(dir: &Path) -> Vec<PathBuf> {
+        let mut v: Vec<PathBuf> = std::fs::read_dir(dir)
+            .unwrap()
+            .map(|e| e.unwrap().path())
+            .filter(|p| p.extension().is_some_and(|e| e == "mcap"))
+            .collect();
+        v.sort();
+        v
+    }
+
+    /// Messages per topic, read with the mcap crate's own (strict) reader.
+    fn topics(path: &Path) -> BTreeMap<String, usize> {
+        let bytes = std::fs::read(path).unwrap();
+        let mut n = BTreeMap::new();
+        for m in ::mcap::MessageStream::new(&bytes).unwrap() {
+            *n.entry(m.unwrap().channel.topic.clone()).or_insert(0) += 1;
+        }
+        n
+    }
+
+    #[test]
+    fn one_file_holds_raw_features_and_health() {
+        let dir = tempfile::tempdir().unwrap();
+        let mut r = Recorder::new(cfg(dir.path()), info(), "rig").unwrap();
+        for k in 0..20 {
+            r.handle(block(k, 100));
+            r.handle(RecordEvent::Features {
+                t_ns: k,
+                json: br#"{"f":1}"#.to_vec(),
+            });
+            r.handle(RecordEvent::Health {
+                t_ns: k,
+                json: br#"{"state":"normal"}"#.to_vec(),
+            });
+        }
+        let st = r.finish();
+        assert_eq!((st.segments, st.blocks, st.messages), (1, 20, 40));
+        let files = mcaps(dir.path());
+        assert_eq!(files.len(), 1, "{files:?}");
+        let t = topics(&files[0]);
+        assert_eq!(t["/features"], 20);
+        assert_eq!(t["/health"], 20);
+        assert_eq!(t["/accel/a"], 20);
+        assert_eq!(t["/tacho/edges"], 20);
+        // The raw layout's reader still reads it (layout_version 1), all samples, no note.
+        let rec = read_recording(&files[0]).unwrap();
+        assert_eq!(rec.channels[0].samples.len(), 2000);
+        assert_eq!(rec.channels[1].samples[1999], -1999.0);
+        assert!(
+            rec.provenance.notes.is_empty(),
+            "{:?}",
+            rec.provenance.notes
+        );
+    }
+
+    #[test]
+    fn a_copy_taken_while_writing_reads_back_to_the_last_flush() {
+        let dir = tempfile::tempdir().unwrap();
+        let mut r = Recorder::new(cfg(dir.path()), info(), "rig").unwrap();
+        for k in 0..10 {
+            r.handle(block(k, 100));
+            r.handle(RecordEvent::Health {
+                t_ns: k,
+                json: b"{}".to_vec(),
+            });
+        }
+        r.flush();
+        // Written after the flush, still in the open chunk: not on disk yet.
+        r.handle(block(10, 100));
+        let file = mcaps(dir.path()).remove(0);
+        // What a kill -9 leaves: the bytes on disk now, without summary or footer.
+        let cut = dir.path().join("cut.bin");
+        std::fs::copy(&file, &cut).unwrap();
+        let rec = read_recording(&cut).unwrap();
+        assert_eq!(rec.channels[0].samples.len(), 1000);
+        assert_eq!(rec.channels[0].samples[999], 999.0);
+        assert!(
+            rec.provenance
+                .notes
+                .iter()
+                .any(|n| n.contains("cut short") || n.contains("footer") || n.contains("end")),
+            "{:?}",
+            rec.provenance.notes
+        );
+        drop(r);
+    }
+
+    #[test]
+    fn rotates_by_time_and_records_events_only_when_raw_is_off() {
+        let dir = tempfile::tempdir().unwrap();
+        let mut c = cfg(dir.path());
+        c.max_file_s = 0.2;
+        let mut r = Recorder::new(c, info(), "rig").unwrap();
+        for k in 0..3 {
+            r.handle(block(k, 100));
+            std::thread::sleep(Duration::from_millis(250));
+        }
+        let st = r.finish();
+        assert_eq!(st.segments, 3);
+        let files = mcaps(dir.path());
+        assert_eq!(files.len(), 3, "{files:?}");
+        let total: usize = files
+            .iter()
+            .map(|f| read_recording(f).unwrap().channels[0].samples.len())
+            .sum();
+        assert_eq!(total, 300);
+
+        let dir = tempfile::tempdir().unwrap();
+        let mut c = cfg(dir.path());
+        c.raw = false;
+        let mut r = Recorder::new(c, info(), "rig").unwrap();
+        r.handle(block(0, 100));
+        r.handle(RecordEvent::Health {
+            t_ns: 1,
+            json: b"{}".to_vec(),
+        });
+        let st = r.finish();
+        assert_eq!((st.blocks, st.messages), (0, 1));
+        let t = topics(&mcaps(dir.path())[0]);
+        assert_eq!(t.get("/health"), Some(&1));
+        assert!(!t.contains_key("/accel/a"));
+    }
+
+    #[test]
+    fn disk_full_errors_are_recognised() {
+        for code in [libc::ENOSPC, libc::EDQUOT, libc::EFBIG] {
+            let e = anyhow::Error::from(::mcap::McapError::Io(std::io::Error::from_raw_os_error(
+                code,
+            )))
+            .context("x.mcap: writing");
+            assert!(is_disk_full(&e), "{code}");
+        }
+        let e = anyhow::Error::from(std::io::Error::from_raw_os_error(libc::EACCES));
+        assert!(!is_disk_full(&e));
+    }
 
     #[test]
     fn utc_stamp_is_right() {

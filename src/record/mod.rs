@@ -1,12 +1,18 @@
 //! Recording sink: what the daemon saw, to MCAP with zstd chunks, rotated by size and time.
-//! Each segment is a pair of files sharing a stem:
-//! - `<stem>.mcap`: the raw samples in the rigmon layout ([`crate::recording::mcap_layout`],
-//!   written with the importers' streaming writer), so `rigmon replay <stem>.mcap` replays it;
-//! - `<stem>.events.mcap`: features (`/features`) and health (`/health`) as JSON messages.
+//! One file per segment, `<stem>-<UTC stamp>.mcap`, holding
+//! - the raw samples in the rigmon layout ([`crate::recording::mcap_layout`], layout_version 1,
+//!   written with the importers' streaming writer), so `rigmon replay` and every importer read
+//!   it as before;
+//! - features (`/features`) and health (`/health`) as JSON messages (schema encoding
+//!   `jsonschema`, message encoding `json`) in the same chunks; readers of the raw layout skip
+//!   these channels.
 //!
-//! Chunks are closed every `flush_s` seconds, so after a kill -9 everything up to the last
-//! flush reads back; SIGTERM finishes both files cleanly. Write errors (disk full) are counted
-//! and retried with a new segment later; they never stop monitoring.
+//! The file is created at the segment's first block (its start time is that sample's time);
+//! with `raw = false` it is a plain MCAP of the two JSON channels. Chunks are closed every
+//! `flush_s` seconds, so after a kill -9 everything up to the last flush reads back; SIGTERM
+//! finishes the file cleanly (summary, footer). Write errors (disk full: ENOSPC, EDQUOT,
+//! EFBIG) are counted, reported as `failed` in the status, and retried with a new segment
+//! later; they never stop monitoring.
 
 pub mod mcap;
 

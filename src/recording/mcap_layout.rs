@@ -390,6 +390,12 @@ impl<W: Write + Seek> RecordingWriter<W> {
         Ok(())
     }
 
+    /// The underlying MCAP writer, to add channels of other layouts to the same file (the
+    /// daemon's recorder adds `/features` and `/health`; readers of this layout skip them).
+    pub fn mcap_mut(&mut self) -> &mut mcap::Writer<W> {
+        &mut self.mcap
+    }
+
     /// Blocks written so far.
     pub fn blocks(&self) -> u64 {
         self.blocks
