@@ -2,12 +2,14 @@
 //!
 //! Data flows one way: [`acquire`] (sources) -> [`dsp`] (features) -> [`model`] (inference)
 //! -> [`health`] (state machine) -> [`publish`], [`record`] (sinks). [`sim`] and [`train`]
-//! sit beside the stream and produce models (simulator calibration is still to come).
+//! sit beside the stream and produce models; [`calibrate`] fits the simulator to measured
+//! recordings.
 //! Lower modules never import higher ones.
 
 pub mod acquire;
 pub mod bearing;
 pub mod bench;
+pub mod calibrate;
 pub mod cli;
 pub mod config;
 pub mod daemon;

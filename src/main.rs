@@ -29,6 +29,8 @@ enum Command {
     Simulate(cli::simulate::Args),
     /// Generate a labelled simulated dataset from a plan.
     Dataset(cli::dataset::Args),
+    /// Fit the simulator to measured recordings (effects, error before/after, report).
+    Calibrate(cli::calibrate::Args),
     /// Train the classifier on a simulated dataset and export ONNX.
     Train(cli::train::Args),
     /// Retrain the output layer on a fraction of labelled measured recordings.
@@ -62,6 +64,7 @@ fn main() -> std::process::ExitCode {
         Command::Inspect(a) => cli::inspect::run(a),
         Command::Simulate(a) => cli::simulate::run(a),
         Command::Dataset(a) => cli::dataset::run(a),
+        Command::Calibrate(a) => cli::calibrate::run(a),
         Command::Train(a) => cli::train::run(a),
         Command::Finetune(a) => cli::finetune::run(a),
         Command::Evaluate(a) => cli::evaluate::run(a),

@@ -2,6 +2,7 @@
 //! modules together. `main.rs` only parses and dispatches.
 
 pub mod bench;
+pub mod calibrate;
 pub mod dataset;
 pub mod embed;
 pub mod emulate;

@@ -32,6 +32,21 @@ pub struct SimulationConfig {
     /// bearing housing; `support_vertical`, `support_horizontal` of the other housing).
     /// Channels not listed are matched by their axis; unmatched channels are left out.
     pub channel_map: BTreeMap<String, String>,
+    /// Sinusoidal fluctuation of the shaft speed around a constant scenario speed (found by
+    /// `rigmon calibrate`); off when absent.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub speed_fluctuation: Option<SpeedFluctuationConfig>,
+}
+
+/// `[simulation.speed_fluctuation]`: rpm(t) = rpm (1 + fraction sin(2 pi t / period_s)),
+/// applied to constant-speed scenarios.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SpeedFluctuationConfig {
+    /// Peak speed deviation as a fraction of the mean speed.
+    pub fraction: f64,
+    /// Period of the fluctuation, s.
+    pub period_s: f64,
 }
 
 impl Default for SimulationConfig {
@@ -48,6 +63,7 @@ impl Default for SimulationConfig {
             structure: StructureConfig::default(),
             tacho: TachoConfig::default(),
             channel_map: BTreeMap::new(),
+            speed_fluctuation: None,
         }
     }
 }
@@ -357,6 +373,11 @@ pub const SIGNALS: [&str; 5] = [
 impl SimulationConfig {
     /// Physical sanity checks; messages name the key and what to do.
     pub fn validate(&self) -> Result<()> {
+        if let Some(f) = &self.speed_fluctuation {
+            if !(f.fraction >= 0.0 && f.fraction < 0.5 && f.period_s > 0.0) {
+                bail!("[simulation.speed_fluctuation]: fraction must be in [0, 0.5) and period_s > 0 (got {} and {})", f.fraction, f.period_s);
+            }
+        }
         let pos = |name: &str, v: f64| -> Result<()> {
             if !(v.is_finite() && v > 0.0) {
                 bail!("simulation.{name} = {v}: must be a positive number");

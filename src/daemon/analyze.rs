@@ -226,6 +226,10 @@ impl Analyzer {
                                 }
                             }
                         }
+                        if !q.dc_offset.is_empty() {
+                            // Advisory: the envelope features ignore DC.
+                            quality.flag("dc_offset");
+                        }
                         quality.flat_channels = q.flat.clone();
                         quality.clipped_samples = q.clipped.len() as u32;
                         quality.missing_tacho_pulses = q.missing_pulses;

@@ -1,5 +1,6 @@
 //! Signal-quality flags attached to every feature window: clipping, flat (dead) sensor,
-//! NaN/Inf samples, dropouts, repaired tacho pulses and speed out of range. The checks are
+//! NaN/Inf samples, dropouts, a DC offset (advisory), repaired tacho pulses and speed out of
+//! range. The checks are
 //! cheap single passes over the window; the flags travel with the features so that the
 //! health stage can ignore or down-weight a doubtful window.
 
@@ -19,6 +20,9 @@ pub struct Quality {
     pub non_finite: Vec<String>,
     /// Channels with a run of identical samples longer than 10 ms inside a live signal.
     pub dropout: Vec<String>,
+    /// Channels whose mean exceeds their AC RMS (a drifted IEPE bias, a DC-coupled input, a
+    /// sensor losing its mount): advisory, the envelope features ignore DC.
+    pub dc_offset: Vec<String>,
     /// Tacho pulses that were missing and were inserted by the speed track.
     pub missing_pulses: u32,
     /// Spurious tacho pulses that were removed by the speed track.
@@ -44,6 +48,7 @@ impl Quality {
             ("flat", &self.flat),
             ("non_finite", &self.non_finite),
             ("dropout", &self.dropout),
+            ("dc_offset", &self.dc_offset),
         ] {
             out.extend(list.iter().map(|c| format!("{name}:{c}")));
         }
@@ -79,6 +84,9 @@ impl Quality {
         if s.dropout {
             self.dropout.push(name.to_string());
         }
+        if s.dc_offset {
+            self.dc_offset.push(name.to_string());
+        }
     }
 }
 
@@ -90,6 +98,8 @@ pub struct ChannelScan {
     pub flat: bool,
     pub clipped: bool,
     pub dropout: bool,
+    /// |mean| > AC RMS (see [`Quality::dc_offset`]).
+    pub dc_offset: bool,
 }
 
 /// Minimum run of identical samples at the extreme value that counts as clipping.
@@ -115,6 +125,14 @@ pub fn scan(samples: &[f32], sample_rate: f64) -> ChannelScan {
         out.flat = true;
         return out;
     }
+    let n = samples.len() as f64;
+    let mean = samples.iter().map(|&x| f64::from(x)).sum::<f64>() / n;
+    let var = samples
+        .iter()
+        .map(|&x| (f64::from(x) - mean).powi(2))
+        .sum::<f64>()
+        / n;
+    out.dc_offset = mean.abs() > var.sqrt();
     let dropout_run = ((0.010 * sample_rate).round() as usize).max(8);
     let (mut run, mut prev) = (1usize, samples[0]);
     for &x in &samples[1..] {
@@ -167,5 +185,17 @@ mod tests {
         assert_eq!(q.dropout, ["d"]);
         assert_eq!(scan(&nan, 1.0).non_finite, Some(17));
         assert!(q.flags().contains(&"dropout:d".to_string()));
+        assert!(q.dc_offset.is_empty(), "{:?}", q.dc_offset);
+    }
+
+    #[test]
+    fn a_dc_offset_above_the_ac_rms_is_flagged_and_a_small_one_is_not() {
+        let mut q = Quality::default();
+        let big: Vec<f32> = sine(10_000).iter().map(|x| x + 2.0).collect();
+        let small: Vec<f32> = sine(10_000).iter().map(|x| x + 0.3).collect();
+        q.check_channel("big", &big, 10_000.0);
+        q.check_channel("small", &small, 10_000.0);
+        assert_eq!(q.dc_offset, ["big"]);
+        assert!(q.flags().contains(&"dc_offset:big".to_string()));
     }
 }

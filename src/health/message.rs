@@ -76,7 +76,8 @@ pub struct WindowTimes {
 #[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
 pub struct QualityReport {
     pub ok: bool,
-    /// Flag names: `clipping`, `dropout`, `nan`, `flat`, `missing_tacho_pulses`, `no_speed`.
+    /// Flag names: `clipping`, `dropout`, `nan`, `flat`, `missing_tacho_pulses`, `no_speed`,
+    /// `tacho_lost`, `speed_out_of_range`, `features_failed`, `dc_offset` (advisory).
     pub flags: Vec<String>,
     /// Samples at the channel's clipping level (runs of >= 3 equal extreme samples).
     pub clipped_samples: u32,

@@ -185,7 +185,14 @@ pub fn simulate_with(
         rotor,
         bearing,
         structure,
-        profile: scenario.profile.clone(),
+        profile: match (&scenario.profile, &sim.speed_fluctuation) {
+            (SpeedProfile::Constant { rpm }, Some(f)) => SpeedProfile::Sine {
+                rpm: *rpm,
+                amplitude_rpm: f.fraction * rpm,
+                period_s: f.period_s,
+            },
+            (p, _) => p.clone(),
+        },
         fs,
         oversampling: k,
         warmup_s: sim.warmup_s,

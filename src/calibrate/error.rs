@@ -1,0 +1,60 @@
+//! The calibration error: one scalar, the sum of named components, each the mean absolute
+//! difference of one view between a measured recording and its simulated twin, averaged over
+//! recordings. Units: dB for `env`, `lines`, `bands`; for `speed` half the summed absolute
+//! difference of the speed-deviation spectra in percent. The README defines it too.
+
+use super::views::Views;
+use serde::Serialize;
+
+/// Error components; `total` is their sum.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize)]
+pub struct ErrorParts {
+    pub env: f64,
+    pub lines: f64,
+    pub bands: f64,
+    pub speed: f64,
+    pub total: f64,
+}
+
+fn mean_abs(a: &[f64], b: &[f64]) -> f64 {
+    let n = a.len().min(b.len());
+    if n == 0 {
+        return 0.0;
+    }
+    a.iter().zip(b).map(|(x, y)| (x - y).abs()).sum::<f64>() / n as f64
+}
+
+/// Error of one measured/simulated pair.
+pub fn pair(m: &Views, s: &Views) -> ErrorParts {
+    let env = mean_abs(&m.env, &s.env);
+    let lines = mean_abs(&m.lines, &s.lines);
+    let bands = mean_abs(&m.bands, &s.bands);
+    let n = m.speed.len().min(s.speed.len());
+    let speed = 0.5
+        * m.speed[..n]
+            .iter()
+            .zip(&s.speed[..n])
+            .map(|(x, y)| (x - y).abs())
+            .sum::<f64>();
+    ErrorParts {
+        env,
+        lines,
+        bands,
+        speed,
+        total: env + lines + bands + speed,
+    }
+}
+
+/// Mean over pairs.
+pub fn mean(parts: &[ErrorParts]) -> ErrorParts {
+    let n = parts.len().max(1) as f64;
+    let mut e = ErrorParts::default();
+    for p in parts {
+        e.env += p.env / n;
+        e.lines += p.lines / n;
+        e.bands += p.bands / n;
+        e.speed += p.speed / n;
+    }
+    e.total = e.env + e.lines + e.bands + e.speed;
+    e
+}

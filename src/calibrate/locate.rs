@@ -1,0 +1,145 @@
+//! Where a residual is: peaks of measured-minus-simulated views, expressed in orders or Hz,
+//! and whether they follow the shaft (`speed`: same order at different speeds), stay put
+//! (`frequency`: same Hz at different speeds) or cannot be told (`undetermined`: one speed
+//! only). Narrowband content comes from the `lines` and `env` views, broadband from `bands`.
+
+use super::views::{env_order, Views, BAND_HZ, LINES_MIN_HZ};
+use serde::Serialize;
+
+/// A residual no accepted effect explains.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Unexplained {
+    /// Where: in `unit`.
+    pub location: f64,
+    /// `order` or `Hz`.
+    pub unit: String,
+    /// `speed`, `frequency` or `undetermined`.
+    pub locked_to: String,
+    /// `lines` (narrowband, raw spectrum), `env` (envelope order spectrum) or `bands`
+    /// (broadband).
+    pub view: String,
+    /// Measured above simulated, dB (largest over recordings).
+    pub excess_db: f64,
+    /// Recordings showing it.
+    pub recordings: usize,
+}
+
+struct Peak {
+    rec: usize,
+    hz: f64,
+    order: f64,
+    excess: f64,
+}
+
+const LINE_EXCESS_DB: f64 = 10.0;
+const BAND_EXCESS_DB: f64 = 6.0;
+
+fn peaks(res: &[f64], min_db: f64) -> Vec<(usize, f64)> {
+    (0..res.len())
+        .filter(|&i| {
+            res[i] > min_db
+                && (i.saturating_sub(2)..(i + 3).min(res.len())).all(|j| res[j] <= res[i])
+        })
+        .map(|i| (i, res[i]))
+        .collect()
+}
+
+/// Residual locations for pairs of (measured, simulated) views.
+pub fn locate(pairs: &[(&Views, &Views)]) -> Vec<Unexplained> {
+    let speeds: Vec<f64> = pairs.iter().map(|(m, _)| m.rpm / 60.0).collect();
+    let mut out = Vec::new();
+    // narrowband in the raw spectrum (Hz known, order = Hz / f_r)
+    let mut line_peaks = Vec::new();
+    let mut env_peaks = Vec::new();
+    let mut band_peaks = Vec::new();
+    for (r, (m, s)) in pairs.iter().enumerate() {
+        let fr = speeds[r];
+        let res: Vec<f64> = m.lines.iter().zip(&s.lines).map(|(a, b)| a - b).collect();
+        for (i, e) in peaks(&res, LINE_EXCESS_DB) {
+            let hz = (i + LINES_MIN_HZ) as f64;
+            line_peaks.push(Peak { rec: r, hz, order: hz / fr, excess: e });
+        }
+        let res: Vec<f64> = m.env.iter().zip(&s.env).map(|(a, b)| a - b).collect();
+        for (i, e) in peaks(&res, LINE_EXCESS_DB) {
+            let o = env_order(i);
+            env_peaks.push(Peak { rec: r, hz: o * fr, order: o, excess: e });
+        }
+        for (i, (a, b)) in m.bands.iter().zip(&s.bands).enumerate() {
+            if a - b > BAND_EXCESS_DB {
+                let hz = m.band_lo_hz[i] + BAND_HZ / 2.0;
+                band_peaks.push(Peak { rec: r, hz, order: hz / fr, excess: a - b });
+            }
+        }
+    }
+    group(&line_peaks, &speeds, "lines", &mut out);
+    group(&env_peaks, &speeds, "env", &mut out);
+    group(&band_peaks, &speeds, "bands", &mut out);
+    out.sort_by(|a, b| b.excess_db.total_cmp(&a.excess_db));
+    out
+}
+
+fn group(peaks: &[Peak], speeds: &[f64], view: &str, out: &mut Vec<Unexplained>) {
+    let distinct = |a: f64, b: f64| (a - b).abs() > 0.05 * a.max(b);
+    let several_speeds = speeds.iter().any(|&a| distinct(a, speeds[0]));
+    let broadband = view == "bands";
+    let mut used = vec![false; peaks.len()];
+    for (i, p) in peaks.iter().enumerate() {
+        if used[i] {
+            continue;
+        }
+        let hz_tol = if broadband { BAND_HZ } else { 1.5 };
+        let same_hz: Vec<usize> = (0..peaks.len())
+            .filter(|&j| !used[j] && (peaks[j].hz - p.hz).abs() <= hz_tol)
+            .collect();
+        let same_order: Vec<usize> = (0..peaks.len())
+            .filter(|&j| !used[j] && (peaks[j].order - p.order).abs() <= 0.01 * p.order + 0.03)
+            .collect();
+        let speeds_of = |idx: &[usize]| {
+            let mut v: Vec<f64> = idx.iter().map(|&j| speeds[peaks[j].rec]).collect();
+            v.sort_by(f64::total_cmp);
+            v.dedup_by(|a, b| !distinct(*a, *b));
+            v.len()
+        };
+        let recs = |idx: &[usize]| {
+            let mut v: Vec<usize> = idx.iter().map(|&j| peaks[j].rec).collect();
+            v.sort_unstable();
+            v.dedup();
+            v.len()
+        };
+        let (members, unit, locked) = if several_speeds {
+            if speeds_of(&same_order) >= 2 && (view == "env" || speeds_of(&same_hz) < 2) {
+                (same_order, "order", "speed")
+            } else if speeds_of(&same_hz) >= 2 {
+                (same_hz, "Hz", "frequency")
+            } else {
+                continue;
+            }
+        } else if view == "env" {
+            (same_order, "order", "undetermined")
+        } else {
+            (same_hz, "Hz", "undetermined")
+        };
+        // one recording alone is noise unless there is only one
+        let n = recs(&members);
+        if n < 2 && speeds.len() > 1 {
+            continue;
+        }
+        let excess = members.iter().map(|&j| peaks[j].excess).fold(0.0, f64::max);
+        for &j in &members {
+            used[j] = true;
+        }
+        let mean = members
+            .iter()
+            .map(|&j| if unit == "order" { peaks[j].order } else { peaks[j].hz })
+            .sum::<f64>()
+            / members.len() as f64;
+        out.push(Unexplained {
+            location: (mean * 1000.0).round() / 1000.0,
+            unit: unit.into(),
+            locked_to: locked.into(),
+            view: view.into(),
+            excess_db: (excess * 10.0).round() / 10.0,
+            recordings: n,
+        });
+    }
+}

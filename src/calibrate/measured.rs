@@ -1,0 +1,150 @@
+//! The measured side of calibration: recordings (a `labels.csv` manifest, or recording files
+//! whose label is taken from their metadata, else `healthy`), each reduced to an operating
+//! point (mean speed from the rig's speed source, fault class) and cut to a common length.
+//! Also the checkerboard fit / held-out split.
+
+use crate::config::RigConfig;
+use crate::dsp::speed::SpeedTrack;
+use crate::importers::{self, ImportOptions};
+use crate::recording::Recording;
+use crate::sim::Fault;
+use crate::train::dataset::{manifest_path, read_manifest};
+use anyhow::{bail, Context, Result};
+use std::path::{Path, PathBuf};
+
+/// One measured recording at one operating point.
+#[derive(Debug, Clone)]
+pub struct Measured {
+    /// File name (or `file#half`) for reports.
+    pub name: String,
+    pub label: String,
+    pub faults: Vec<Fault>,
+    /// Mean shaft speed over the analysed span, rpm.
+    pub rpm: f64,
+    pub recording: Recording,
+}
+
+/// Load measured recordings: one `labels.csv` (or a folder holding one) or recording files.
+/// Each is cut to at most `max_seconds`.
+pub fn load(rig: &RigConfig, inputs: &[PathBuf], max_seconds: f64) -> Result<Vec<Measured>> {
+    let mut files: Vec<(PathBuf, Option<String>)> = Vec::new();
+    for p in inputs {
+        let is_manifest = p.is_dir() || p.extension().is_some_and(|e| e == "csv") && is_manifest(p);
+        if is_manifest {
+            for e in read_manifest(&manifest_path(p))? {
+                files.push((e.path, Some(e.label)));
+            }
+        } else {
+            files.push((p.clone(), None));
+        }
+    }
+    if files.is_empty() {
+        bail!("no measured recordings given; pass --measured <labels.csv> or recording files");
+    }
+    let mut out = Vec::new();
+    for (path, label) in files {
+        let mut rec = importers::load(&path, rig, &ImportOptions::default())
+            .with_context(|| format!("loading measured recording {}", path.display()))?;
+        let label = label
+            .or_else(|| rec.metadata.get("label").cloned())
+            .unwrap_or_else(|| "healthy".into());
+        let faults = Fault::parse_list(&label)
+            .with_context(|| format!("label of {}", path.display()))?;
+        cut(&mut rec, 0.0, max_seconds);
+        let rpm = mean_rpm(&rec, rig).with_context(|| format!("speed of {}", path.display()))?;
+        out.push(Measured {
+            name: path
+                .file_name()
+                .map_or_else(|| path.display().to_string(), |n| n.to_string_lossy().into()),
+            label,
+            faults,
+            rpm,
+            recording: rec,
+        });
+    }
+    Ok(out)
+}
+
+fn is_manifest(p: &Path) -> bool {
+    std::fs::read_to_string(p)
+        .ok()
+        .and_then(|t| t.lines().next().map(|h| h.to_ascii_lowercase()))
+        .is_some_and(|h| h.split(',').any(|c| c.trim() == "label"))
+}
+
+/// Mean speed of a recording over its whole length, rpm.
+pub fn mean_rpm(rec: &Recording, rig: &RigConfig) -> Result<f64> {
+    let track = SpeedTrack::for_recording(rec, rig)?;
+    Ok(track.mean_rpm(0.0, rec.duration_s()))
+}
+
+/// Keep samples in [t0, t0 + seconds) of every channel and the analog tacho.
+pub fn cut(rec: &mut Recording, t0: f64, seconds: f64) {
+    let n = rec.len();
+    let a = ((t0 * rec.sample_rate) as usize).min(n);
+    let b = (a + (seconds * rec.sample_rate) as usize).min(n);
+    for c in &mut rec.channels {
+        c.samples = c.samples[a..b].to_vec();
+    }
+    match &mut rec.tacho {
+        Some(crate::recording::Tacho::Analog { samples, .. }) => {
+            *samples = samples[a.min(samples.len())..b.min(samples.len())].to_vec()
+        }
+        Some(crate::recording::Tacho::Edges { times_s }) => {
+            let (ta, tb) = (a as f64 / rec.sample_rate, b as f64 / rec.sample_rate);
+            *times_s = times_s
+                .iter()
+                .filter(|t| **t >= ta && **t < tb)
+                .map(|t| t - ta)
+                .collect();
+        }
+        None => {}
+    }
+}
+
+/// Which part each recording belongs to: `true` = fit, `false` = held out. Checkerboard by
+/// (speed rank + class rank), so both parts see every speed when there are >= 2 classes.
+/// A single recording is split in time by the caller (see [`split_single`]).
+pub fn checkerboard(ms: &[Measured]) -> Vec<bool> {
+    let mut speeds: Vec<i64> = ms.iter().map(|m| m.rpm.round() as i64).collect();
+    speeds.sort_unstable();
+    speeds.dedup_by(|a, b| (*a - *b).abs() <= 20);
+    let mut labels: Vec<&str> = ms.iter().map(|m| m.label.as_str()).collect();
+    labels.sort_unstable();
+    labels.dedup();
+    let mut part: Vec<bool> = ms
+        .iter()
+        .map(|m| {
+            let si = speeds
+                .iter()
+                .position(|s| (m.rpm.round() as i64 - s).abs() <= 20)
+                .unwrap_or(0);
+            let li = labels.iter().position(|l| *l == m.label).unwrap_or(0);
+            (si + li) % 2 == 0
+        })
+        .collect();
+    // one class, several recordings per speed: alternate by order
+    if part.iter().all(|p| *p) || part.iter().all(|p| !*p) {
+        part = (0..ms.len()).map(|i| i % 2 == 0).collect();
+    }
+    part
+}
+
+/// A single recording: its first half fits, its second half is held out.
+pub fn split_single(m: &Measured, rig: &RigConfig) -> Result<Vec<Measured>> {
+    let half = m.recording.duration_s() / 2.0;
+    let mut out = Vec::new();
+    for (i, tag) in ["first half", "second half"].iter().enumerate() {
+        let mut rec = m.recording.clone();
+        cut(&mut rec, i as f64 * half, half);
+        let rpm = mean_rpm(&rec, rig)?;
+        out.push(Measured {
+            name: format!("{} ({tag})", m.name),
+            label: m.label.clone(),
+            faults: m.faults.clone(),
+            rpm,
+            recording: rec,
+        });
+    }
+    Ok(out)
+}

@@ -1,0 +1,103 @@
+//! Calibration PNGs: measured vs simulated before and after calibration (envelope order
+//! spectrum and band energies) and the residual (measured minus calibrated simulation) of
+//! the envelope and raw-line views, for one recording.
+
+use super::views::{env_order, Views, BAND_HZ, LINES_MIN_HZ};
+use crate::plots::ensure_font;
+use anyhow::{anyhow, Result};
+use plotters::prelude::*;
+use std::path::Path;
+
+type Series<'a> = (&'a str, RGBColor, Vec<(f64, f64)>);
+
+fn chart(area: &DrawingArea<BitMapBackend, plotters::coord::Shift>, title: &str, x: &str, y: &str, series: &[Series]) -> Result<()> {
+    let e = |err: &dyn std::fmt::Display| anyhow!("drawing {title}: {err}");
+    let (mut x0, mut x1, mut y0, mut y1) = (f64::MAX, f64::MIN, f64::MAX, f64::MIN);
+    for (_, _, pts) in series {
+        for &(a, b) in pts {
+            x0 = x0.min(a);
+            x1 = x1.max(a);
+            y0 = y0.min(b);
+            y1 = y1.max(b);
+        }
+    }
+    if x0 >= x1 {
+        x1 = x0 + 1.0;
+    }
+    if y0 >= y1 {
+        y1 = y0 + 1.0;
+    }
+    let pad = 0.05 * (y1 - y0);
+    let mut c = ChartBuilder::on(area)
+        .caption(title, ("sans-serif", 20))
+        .margin(10)
+        .x_label_area_size(40)
+        .y_label_area_size(60)
+        .build_cartesian_2d(x0..x1, (y0 - pad)..(y1 + pad))
+        .map_err(|x| e(&x))?;
+    c.configure_mesh()
+        .x_desc(x)
+        .y_desc(y)
+        .label_style(("sans-serif", 14))
+        .light_line_style(WHITE)
+        .draw()
+        .map_err(|x| e(&x))?;
+    for (name, col, pts) in series {
+        let col = *col;
+        c.draw_series(LineSeries::new(pts.iter().copied(), col.stroke_width(1)))
+            .map_err(|x| e(&x))?
+            .label(*name)
+            .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], col));
+    }
+    c.configure_series_labels()
+        .background_style(WHITE.mix(0.8))
+        .border_style(BLACK)
+        .label_font(("sans-serif", 14))
+        .draw()
+        .map_err(|x| e(&x))?;
+    Ok(())
+}
+
+const MEAS: RGBColor = RGBColor(0, 0, 0);
+const BEFORE: RGBColor = RGBColor(220, 50, 30);
+const AFTER: RGBColor = RGBColor(30, 90, 220);
+
+/// `spectra.png`: envelope order spectra and band energies, measured / before / after.
+pub fn spectra(path: &Path, name: &str, m: &Views, b: &Views, a: &Views) -> Result<()> {
+    ensure_font()?;
+    let root = BitMapBackend::new(path, (1400, 900)).into_drawing_area();
+    root.fill(&WHITE).map_err(|x| anyhow!("drawing {}: {x}", path.display()))?;
+    let (top, bottom) = root.split_vertically(450);
+    let env = |v: &Views| v.env_db.iter().enumerate().map(|(i, d)| (env_order(i), *d)).collect();
+    chart(
+        &top,
+        &format!("{name}: envelope order spectrum"),
+        "order",
+        "dB above median",
+        &[("measured", MEAS, env(m)), ("simulated before", BEFORE, env(b)), ("simulated after", AFTER, env(a))],
+    )?;
+    let bands = |v: &Views| v.bands.iter().zip(&v.band_lo_hz).map(|(d, lo)| (lo + BAND_HZ / 2.0, *d)).collect();
+    chart(
+        &bottom,
+        "band energy (100 Hz bands)",
+        "Hz",
+        "dB re mean band",
+        &[("measured", MEAS, bands(m)), ("simulated before", BEFORE, bands(b)), ("simulated after", AFTER, bands(a))],
+    )?;
+    root.present().map_err(|x| anyhow!("writing {}: {x}", path.display()))?;
+    Ok(())
+}
+
+/// `residual.png`: measured minus calibrated simulation, envelope orders and raw lines.
+pub fn residual(path: &Path, name: &str, m: &Views, a: &Views) -> Result<()> {
+    ensure_font()?;
+    let root = BitMapBackend::new(path, (1400, 900)).into_drawing_area();
+    root.fill(&WHITE).map_err(|x| anyhow!("drawing {}: {x}", path.display()))?;
+    let (top, bottom) = root.split_vertically(450);
+    let env: Vec<(f64, f64)> = m.env.iter().zip(&a.env).enumerate().map(|(i, (x, y))| (env_order(i), x - y)).collect();
+    chart(&top, &format!("{name}: residual, envelope view"), "order", "dB (thresholded)", &[("measured - simulated after", AFTER, env)])?;
+    let lines: Vec<(f64, f64)> = m.lines.iter().zip(&a.lines).enumerate().map(|(i, (x, y))| ((i + LINES_MIN_HZ) as f64, x - y)).collect();
+    chart(&bottom, "residual, raw lines view", "Hz", "dB (thresholded)", &[("measured - simulated after", AFTER, lines)])?;
+    root.present().map_err(|x| anyhow!("writing {}: {x}", path.display()))?;
+    Ok(())
+}

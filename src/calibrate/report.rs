@@ -1,0 +1,169 @@
+//! Calibration outputs: the JSON object (`--json`), the Markdown summary, the calibrated rig
+//! file (the rig's TOML with the calibrated `[simulation]` section and a `[calibration]` stamp
+//! `{id, effects}`), and the calibration id (hash of the calibrated section and the inputs).
+
+use super::error::ErrorParts;
+use super::fit::{Outcome, FIT_CUT, HELD_CUT};
+use super::measured::Measured;
+use crate::config::RigConfig;
+use anyhow::{Context, Result};
+use serde_json::{json, Value};
+use sha2::{Digest, Sha256};
+use std::fmt::Write as _;
+use std::path::Path;
+
+/// `cal-` + 12 hex digits of SHA-256 over the calibrated section and the measured inputs.
+pub fn calibration_id(o: &Outcome, ops: &[Measured]) -> String {
+    let mut h = Sha256::new();
+    h.update(serde_json::to_string(&o.calibrated).unwrap_or_default());
+    for m in ops {
+        h.update(m.name.as_bytes());
+        h.update(m.label.as_bytes());
+    }
+    let d = h.finalize();
+    format!("cal-{}", d.iter().take(6).map(|b| format!("{b:02x}")).collect::<String>())
+}
+
+fn r3(v: f64) -> f64 {
+    (v * 1000.0).round() / 1000.0
+}
+
+fn parts(e: &ErrorParts) -> Value {
+    json!({"env": r3(e.env), "lines": r3(e.lines), "bands": r3(e.bands), "speed": r3(e.speed), "total": r3(e.total)})
+}
+
+/// The report object printed by `--json`.
+pub fn json(rig: &RigConfig, o: &Outcome, ops: &[Measured], id: &str) -> Value {
+    let effects: Vec<Value> = o
+        .accepted
+        .iter()
+        .map(|t| {
+            json!({"name": t.name, "params": t.params, "error_before": r3(t.error_before),
+                   "error_after": r3(t.error_after), "fit_before": r3(t.fit_before),
+                   "fit_after": r3(t.fit_after), "held_before": r3(t.held_before),
+                   "held_after": r3(t.held_after)})
+        })
+        .collect();
+    let split: Vec<Value> = ops
+        .iter()
+        .zip(&o.fit_part)
+        .map(|(m, f)| json!({"recording": m.name, "label": m.label, "rpm": (m.rpm * 10.0).round() / 10.0, "part": if *f {"fit"} else {"held_out"}}))
+        .collect();
+    let per: Vec<Value> = ops
+        .iter()
+        .enumerate()
+        .map(|(i, m)| {
+            let b = super::error::pair(&o.measured_views[i], &o.views_before[i]);
+            let a = super::error::pair(&o.measured_views[i], &o.views_after[i]);
+            json!({"recording": m.name, "before": parts(&b), "after": parts(&a)})
+        })
+        .collect();
+    json!({
+        "calibration_id": id,
+        "recordings": per,
+        "rig": rig.machine.id,
+        "error_before": r3(o.before.total),
+        "error_after": r3(o.after.total),
+        "components_before": parts(&o.before),
+        "components_after": parts(&o.after),
+        "effects": effects,
+        "unexplained": o.unexplained,
+        "rounds": o.rounds,
+        "split": split,
+        "acceptance": {"fit_cut_relative": FIT_CUT.0, "fit_cut_absolute": FIT_CUT.1,
+                        "held_cut_relative": HELD_CUT.0, "held_cut_absolute": HELD_CUT.1},
+    })
+}
+
+/// The Markdown summary.
+pub fn markdown(rig: &RigConfig, o: &Outcome, ops: &[Measured], id: &str) -> String {
+    let mut s = String::new();
+    let _ = writeln!(s, "# Calibration `{id}` of rig `{}`\n", rig.machine.id);
+    let _ = writeln!(
+        s,
+        "Error (sum of components, mean over {} recordings): **{:.3} -> {:.3}**\n",
+        ops.len(),
+        o.before.total,
+        o.after.total
+    );
+    let _ = writeln!(s, "| component | before | after |\n|---|---|---|");
+    for (n, b, a) in [
+        ("env (envelope order spectrum, dB)", o.before.env, o.after.env),
+        ("lines (raw spectrum lines, dB)", o.before.lines, o.after.lines),
+        ("bands (100 Hz band energies, dB)", o.before.bands, o.after.bands),
+        ("speed (speed-deviation spectrum)", o.before.speed, o.after.speed),
+    ] {
+        let _ = writeln!(s, "| {n} | {b:.3} | {a:.3} |");
+    }
+    let _ = writeln!(s, "\n## Split (checkerboard by recording)\n\n| recording | label | rpm | part |\n|---|---|---|---|");
+    for (m, f) in ops.iter().zip(&o.fit_part) {
+        let _ = writeln!(s, "| {} | {} | {:.1} | {} |", m.name, m.label, m.rpm, if *f { "fit" } else { "held out" });
+    }
+    let _ = writeln!(s, "\n## Effects added (in order)\n");
+    if o.accepted.is_empty() {
+        let _ = writeln!(s, "None: no catalog effect passed the acceptance rule.");
+    }
+    for t in &o.accepted {
+        let _ = writeln!(
+            s,
+            "- `{}` {:?}: all {:.3} -> {:.3}, fit {:.3} -> {:.3}, held-out {:.3} -> {:.3}",
+            t.name, t.params, t.error_before, t.error_after, t.fit_before, t.fit_after, t.held_before, t.held_after
+        );
+    }
+    let _ = writeln!(s, "\n## Every trial, by round\n\n| round | effect | params | fit before -> after | held-out before -> after | accepted |\n|---|---|---|---|---|---|");
+    for (r, round) in o.rounds.iter().enumerate() {
+        for t in round {
+            let _ = writeln!(
+                s,
+                "| {} | {} | {:?} | {:.3} -> {:.3} | {:.3} -> {:.3} | {} |",
+                r + 1, t.name, t.params, t.fit_before, t.fit_after, t.held_before, t.held_after, if t.accepted { "yes" } else { "no" }
+            );
+        }
+    }
+    let _ = writeln!(s, "\n## Unexplained\n");
+    if o.unexplained.is_empty() {
+        let _ = writeln!(s, "Nothing above the thresholds (lines/envelope 10 dB, bands 6 dB).");
+    } else {
+        let _ = writeln!(s, "| location | unit | locked to | view | excess dB | recordings |\n|---|---|---|---|---|---|");
+        for u in &o.unexplained {
+            let _ = writeln!(s, "| {} | {} | {} | {} | {} | {} |", u.location, u.unit, u.locked_to, u.view, u.excess_db, u.recordings);
+        }
+    }
+    let _ = writeln!(s, "\n![measured vs simulated](spectra.png)\n\n![residual](residual.png)");
+    s
+}
+
+/// Write the calibrated rig file: the original TOML with `[simulation]` replaced and a
+/// `[calibration]` stamp. The result is parsed back as a rig file before it is written.
+pub fn write_rig(rig_path: &Path, out: &Path, o: &Outcome, id: &str) -> Result<()> {
+    let text = std::fs::read_to_string(rig_path)
+        .with_context(|| format!("cannot read rig file {}", rig_path.display()))?;
+    let mut table: toml::Table = toml::from_str(&text)
+        .with_context(|| format!("rig file {} is not valid TOML", rig_path.display()))?;
+    table.insert(
+        "simulation".into(),
+        toml::Value::Table(toml::Table::try_from(&o.calibrated).context("serialising [simulation]")?),
+    );
+    let mut effects = toml::value::Array::new();
+    for t in &o.accepted {
+        let mut e = toml::Table::new();
+        e.insert("name".into(), toml::Value::String(t.name.clone()));
+        for (k, v) in &t.params {
+            e.insert(k.clone(), toml::Value::Float(*v));
+        }
+        effects.push(toml::Value::Table(e));
+    }
+    let mut cal = toml::Table::new();
+    cal.insert("id".into(), toml::Value::String(id.into()));
+    cal.insert("effects".into(), toml::Value::Array(effects));
+    table.insert("calibration".into(), toml::Value::Table(cal));
+    let body = toml::to_string(&table).context("serialising the calibrated rig")?;
+    let head = format!(
+        "# Calibrated by `rigmon calibrate` ({id}) from {}; the [simulation] section carries the\n# fitted effects, [calibration] names them.\n\n",
+        rig_path.display()
+    );
+    let text = head + &body;
+    RigConfig::parse(&text).context("the calibrated rig file does not parse back (bug)")?;
+    std::fs::write(out, text).with_context(|| format!("cannot write {}", out.display()))?;
+    Ok(())
+}

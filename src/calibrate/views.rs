@@ -1,0 +1,196 @@
+//! The residual views of one recording, each physically meaningful and independent of the
+//! overall signal level (every view is relative to the recording's own floor):
+//! - `env`: normalised envelope order spectrum of the classifier channel (dB above its median,
+//!   6 dB threshold), orders 0.3-[`ENV_MAX_ORDER`] on a [`ENV_STEP`] grid: fault-order peak
+//!   locations, harmonic and sideband ratios;
+//! - `lines`: raw spectrum in Hz (Welch, 1 Hz bins, 2-[`LINES_MAX_HZ`] Hz), dB above the local
+//!   median (+-25 Hz), 6 dB threshold: narrowband content, order-locked or not (1x/2x,
+//!   electrical lines);
+//! - `bands`: energy in 100 Hz bands from 300 Hz to 0.4 fs, dB relative to the mean band:
+//!   where the structural resonances put the impact energy;
+//! - `speed`: amplitude spectrum (0.2-5 Hz) of the relative shaft-speed deviation in percent,
+//!   from the speed source: speed fluctuation.
+
+use crate::config::RigConfig;
+use crate::dsp::order_spectrum::whole_recording;
+use crate::dsp::speed::SpeedTrack;
+use crate::recording::Recording;
+use anyhow::{Context, Result};
+use realfft::RealFftPlanner;
+
+pub const ENV_MAX_ORDER: f64 = 12.0;
+pub const ENV_MIN_ORDER: f64 = 0.3;
+pub const ENV_STEP: f64 = 0.02;
+pub const LINES_MIN_HZ: usize = 2;
+pub const LINES_MAX_HZ: usize = 1000;
+pub const BAND_HZ: f64 = 100.0;
+pub const BAND_MIN_HZ: f64 = 300.0;
+pub const SPEED_MIN_HZ: f64 = 0.2;
+pub const SPEED_MAX_HZ: f64 = 5.0;
+pub const SPEED_STEP_HZ: f64 = 0.05;
+const THRESHOLD_DB: f64 = 6.0;
+const CAP_DB: f64 = 60.0;
+
+/// All views of one recording.
+#[derive(Debug, Clone, Default)]
+pub struct Views {
+    /// Mean shaft speed, rpm.
+    pub rpm: f64,
+    pub env: Vec<f64>,
+    pub lines: Vec<f64>,
+    pub bands: Vec<f64>,
+    /// Lower edge of each band, Hz.
+    pub band_lo_hz: Vec<f64>,
+    pub speed: Vec<f64>,
+    /// Welch amplitude spectrum (1 Hz bins from 0 Hz), channel unit.
+    pub amplitude_hz: Vec<f64>,
+    /// Envelope order spectrum in dB above its median (unthresholded), on the `env` grid.
+    pub env_db: Vec<f64>,
+}
+
+/// Order of `env[i]`.
+pub fn env_order(i: usize) -> f64 {
+    ENV_MIN_ORDER + i as f64 * ENV_STEP
+}
+
+/// Compute the views of a recording's classifier channel.
+pub fn compute(rec: &Recording, rig: &RigConfig) -> Result<Views> {
+    let ch = rig
+        .classifier_channel()
+        .and_then(|c| rec.channel(&c.name))
+        .or_else(|| rec.channels.first())
+        .context("the recording has no acceleration channel")?;
+    let fs = rec.sample_rate;
+    let track = SpeedTrack::for_recording(rec, rig)?;
+    let dur = rec.duration_s();
+    let rpm = track.mean_rpm(0.0, dur);
+
+    // envelope order spectrum
+    let whole = whole_recording(
+        &ch.samples,
+        fs,
+        &track,
+        rig.features.lowpass_hz.min(0.45 * fs),
+        ENV_MAX_ORDER + 0.5,
+    )?;
+    let n_env = ((ENV_MAX_ORDER - ENV_MIN_ORDER) / ENV_STEP) as usize + 1;
+    let lo_line = (ENV_MIN_ORDER / whole.order_step) as usize;
+    let med = median(&whole.amplitude[lo_line.min(whole.amplitude.len() - 1)..]).max(1e-30);
+    let env_db: Vec<f64> = (0..n_env)
+        .map(|i| {
+            let x = env_order(i) / whole.order_step;
+            let j = (x.floor() as usize).min(whole.amplitude.len() - 2);
+            let f = x - j as f64;
+            let a = whole.amplitude[j] * (1.0 - f) + whole.amplitude[j + 1] * f;
+            20.0 * (a / med).max(1e-6).log10()
+        })
+        .collect();
+    let env = env_db.iter().map(|d| threshold(*d)).collect();
+
+    // Welch amplitude and power spectra, 1 Hz bins
+    let nseg = (fs.round() as usize).min(ch.samples.len());
+    let (amplitude_hz, power) = welch(&ch.samples, nseg);
+    let df = fs / nseg as f64;
+    let hz_bin = |hz: f64| ((hz / df).round() as usize).min(amplitude_hz.len() - 1);
+    let lines = (LINES_MIN_HZ..=LINES_MAX_HZ)
+        .map(|hz| {
+            let k = hz_bin(hz as f64);
+            let (a, b) = (hz_bin(hz as f64 - 25.0), hz_bin(hz as f64 + 25.0));
+            let m = median(&amplitude_hz[a..=b]).max(1e-30);
+            threshold(20.0 * (amplitude_hz[k] / m).max(1e-6).log10())
+        })
+        .collect();
+    let band_hi = 0.4 * fs;
+    let mut bands = Vec::new();
+    let mut band_lo_hz = Vec::new();
+    let mut lo = BAND_MIN_HZ;
+    while lo + BAND_HZ <= band_hi {
+        let e: f64 = power[hz_bin(lo)..hz_bin(lo + BAND_HZ)].iter().sum();
+        bands.push(10.0 * e.max(1e-30).log10());
+        band_lo_hz.push(lo);
+        lo += BAND_HZ;
+    }
+    let mean = bands.iter().sum::<f64>() / bands.len().max(1) as f64;
+    bands.iter_mut().for_each(|b| *b -= mean);
+
+    // speed deviation spectrum (percent), Hann-windowed direct DFT on a 100 Hz grid
+    let n_sp = (dur * 100.0) as usize;
+    let dev: Vec<f64> = (0..n_sp)
+        .map(|i| 100.0 * (track.rpm_at(i as f64 / 100.0) / rpm - 1.0))
+        .collect();
+    let w: Vec<f64> = (0..n_sp)
+        .map(|i| 0.5 - 0.5 * (std::f64::consts::TAU * i as f64 / n_sp as f64).cos())
+        .collect();
+    let wsum: f64 = w.iter().sum::<f64>().max(1e-12);
+    let dmean = dev.iter().zip(&w).map(|(d, w)| d * w).sum::<f64>() / wsum;
+    let n_speed = ((SPEED_MAX_HZ - SPEED_MIN_HZ) / SPEED_STEP_HZ) as usize + 1;
+    let speed = (0..n_speed)
+        .map(|k| {
+            let f = SPEED_MIN_HZ + k as f64 * SPEED_STEP_HZ;
+            let (mut re, mut im) = (0.0, 0.0);
+            for (i, (d, wi)) in dev.iter().zip(&w).enumerate() {
+                let ph = std::f64::consts::TAU * f * i as f64 / 100.0;
+                re += (d - dmean) * wi * ph.cos();
+                im += (d - dmean) * wi * ph.sin();
+            }
+            2.0 * (re * re + im * im).sqrt() / wsum
+        })
+        .collect();
+    Ok(Views {
+        rpm,
+        env,
+        lines,
+        bands,
+        band_lo_hz,
+        speed,
+        amplitude_hz,
+        env_db,
+    })
+}
+
+fn threshold(db: f64) -> f64 {
+    (db - THRESHOLD_DB).clamp(0.0, CAP_DB)
+}
+
+/// Median of a slice (0 when empty).
+pub fn median(x: &[f64]) -> f64 {
+    if x.is_empty() {
+        return 0.0;
+    }
+    let mut v = x.to_vec();
+    let mid = v.len() / 2;
+    v.select_nth_unstable_by(mid, |a, b| a.total_cmp(b));
+    v[mid]
+}
+
+/// Welch estimate (Hann, 50 % overlap): per-bin peak amplitude and power, `nseg/2+1` bins.
+fn welch(x: &[f32], nseg: usize) -> (Vec<f64>, Vec<f64>) {
+    let mut planner = RealFftPlanner::<f64>::new();
+    let fft = planner.plan_fft_forward(nseg);
+    let w: Vec<f64> = (0..nseg)
+        .map(|i| 0.5 - 0.5 * (std::f64::consts::TAU * i as f64 / nseg as f64).cos())
+        .collect();
+    let wsum: f64 = w.iter().sum();
+    let mut input = fft.make_input_vec();
+    let mut out = fft.make_output_vec();
+    let mut pow = vec![0.0; out.len()];
+    let mut count = 0usize;
+    let mut start = 0;
+    while start + nseg <= x.len() {
+        let seg = &x[start..start + nseg];
+        let mean = seg.iter().map(|v| *v as f64).sum::<f64>() / nseg as f64;
+        for (i, v) in input.iter_mut().enumerate() {
+            *v = (seg[i] as f64 - mean) * w[i];
+        }
+        fft.process(&mut input, &mut out).expect("fft sizes match");
+        for (p, c) in pow.iter_mut().zip(&out) {
+            *p += c.norm_sqr();
+        }
+        count += 1;
+        start += nseg / 2;
+    }
+    let c = count.max(1) as f64;
+    let amp = pow.iter().map(|p| 2.0 * (p / c).sqrt() / wsum).collect();
+    let pw = pow.iter().map(|p| p / c).collect();
+    (amp, pw)
+}

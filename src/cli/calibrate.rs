@@ -1,0 +1,102 @@
+//! `rigmon calibrate`: fit the simulator to measured recordings and write the calibrated rig
+//! file, a report folder (Markdown, JSON, PNGs) and, with `--json`, the report on stdout.
+
+use crate::calibrate::{fit, measured, plots, report};
+use crate::config::RigConfig;
+use anyhow::{Context, Result};
+use clap::Parser;
+use std::path::PathBuf;
+
+#[derive(Parser, Debug)]
+pub struct Args {
+    /// Rig file with a [simulation] section.
+    #[arg(long)]
+    pub rig: PathBuf,
+    /// Measured recordings: a labels.csv manifest (or its folder), or recording files
+    /// (label from their metadata, else healthy).
+    #[arg(long, required = true, num_args = 1..)]
+    pub measured: Vec<PathBuf>,
+    /// Calibrated rig file to write.
+    #[arg(short, long)]
+    pub output: PathBuf,
+    /// Report folder (report.md, report.json, spectra.png, residual.png).
+    #[arg(long)]
+    pub report: PathBuf,
+    /// Seconds of each recording used (from its start).
+    #[arg(long, default_value_t = 2.0)]
+    pub seconds: f64,
+    /// Print the report as one JSON object on stdout.
+    #[arg(long)]
+    pub json: bool,
+}
+
+pub fn run(a: Args) -> Result<()> {
+    let rig = RigConfig::load(&a.rig)?;
+    let mut ops = measured::load(&rig, &a.measured, a.seconds)?;
+    if ops.len() == 1 {
+        ops = measured::split_single(&ops[0], &rig)?;
+    }
+    let part = measured::checkerboard(&ops);
+    for (m, p) in ops.iter().zip(&part) {
+        eprintln!(
+            "split: {:<32} {:<11} {:7.1} rpm  {}",
+            m.name,
+            m.label,
+            m.rpm,
+            if *p { "fit" } else { "held out" }
+        );
+    }
+    let outcome = fit::calibrate(&rig, &ops, part)?;
+    let id = report::calibration_id(&outcome, &ops);
+    std::fs::create_dir_all(&a.report)
+        .with_context(|| format!("cannot create report folder {}", a.report.display()))?;
+    report::write_rig(&a.rig, &a.output, &outcome, &id)?;
+    let j = report::json(&rig, &outcome, &ops, &id);
+    std::fs::write(a.report.join("report.json"), serde_json::to_string_pretty(&j)?)?;
+    std::fs::write(
+        a.report.join("report.md"),
+        report::markdown(&rig, &outcome, &ops, &id),
+    )?;
+    // plots for the recording with the largest error before calibration
+    let worst = (0..ops.len())
+        .max_by(|x, y| {
+            let e = |i: usize| {
+                crate::calibrate::error::pair(&outcome.measured_views[i], &outcome.views_before[i])
+                    .total
+            };
+            e(*x).total_cmp(&e(*y))
+        })
+        .unwrap_or(0);
+    let name = &ops[worst].name;
+    plots::spectra(
+        &a.report.join("spectra.png"),
+        name,
+        &outcome.measured_views[worst],
+        &outcome.views_before[worst],
+        &outcome.views_after[worst],
+    )?;
+    plots::residual(
+        &a.report.join("residual.png"),
+        name,
+        &outcome.measured_views[worst],
+        &outcome.views_after[worst],
+    )?;
+    eprintln!(
+        "calibration {id}: error {:.3} -> {:.3}; effects: [{}]; unexplained: {}; wrote {} and {}",
+        outcome.before.total,
+        outcome.after.total,
+        outcome
+            .accepted
+            .iter()
+            .map(|t| t.name.as_str())
+            .collect::<Vec<_>>()
+            .join(", "),
+        outcome.unexplained.len(),
+        a.output.display(),
+        a.report.display()
+    );
+    if a.json {
+        println!("{}", serde_json::to_string(&j)?);
+    }
+    Ok(())
+}

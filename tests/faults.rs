@@ -1,0 +1,422 @@
+//! Fault injection with real parts: the built `rigmon` binary, the shipped replay and model,
+//! Zenoh on loopback (ports 7650-7699), a NOTIFY_SOCKET datagram socket, Unix signals, a file
+//! size limit on the child (EFBIG, the same path as a full disk), MCAP files read back by
+//! rigmon and by the Python `mcap` package (tests/python/read_cut_mcap.py).
+//!
+//! Each test prints its figure (`FIGURE ...`) for the README's reliability table; run with
+//! `cargo test --all-features --test faults -- --nocapture --test-threads=1`.
+
+#[path = "common/daemon_harness.rs"]
+mod harness;
+
+use harness::*;
+use rigmon::health::message::HealthMessage;
+use rigmon::recording::mcap_layout::{read_recording, write_recording};
+use rigmon::recording::{Recording, Tacho};
+use std::os::unix::net::UnixDatagram;
+use std::os::unix::process::CommandExt;
+use std::path::{Path, PathBuf};
+use std::process::{Command, Stdio};
+use std::time::{Duration, Instant};
+
+fn healthy_replay() -> PathBuf {
+    repo().join("replay/lut-healthy-588rpm.mcap")
+}
+
+/// The model's fault classes (every label but `healthy`).
+const FAULTS: [&str; 2] = ["outer_race", "inner_race"];
+
+/// Start `rigmon run` on `cfg` with health as JSON on stdout and a NOTIFY_SOCKET; an optional
+/// file size limit (bytes) applies to the child only.
+fn spawn_daemon(cfg: &Path, notify: &Path, fsize_limit: Option<u64>) -> Guard {
+    let mut cmd = Command::new(bin());
+    cmd.args(["run", "--config", cfg.to_str().unwrap(), "--print", "json"])
+        .env("NOTIFY_SOCKET", notify)
+        .env_remove("WATCHDOG_USEC")
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped());
+    if let Some(limit) = fsize_limit {
+        // SAFETY: only async-signal-safe calls between fork and exec.
+        unsafe {
+            cmd.pre_exec(move || {
+                // Without this SIGXFSZ would kill the daemon; ignored, write() gets EFBIG.
+                libc::signal(libc::SIGXFSZ, libc::SIG_IGN);
+                let r = libc::rlimit {
+                    rlim_cur: limit,
+                    rlim_max: limit,
+                };
+                if libc::setrlimit(libc::RLIMIT_FSIZE, &r) != 0 {
+                    return Err(std::io::Error::last_os_error());
+                }
+                Ok(())
+            });
+        }
+    }
+    Guard(cmd.spawn().unwrap())
+}
+
+fn notify_socket(dir: &Path) -> (UnixDatagram, PathBuf) {
+    let p = dir.join("notify.sock");
+    let s = UnixDatagram::bind(&p).unwrap();
+    s.set_read_timeout(Some(Duration::from_millis(50))).unwrap();
+    (s, p)
+}
+
+/// Collect NOTIFY_SOCKET datagrams into `got`.
+fn drain(sock: &UnixDatagram, got: &mut Vec<String>) {
+    let mut buf = vec![0u8; 8192];
+    while let Ok(n) = sock.recv(&mut buf) {
+        got.push(String::from_utf8_lossy(&buf[..n]).into_owned());
+    }
+}
+
+fn health_lines(out: &std::sync::mpsc::Receiver<String>) -> Vec<HealthMessage> {
+    out.try_iter()
+        .filter_map(|l| serde_json::from_str::<HealthMessage>(&l).ok())
+        .collect()
+}
+
+#[test]
+fn disk_full_while_recording_keeps_monitoring_and_status_says_so() {
+    let tmp = tempfile::tempdir().unwrap();
+    let (sock, sock_path) = notify_socket(tmp.path());
+    let cfg = daemon_config(tmp.path(), &healthy_replay(), &model(), "1.0", 7651, true);
+    // 300 kB: about 1.5 s of the replay's raw data, then every write fails with EFBIG.
+    let limit = 300_000u64;
+    let mut child = spawn_daemon(&cfg, &sock_path, Some(limit));
+    let out = lines(child.0.stdout.take().unwrap());
+    let err = lines(child.0.stderr.take().unwrap());
+    let t0 = Instant::now();
+    let mut got = Vec::new();
+    let mut failed_at = None;
+    let mut health = Vec::new();
+    while t0.elapsed() < Duration::from_secs(40) {
+        drain(&sock, &mut got);
+        health.extend(health_lines(&out));
+        if failed_at.is_none() && got.iter().any(|m| m.contains("RECORDING FAILED")) {
+            failed_at = Some((Instant::now(), health.len()));
+        }
+        if let Some((t, _)) = failed_at {
+            if t.elapsed() > Duration::from_secs(3) {
+                break;
+            }
+        }
+    }
+    let stderr: Vec<String> = err.try_iter().collect();
+    let (t_fail, n_before) = failed_at.unwrap_or_else(|| {
+        panic!("no RECORDING FAILED in STATUS: {got:?}\nstderr: {stderr:?}")
+    });
+    let status = got
+        .iter()
+        .flat_map(|m| m.lines())
+        .find(|l| l.contains("RECORDING FAILED"))
+        .unwrap()
+        .to_string();
+    assert!(status.contains("disk full"), "{status}");
+    assert!(status.contains(".mcap"), "STATUS must name the file: {status}");
+    let after = health.len() - n_before;
+    assert!(
+        after >= 4,
+        "monitoring must continue after the recording failed: {after} health messages in 3 s"
+    );
+    assert!(child.0.try_wait().unwrap().is_none(), "the daemon died");
+    signal(&child.0, libc::SIGTERM);
+    let st = wait_exit(&mut child.0, Duration::from_secs(20));
+    assert!(st.success(), "exit {st:?}");
+    // What reached the disk reads back (up to the last complete chunk).
+    let files = mcaps(&tmp.path().join("rec"));
+    let first = files.first().expect("a recording file");
+    let bytes = std::fs::metadata(first).unwrap().len();
+    assert!(bytes <= limit);
+    let rec = read_recording(first).unwrap();
+    assert!(rec.duration_s() > 0.0, "nothing readable in {}", first.display());
+    println!(
+        "FIGURE disk full (RLIMIT_FSIZE {limit} B, EFBIG): STATUS '{status}' {:.1} s after start; \
+         {after} health messages in the next 3 s; first file {bytes} B, {:.2} s of signal readable; \
+         {} files tried",
+        t_fail.duration_since(t0).as_secs_f64(),
+        rec.duration_s(),
+        files.len()
+    );
+}
+
+#[test]
+fn kill_9_while_recording_reads_back_to_the_last_complete_chunk() {
+    let tmp = tempfile::tempdir().unwrap();
+    let (sock, sock_path) = notify_socket(tmp.path());
+    let cfg = daemon_config(tmp.path(), &healthy_replay(), &model(), "1.0", 7652, true);
+    let mut child = spawn_daemon(&cfg, &sock_path, None);
+    let out = lines(child.0.stdout.take().unwrap());
+    let mut got = Vec::new();
+    let t0 = Instant::now();
+    while t0.elapsed() < Duration::from_secs(30) && !got.iter().any(|m: &String| m.contains("READY=1")) {
+        drain(&sock, &mut got);
+    }
+    let ready = Instant::now();
+    std::thread::sleep(Duration::from_millis(4200));
+    signal(&child.0, libc::SIGKILL);
+    let written_s = ready.elapsed().as_secs_f64();
+    let _ = wait_exit(&mut child.0, Duration::from_secs(10));
+    let health = health_lines(&out);
+    assert!(!health.is_empty());
+    let file = mcaps(&tmp.path().join("rec")).remove(0);
+    // rigmon's own reader, and the independent Python reader.
+    let rec = read_recording(&file).unwrap();
+    let py = Command::new("python3")
+        .arg(repo().join("tests/python/read_cut_mcap.py"))
+        .arg(&file)
+        .output()
+        .unwrap();
+    assert!(
+        py.status.success(),
+        "{}",
+        String::from_utf8_lossy(&py.stderr)
+    );
+    let v: serde_json::Value = serde_json::from_slice(&py.stdout).unwrap();
+    assert_eq!(v["footer"], false, "a killed writer leaves no footer: {v}");
+    assert_eq!(v["contiguous"], true, "{v}");
+    let py_s = v["seconds"]["/accel/vertical"].as_f64().unwrap();
+    let health_n = v["messages"]["/health"].as_u64().unwrap_or(0);
+    // flush_s = 0.5: at most the last 0.5 s (+ a block and the queue) may be lost.
+    assert!(
+        py_s >= written_s - 1.5,
+        "{py_s} s readable of ~{written_s:.1} s: {v}"
+    );
+    assert!((rec.duration_s() - py_s).abs() < 0.11, "rigmon {} s vs python {py_s} s", rec.duration_s());
+    assert!(health_n > 0, "{v}");
+    println!(
+        "FIGURE kill -9 after {written_s:.1} s of recording (flush_s 0.5): {py_s:.1} s readable \
+         (python mcap; rigmon reads {:.1} s), {} of {} bytes in {} complete chunks, {health_n} \
+         health messages",
+        rec.duration_s(),
+        v["bytes_used"],
+        v["bytes"],
+        v["complete_chunks"]
+    );
+}
+
+#[test]
+fn sigterm_closes_the_recording_sends_stopping_and_exits_0() {
+    let tmp = tempfile::tempdir().unwrap();
+    let (sock, sock_path) = notify_socket(tmp.path());
+    let cfg = daemon_config(tmp.path(), &healthy_replay(), &model(), "1.0", 7653, true);
+    let mut child = spawn_daemon(&cfg, &sock_path, None);
+    let out = lines(child.0.stdout.take().unwrap());
+    let mut got = Vec::new();
+    let t0 = Instant::now();
+    while t0.elapsed() < Duration::from_secs(30) && !got.iter().any(|m: &String| m.contains("READY=1")) {
+        drain(&sock, &mut got);
+    }
+    std::thread::sleep(Duration::from_millis(2500));
+    let t_term = Instant::now();
+    signal(&child.0, libc::SIGTERM);
+    let st = wait_exit(&mut child.0, Duration::from_secs(20));
+    let exit_s = t_term.elapsed().as_secs_f64();
+    drain(&sock, &mut got);
+    assert!(st.success(), "exit {st:?}");
+    assert!(
+        got.iter().any(|m| m.lines().any(|l| l == "STOPPING=1")),
+        "{got:?}"
+    );
+    let files = mcaps(&tmp.path().join("rec"));
+    assert_eq!(files.len(), 1, "one file per segment: {files:?}");
+    let bytes = std::fs::read(&files[0]).unwrap();
+    let summary = mcap::Summary::read(&bytes).unwrap().expect("clean close: summary");
+    let topics: Vec<&str> = summary
+        .channels
+        .values()
+        .map(|c| c.topic.as_str())
+        .collect();
+    for t in ["/accel/vertical", "/tacho/analog", "/features", "/health"] {
+        assert!(topics.contains(&t), "{t} missing: {topics:?}");
+    }
+    let n_health = health_lines(&out).len();
+    println!(
+        "FIGURE SIGTERM: exit 0 in {exit_s:.2} s, STOPPING=1 sent, {} B file with summary and \
+         footer, {n_health} health messages printed",
+        bytes.len()
+    );
+}
+
+/// `rigmon replay <file> --json`: the health messages.
+fn replay_json(file: &Path) -> Vec<HealthMessage> {
+    let out = Command::new(bin())
+        .args(["replay", file.to_str().unwrap(), "--json", "--rig"])
+        .arg(rig_path())
+        .arg("--model")
+        .arg(model())
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}: {}",
+        file.display(),
+        String::from_utf8_lossy(&out.stderr)
+    );
+    String::from_utf8_lossy(&out.stdout)
+        .lines()
+        .filter_map(|l| serde_json::from_str(l).ok())
+        .collect()
+}
+
+fn write_faulty(dir: &Path, name: &str, f: impl Fn(&mut Recording)) -> PathBuf {
+    let mut rec = read_recording(&healthy_replay()).unwrap();
+    f(&mut rec);
+    let p = dir.join(format!("{name}.mcap"));
+    write_recording(&p, &rec).unwrap();
+    p
+}
+
+fn channel(rec: &mut Recording, name: &str) -> usize {
+    rec.channels.iter().position(|c| c.name == name).unwrap()
+}
+
+#[test]
+fn signal_faults_raise_quality_flags_and_never_a_fault_alarm() {
+    let tmp = tempfile::tempdir().unwrap();
+    let fs = read_recording(&healthy_replay()).unwrap().sample_rate;
+    let half = |rec: &Recording| rec.len() / 2;
+    // (name, recording, flag expected, windows that must carry it at least)
+    let cases: Vec<(&str, PathBuf, &str)> = vec![
+        ("healthy", healthy_replay(), ""),
+        (
+            "tacho_lost",
+            write_faulty(tmp.path(), "tacho_lost", |r| {
+                let h = half(r);
+                if let Some(Tacho::Analog { samples, .. }) = &mut r.tacho {
+                    samples[h..].iter_mut().for_each(|x| *x = 0.0);
+                } else {
+                    panic!("the healthy replay has an analog tacho");
+                }
+            }),
+            "tacho",
+        ),
+        (
+            "nan_bursts",
+            write_faulty(tmp.path(), "nan_bursts", |r| {
+                let k = channel(r, "vertical");
+                let n = r.len();
+                // 20 ms of NaN and Inf every second.
+                for s in (0..n).step_by(fs as usize) {
+                    for (j, x) in r.channels[k].samples[s..(s + (0.02 * fs) as usize).min(n)]
+                        .iter_mut()
+                        .enumerate()
+                    {
+                        *x = if j % 2 == 0 { f32::NAN } else { f32::INFINITY };
+                    }
+                }
+            }),
+            "nan",
+        ),
+        (
+            "clipping",
+            write_faulty(tmp.path(), "clipping", |r| {
+                let k = channel(r, "vertical");
+                let peak = r.channels[k].samples.iter().fold(0f32, |m, x| m.max(x.abs()));
+                let c = 0.5 * peak;
+                r.channels[k].samples.iter_mut().for_each(|x| *x = x.clamp(-c, c));
+            }),
+            "clipping",
+        ),
+        (
+            "partial_clipping_one_channel",
+            write_faulty(tmp.path(), "partial_clipping", |r| {
+                // Only the positive peaks of the axial channel, only in the second half.
+                let k = channel(r, "axial");
+                let h = half(r);
+                let peak = r.channels[k].samples.iter().fold(0f32, |m, &x| m.max(x));
+                let c = 0.6 * peak;
+                r.channels[k].samples[h..].iter_mut().for_each(|x| *x = x.min(c));
+            }),
+            "clipping",
+        ),
+        (
+            "dc_offset",
+            write_faulty(tmp.path(), "dc_offset", |r| {
+                let k = channel(r, "vertical");
+                let s = &mut r.channels[k].samples;
+                let rms = (s.iter().map(|x| x * x).sum::<f32>() / s.len() as f32).sqrt();
+                s.iter_mut().for_each(|x| *x += 3.0 * rms);
+            }),
+            "dc_offset",
+        ),
+        (
+            "dead_sensor",
+            write_faulty(tmp.path(), "dead_sensor", |r| {
+                let k = channel(r, "horizontal");
+                r.channels[k].samples.iter_mut().for_each(|x| *x = 0.0);
+            }),
+            "flat",
+        ),
+    ];
+    let mut figures = Vec::new();
+    for (name, file, flag) in &cases {
+        let msgs = replay_json(file);
+        assert!(msgs.len() >= 10, "{name}: {} windows", msgs.len());
+        let alarms: Vec<String> = msgs
+            .iter()
+            .filter(|m| FAULTS.contains(&m.state.as_str()) || FAULTS.contains(&m.window_state.as_str()))
+            .map(|m| format!("{:.1}s {}/{}", m.window.end_s, m.window_state, m.state))
+            .collect();
+        assert!(alarms.is_empty(), "{name}: false alarm: {alarms:?}");
+        let flagged = msgs
+            .iter()
+            .filter(|m| !flag.is_empty() && m.quality.flags.iter().any(|f| f.contains(flag)))
+            .count();
+        if flag.is_empty() {
+            let healthy = msgs.iter().filter(|m| m.state == "healthy").count();
+            assert!(healthy > 0, "{name}: never healthy");
+            figures.push(format!("{name}: 0 alarms, {healthy}/{} windows healthy", msgs.len()));
+            continue;
+        }
+        assert!(flagged > 0, "{name}: no window flagged '{flag}'");
+        if *name == "tacho_lost" {
+            let last = msgs.last().unwrap();
+            assert_eq!(last.state, "unknown", "{name}: {last:?}");
+            assert_eq!(last.window_state, "unknown");
+        }
+        if *name == "dead_sensor" {
+            assert!(msgs
+                .iter()
+                .any(|m| m.quality.flat_channels.contains(&"horizontal".to_string())));
+        }
+        let unknown = msgs.iter().filter(|m| m.window_state == "unknown").count();
+        figures.push(format!(
+            "{name}: '{flag}' on {flagged}/{} windows, {unknown} unknown, 0 alarms, final state {}",
+            msgs.len(),
+            msgs.last().unwrap().state
+        ));
+    }
+    for f in figures {
+        println!("FIGURE signal fault {f}");
+    }
+}
+
+#[test]
+fn a_missing_corrupt_or_wrong_shape_model_stops_the_start_with_a_clear_error() {
+    let tmp = tempfile::tempdir().unwrap();
+    let corrupt = tmp.path().join("corrupt.onnx");
+    std::fs::write(&corrupt, b"this is not an ONNX file").unwrap();
+    // A valid ONNX model for another rig: 100 features of the CWRU drive end, other labels.
+    let wrong = repo().join("models/cwru-de.onnx");
+    let missing = tmp.path().join("missing.onnx");
+    for (what, m) in [("missing", &missing), ("corrupt", &corrupt), ("wrong shape", &wrong)] {
+        let cfg = daemon_config(tmp.path(), &healthy_replay(), m, "1.0", 7654, false);
+        let t = Instant::now();
+        let out = Command::new(bin())
+            .args(["run", "--config", cfg.to_str().unwrap()])
+            .output()
+            .unwrap();
+        let s = t.elapsed().as_secs_f64();
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(!out.status.success(), "{what}: the daemon started");
+        let name = m.file_name().unwrap().to_str().unwrap();
+        assert!(err.contains(name), "{what}: the error must name {name}: {err}");
+        let last = err.lines().rev().find(|l| !l.trim().is_empty()).unwrap_or("");
+        println!(
+            "FIGURE model {what}: exit code {:?} after {s:.2} s: {}",
+            out.status.code(),
+            last.trim()
+        );
+    }
+}
