@@ -61,6 +61,18 @@ impl Effect {
         }
     }
 
+    /// The error components this effect acts on: its parameters are searched, and it is
+    /// accepted, on these alone, so an effect cannot win by absorbing a mismatch it does not
+    /// model physically (e.g. a contact angle reshaping the resonance bands).
+    pub fn components(&self) -> &'static [&'static str] {
+        match self {
+            Effect::Slip | Effect::ContactAngle => &["env"],
+            Effect::Resonance => &["bands"],
+            Effect::Unbalance | Effect::LineInterference => &["lines"],
+            Effect::SpeedFluctuation => &["speed", "lines"],
+        }
+    }
+
     /// Parameters and bounds; `fs` is the lowest measured sample rate.
     pub fn params(&self, fs: f64) -> Vec<Param> {
         let p = |name, range| Param { name, range };
@@ -85,11 +97,7 @@ impl Effect {
         match self {
             Effect::Slip => vec![sim.bearing.slip],
             Effect::ContactAngle => vec![sim.bearing.contact_angle_deg.unwrap_or(0.0)],
-            Effect::Resonance => vec![sim
-                .structure
-                .resonances
-                .first()
-                .map_or(0.2 * fs, |r| r.hz)],
+            Effect::Resonance => vec![sim.structure.resonances.first().map_or(0.2 * fs, |r| r.hz)],
             Effect::Unbalance => vec![1.0],
             Effect::LineInterference => vec![50.0, 0.1],
             Effect::SpeedFluctuation => vec![1.0, 0.01],

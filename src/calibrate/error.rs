@@ -45,6 +45,22 @@ pub fn pair(m: &Views, s: &Views) -> ErrorParts {
     }
 }
 
+impl ErrorParts {
+    /// Sum of the named components (`env`, `lines`, `bands`, `speed`).
+    pub fn of(&self, names: &[&str]) -> f64 {
+        names
+            .iter()
+            .map(|n| match *n {
+                "env" => self.env,
+                "lines" => self.lines,
+                "bands" => self.bands,
+                "speed" => self.speed,
+                _ => self.total,
+            })
+            .sum()
+    }
+}
+
 /// Mean over pairs.
 pub fn mean(parts: &[ErrorParts]) -> ErrorParts {
     let n = parts.len().max(1) as f64;

@@ -18,15 +18,15 @@ use serde::Serialize;
 use std::collections::{BTreeMap, HashMap};
 use std::sync::{Arc, Mutex};
 
-/// Relative / absolute cuts an effect must make on the fit part...
-pub const FIT_CUT: (f64, f64) = (0.15, 1.0);
+/// Relative and absolute cuts an effect must make, in its own components, on the fit part...
+pub const FIT_CUT: (f64, f64) = (0.15, 0.05);
 /// ... and on the held-out part.
-pub const HELD_CUT: (f64, f64) = (0.10, 0.5);
+pub const HELD_CUT: (f64, f64) = (0.10, 0.03);
 
-/// Acceptance rule: the fit part drops by >= 15 % (or >= 1.0) AND the held-out part by
-/// >= 10 % (or >= 0.5).
+/// Acceptance rule, on the effect's own error components: the fit part drops by >= 15 %
+/// and >= 0.05 AND the held-out part by >= 10 % and >= 0.03.
 pub fn accepts(fit: (f64, f64), held: (f64, f64)) -> bool {
-    let cut = |(b, a): (f64, f64), (rel, abs): (f64, f64)| b - a >= rel * b || b - a >= abs;
+    let cut = |(b, a): (f64, f64), (rel, abs): (f64, f64)| b - a >= rel * b && b - a >= abs;
     cut(fit, FIT_CUT) && cut(held, HELD_CUT)
 }
 
@@ -39,6 +39,12 @@ pub struct Trial {
     pub fit_after: f64,
     pub held_before: f64,
     pub held_after: f64,
+    /// The effect's own components (search and acceptance), fit and held-out part.
+    pub own: Vec<String>,
+    pub own_fit_before: f64,
+    pub own_fit_after: f64,
+    pub own_held_before: f64,
+    pub own_held_after: f64,
     /// Error over all recordings before / after.
     pub error_before: f64,
     pub error_after: f64,
@@ -152,8 +158,9 @@ pub fn calibrate(rig: &RigConfig, ops: &[Measured], fit_part: Vec<bool>) -> Resu
     let mut accepted: Vec<Trial> = Vec::new();
     let mut rounds = Vec::new();
     loop {
-        let cur_fit = twin.error(&current, &fit)?.total;
-        let cur_held = twin.error(&current, &held)?.total;
+        let cur_fit_parts = twin.error(&current, &fit)?;
+        let cur_held_parts = twin.error(&current, &held)?;
+        let (cur_fit, cur_held) = (cur_fit_parts.total, cur_held_parts.total);
         let cur_all = twin.error(&current, &all)?.total;
         let mut trials = Vec::new();
         for effect in ALL {
@@ -163,20 +170,26 @@ pub fn calibrate(rig: &RigConfig, ops: &[Measured], fit_part: Vec<bool>) -> Resu
             let params = effect.params(fs);
             let start = effect.start(&current, fs);
             let mut failure = None;
-            let (values, fit_after, evals) = search::minimize(&params, &start, &mut |x| {
-                match twin.error(&effect.apply(&current, x), &fit) {
-                    Ok(e) => e.total,
+            let own = effect.components();
+            let (values, own_fit_after, evals) =
+                search::minimize(&params, &start, &mut |x| match twin
+                    .error(&effect.apply(&current, x), &fit)
+                {
+                    Ok(e) => e.of(own),
                     Err(e) => {
                         failure.get_or_insert(e);
                         f64::INFINITY
                     }
-                }
-            });
+                });
             if let Some(e) = failure {
                 return Err(e.context(format!("trying effect {}", effect.name())));
             }
             let cand = effect.apply(&current, &values);
-            let held_after = twin.error(&cand, &held)?.total;
+            let fit_after = twin.error(&cand, &fit)?.total;
+            let held_parts = twin.error(&cand, &held)?;
+            let held_after = held_parts.total;
+            let (own_fit_before, own_held_before) = (cur_fit_parts.of(own), cur_held_parts.of(own));
+            let own_held_after = held_parts.of(own);
             let all_after = twin.error(&cand, &all)?.total;
             let mut p: BTreeMap<String, f64> = params
                 .iter()
@@ -193,7 +206,15 @@ pub fn calibrate(rig: &RigConfig, ops: &[Measured], fit_part: Vec<bool>) -> Resu
                 held_after,
                 error_before: cur_all,
                 error_after: all_after,
-                accepted: accepts((cur_fit, fit_after), (cur_held, held_after)),
+                own: own.iter().map(|s| s.to_string()).collect(),
+                own_fit_before,
+                own_fit_after,
+                own_held_before,
+                own_held_after,
+                accepted: accepts(
+                    (own_fit_before, own_fit_after),
+                    (own_held_before, own_held_after),
+                ),
                 evaluations: evals,
                 effect: Some(effect),
                 values,
@@ -203,7 +224,10 @@ pub fn calibrate(rig: &RigConfig, ops: &[Measured], fit_part: Vec<bool>) -> Resu
             .iter()
             .enumerate()
             .filter(|(_, t)| t.accepted)
-            .min_by(|a, b| a.1.fit_after.total_cmp(&b.1.fit_after))
+            .max_by(|a, b| {
+                let cut = |t: &Trial| t.own_fit_before - t.own_fit_after;
+                cut(a.1).total_cmp(&cut(b.1))
+            })
             .map(|(i, _)| i);
         for (i, t) in trials.iter_mut().enumerate() {
             t.accepted = Some(i) == best;

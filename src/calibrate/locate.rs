@@ -57,17 +57,32 @@ pub fn locate(pairs: &[(&Views, &Views)]) -> Vec<Unexplained> {
         let res: Vec<f64> = m.lines.iter().zip(&s.lines).map(|(a, b)| a - b).collect();
         for (i, e) in peaks(&res, LINE_EXCESS_DB) {
             let hz = (i + LINES_MIN_HZ) as f64;
-            line_peaks.push(Peak { rec: r, hz, order: hz / fr, excess: e });
+            line_peaks.push(Peak {
+                rec: r,
+                hz,
+                order: hz / fr,
+                excess: e,
+            });
         }
         let res: Vec<f64> = m.env.iter().zip(&s.env).map(|(a, b)| a - b).collect();
         for (i, e) in peaks(&res, LINE_EXCESS_DB) {
             let o = env_order(i);
-            env_peaks.push(Peak { rec: r, hz: o * fr, order: o, excess: e });
+            env_peaks.push(Peak {
+                rec: r,
+                hz: o * fr,
+                order: o,
+                excess: e,
+            });
         }
         for (i, (a, b)) in m.bands.iter().zip(&s.bands).enumerate() {
             if a - b > BAND_EXCESS_DB {
                 let hz = m.band_lo_hz[i] + BAND_HZ / 2.0;
-                band_peaks.push(Peak { rec: r, hz, order: hz / fr, excess: a - b });
+                band_peaks.push(Peak {
+                    rec: r,
+                    hz,
+                    order: hz / fr,
+                    excess: a - b,
+                });
             }
         }
     }
@@ -130,7 +145,13 @@ fn group(peaks: &[Peak], speeds: &[f64], view: &str, out: &mut Vec<Unexplained>)
         }
         let mean = members
             .iter()
-            .map(|&j| if unit == "order" { peaks[j].order } else { peaks[j].hz })
+            .map(|&j| {
+                if unit == "order" {
+                    peaks[j].order
+                } else {
+                    peaks[j].hz
+                }
+            })
             .sum::<f64>()
             / members.len() as f64;
         out.push(Unexplained {

@@ -48,14 +48,15 @@ pub fn load(rig: &RigConfig, inputs: &[PathBuf], max_seconds: f64) -> Result<Vec
         let label = label
             .or_else(|| rec.metadata.get("label").cloned())
             .unwrap_or_else(|| "healthy".into());
-        let faults = Fault::parse_list(&label)
-            .with_context(|| format!("label of {}", path.display()))?;
+        let faults =
+            Fault::parse_list(&label).with_context(|| format!("label of {}", path.display()))?;
         cut(&mut rec, 0.0, max_seconds);
         let rpm = mean_rpm(&rec, rig).with_context(|| format!("speed of {}", path.display()))?;
         out.push(Measured {
-            name: path
-                .file_name()
-                .map_or_else(|| path.display().to_string(), |n| n.to_string_lossy().into()),
+            name: path.file_name().map_or_else(
+                || path.display().to_string(),
+                |n| n.to_string_lossy().into(),
+            ),
             label,
             faults,
             rpm,

@@ -10,7 +10,13 @@ use std::path::Path;
 
 type Series<'a> = (&'a str, RGBColor, Vec<(f64, f64)>);
 
-fn chart(area: &DrawingArea<BitMapBackend, plotters::coord::Shift>, title: &str, x: &str, y: &str, series: &[Series]) -> Result<()> {
+fn chart(
+    area: &DrawingArea<BitMapBackend, plotters::coord::Shift>,
+    title: &str,
+    x: &str,
+    y: &str,
+    series: &[Series],
+) -> Result<()> {
     let e = |err: &dyn std::fmt::Display| anyhow!("drawing {title}: {err}");
     let (mut x0, mut x1, mut y0, mut y1) = (f64::MAX, f64::MIN, f64::MAX, f64::MIN);
     for (_, _, pts) in series {
@@ -66,25 +72,47 @@ const AFTER: RGBColor = RGBColor(30, 90, 220);
 pub fn spectra(path: &Path, name: &str, m: &Views, b: &Views, a: &Views) -> Result<()> {
     ensure_font()?;
     let root = BitMapBackend::new(path, (1400, 900)).into_drawing_area();
-    root.fill(&WHITE).map_err(|x| anyhow!("drawing {}: {x}", path.display()))?;
+    root.fill(&WHITE)
+        .map_err(|x| anyhow!("drawing {}: {x}", path.display()))?;
     let (top, bottom) = root.split_vertically(450);
-    let env = |v: &Views| v.env_db.iter().enumerate().map(|(i, d)| (env_order(i), *d)).collect();
+    let env = |v: &Views| {
+        v.env_db
+            .iter()
+            .enumerate()
+            .map(|(i, d)| (env_order(i), *d))
+            .collect()
+    };
     chart(
         &top,
         &format!("{name}: envelope order spectrum"),
         "order",
         "dB above median",
-        &[("measured", MEAS, env(m)), ("simulated before", BEFORE, env(b)), ("simulated after", AFTER, env(a))],
+        &[
+            ("measured", MEAS, env(m)),
+            ("simulated before", BEFORE, env(b)),
+            ("simulated after", AFTER, env(a)),
+        ],
     )?;
-    let bands = |v: &Views| v.bands.iter().zip(&v.band_lo_hz).map(|(d, lo)| (lo + BAND_HZ / 2.0, *d)).collect();
+    let bands = |v: &Views| {
+        v.bands
+            .iter()
+            .zip(&v.band_lo_hz)
+            .map(|(d, lo)| (lo + BAND_HZ / 2.0, *d))
+            .collect()
+    };
     chart(
         &bottom,
         "band energy (100 Hz bands)",
         "Hz",
         "dB re mean band",
-        &[("measured", MEAS, bands(m)), ("simulated before", BEFORE, bands(b)), ("simulated after", AFTER, bands(a))],
+        &[
+            ("measured", MEAS, bands(m)),
+            ("simulated before", BEFORE, bands(b)),
+            ("simulated after", AFTER, bands(a)),
+        ],
     )?;
-    root.present().map_err(|x| anyhow!("writing {}: {x}", path.display()))?;
+    root.present()
+        .map_err(|x| anyhow!("writing {}: {x}", path.display()))?;
     Ok(())
 }
 
@@ -92,12 +120,38 @@ pub fn spectra(path: &Path, name: &str, m: &Views, b: &Views, a: &Views) -> Resu
 pub fn residual(path: &Path, name: &str, m: &Views, a: &Views) -> Result<()> {
     ensure_font()?;
     let root = BitMapBackend::new(path, (1400, 900)).into_drawing_area();
-    root.fill(&WHITE).map_err(|x| anyhow!("drawing {}: {x}", path.display()))?;
+    root.fill(&WHITE)
+        .map_err(|x| anyhow!("drawing {}: {x}", path.display()))?;
     let (top, bottom) = root.split_vertically(450);
-    let env: Vec<(f64, f64)> = m.env.iter().zip(&a.env).enumerate().map(|(i, (x, y))| (env_order(i), x - y)).collect();
-    chart(&top, &format!("{name}: residual, envelope view"), "order", "dB (thresholded)", &[("measured - simulated after", AFTER, env)])?;
-    let lines: Vec<(f64, f64)> = m.lines.iter().zip(&a.lines).enumerate().map(|(i, (x, y))| ((i + LINES_MIN_HZ) as f64, x - y)).collect();
-    chart(&bottom, "residual, raw lines view", "Hz", "dB (thresholded)", &[("measured - simulated after", AFTER, lines)])?;
-    root.present().map_err(|x| anyhow!("writing {}: {x}", path.display()))?;
+    let env: Vec<(f64, f64)> = m
+        .env
+        .iter()
+        .zip(&a.env)
+        .enumerate()
+        .map(|(i, (x, y))| (env_order(i), x - y))
+        .collect();
+    chart(
+        &top,
+        &format!("{name}: residual, envelope view"),
+        "order",
+        "dB (thresholded)",
+        &[("measured - simulated after", AFTER, env)],
+    )?;
+    let lines: Vec<(f64, f64)> = m
+        .lines
+        .iter()
+        .zip(&a.lines)
+        .enumerate()
+        .map(|(i, (x, y))| ((i + LINES_MIN_HZ) as f64, x - y))
+        .collect();
+    chart(
+        &bottom,
+        "residual, raw lines view",
+        "Hz",
+        "dB (thresholded)",
+        &[("measured - simulated after", AFTER, lines)],
+    )?;
+    root.present()
+        .map_err(|x| anyhow!("writing {}: {x}", path.display()))?;
     Ok(())
 }

@@ -21,7 +21,13 @@ pub fn calibration_id(o: &Outcome, ops: &[Measured]) -> String {
         h.update(m.label.as_bytes());
     }
     let d = h.finalize();
-    format!("cal-{}", d.iter().take(6).map(|b| format!("{b:02x}")).collect::<String>())
+    format!(
+        "cal-{}",
+        d.iter()
+            .take(6)
+            .map(|b| format!("{b:02x}"))
+            .collect::<String>()
+    )
 }
 
 fn r3(v: f64) -> f64 {
@@ -88,16 +94,39 @@ pub fn markdown(rig: &RigConfig, o: &Outcome, ops: &[Measured], id: &str) -> Str
     );
     let _ = writeln!(s, "| component | before | after |\n|---|---|---|");
     for (n, b, a) in [
-        ("env (envelope order spectrum, dB)", o.before.env, o.after.env),
-        ("lines (raw spectrum lines, dB)", o.before.lines, o.after.lines),
-        ("bands (100 Hz band energies, dB)", o.before.bands, o.after.bands),
-        ("speed (speed-deviation spectrum)", o.before.speed, o.after.speed),
+        (
+            "env (envelope order spectrum, dB)",
+            o.before.env,
+            o.after.env,
+        ),
+        (
+            "lines (raw spectrum lines, dB)",
+            o.before.lines,
+            o.after.lines,
+        ),
+        (
+            "bands (100 Hz band energies, dB)",
+            o.before.bands,
+            o.after.bands,
+        ),
+        (
+            "speed (speed-deviation spectrum)",
+            o.before.speed,
+            o.after.speed,
+        ),
     ] {
         let _ = writeln!(s, "| {n} | {b:.3} | {a:.3} |");
     }
     let _ = writeln!(s, "\n## Split (checkerboard by recording)\n\n| recording | label | rpm | part |\n|---|---|---|---|");
     for (m, f) in ops.iter().zip(&o.fit_part) {
-        let _ = writeln!(s, "| {} | {} | {:.1} | {} |", m.name, m.label, m.rpm, if *f { "fit" } else { "held out" });
+        let _ = writeln!(
+            s,
+            "| {} | {} | {:.1} | {} |",
+            m.name,
+            m.label,
+            m.rpm,
+            if *f { "fit" } else { "held out" }
+        );
     }
     let _ = writeln!(s, "\n## Effects added (in order)\n");
     if o.accepted.is_empty() {
@@ -107,7 +136,14 @@ pub fn markdown(rig: &RigConfig, o: &Outcome, ops: &[Measured], id: &str) -> Str
         let _ = writeln!(
             s,
             "- `{}` {:?}: all {:.3} -> {:.3}, fit {:.3} -> {:.3}, held-out {:.3} -> {:.3}",
-            t.name, t.params, t.error_before, t.error_after, t.fit_before, t.fit_after, t.held_before, t.held_after
+            t.name,
+            t.params,
+            t.error_before,
+            t.error_after,
+            t.fit_before,
+            t.fit_after,
+            t.held_before,
+            t.held_after
         );
     }
     let _ = writeln!(s, "\n## Every trial, by round\n\n| round | effect | params | fit before -> after | held-out before -> after | accepted |\n|---|---|---|---|---|---|");
@@ -116,20 +152,37 @@ pub fn markdown(rig: &RigConfig, o: &Outcome, ops: &[Measured], id: &str) -> Str
             let _ = writeln!(
                 s,
                 "| {} | {} | {:?} | {:.3} -> {:.3} | {:.3} -> {:.3} | {} |",
-                r + 1, t.name, t.params, t.fit_before, t.fit_after, t.held_before, t.held_after, if t.accepted { "yes" } else { "no" }
+                r + 1,
+                t.name,
+                t.params,
+                t.fit_before,
+                t.fit_after,
+                t.held_before,
+                t.held_after,
+                if t.accepted { "yes" } else { "no" }
             );
         }
     }
     let _ = writeln!(s, "\n## Unexplained\n");
     if o.unexplained.is_empty() {
-        let _ = writeln!(s, "Nothing above the thresholds (lines/envelope 10 dB, bands 6 dB).");
+        let _ = writeln!(
+            s,
+            "Nothing above the thresholds (lines/envelope 10 dB, bands 6 dB)."
+        );
     } else {
         let _ = writeln!(s, "| location | unit | locked to | view | excess dB | recordings |\n|---|---|---|---|---|---|");
         for u in &o.unexplained {
-            let _ = writeln!(s, "| {} | {} | {} | {} | {} | {} |", u.location, u.unit, u.locked_to, u.view, u.excess_db, u.recordings);
+            let _ = writeln!(
+                s,
+                "| {} | {} | {} | {} | {} | {} |",
+                u.location, u.unit, u.locked_to, u.view, u.excess_db, u.recordings
+            );
         }
     }
-    let _ = writeln!(s, "\n![measured vs simulated](spectra.png)\n\n![residual](residual.png)");
+    let _ = writeln!(
+        s,
+        "\n![measured vs simulated](spectra.png)\n\n![residual](residual.png)"
+    );
     s
 }
 
@@ -142,7 +195,9 @@ pub fn write_rig(rig_path: &Path, out: &Path, o: &Outcome, id: &str) -> Result<(
         .with_context(|| format!("rig file {} is not valid TOML", rig_path.display()))?;
     table.insert(
         "simulation".into(),
-        toml::Value::Table(toml::Table::try_from(&o.calibrated).context("serialising [simulation]")?),
+        toml::Value::Table(
+            toml::Table::try_from(&o.calibrated).context("serialising [simulation]")?,
+        ),
     );
     let mut effects = toml::value::Array::new();
     for t in &o.accepted {

@@ -58,12 +58,11 @@ pub fn minimize(
                         eval(from_u(r, u), &mut x)
                     })
                     .collect();
-                let k = (0..GRID).min_by(|a, b| es[*a].total_cmp(&es[*b])).unwrap_or(0);
+                let k = (0..GRID)
+                    .min_by(|a, b| es[*a].total_cmp(&es[*b]))
+                    .unwrap_or(0);
                 let (mut bu, mut be) = (us[k], es[k]);
-                let (mut lo, mut hi) = (
-                    us[k.saturating_sub(1)],
-                    us[(k + 1).min(GRID - 1)],
-                );
+                let (mut lo, mut hi) = (us[k.saturating_sub(1)], us[(k + 1).min(GRID - 1)]);
                 let g = 0.618_033_988_75;
                 let mut c = hi - g * (hi - lo);
                 let mut d = lo + g * (hi - lo);

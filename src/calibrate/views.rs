@@ -6,8 +6,8 @@
 //! - `lines`: raw spectrum in Hz (Welch, 1 Hz bins, 2-[`LINES_MAX_HZ`] Hz), dB above the local
 //!   median (+-25 Hz), 6 dB threshold: narrowband content, order-locked or not (1x/2x,
 //!   electrical lines);
-//! - `bands`: energy in 100 Hz bands from 300 Hz to 0.4 fs, dB relative to the mean band:
-//!   where the structural resonances put the impact energy;
+//! - `bands`: energy in 100 Hz bands from 300 Hz to 0.4 fs, dB within [`BAND_RANGE_DB`] of
+//!   the strongest band (0 below): where the structural resonances put the impact energy;
 //! - `speed`: amplitude spectrum (0.2-5 Hz) of the relative shaft-speed deviation in percent,
 //!   from the speed source: speed fluctuation.
 
@@ -29,6 +29,8 @@ pub const SPEED_MIN_HZ: f64 = 0.2;
 pub const SPEED_MAX_HZ: f64 = 5.0;
 pub const SPEED_STEP_HZ: f64 = 0.05;
 const THRESHOLD_DB: f64 = 6.0;
+/// Bands more than this below the strongest band count as 0.
+pub const BAND_RANGE_DB: f64 = 20.0;
 const CAP_DB: f64 = 60.0;
 
 /// All views of one recording.
@@ -110,8 +112,10 @@ pub fn compute(rec: &Recording, rig: &RigConfig) -> Result<Views> {
         band_lo_hz.push(lo);
         lo += BAND_HZ;
     }
-    let mean = bands.iter().sum::<f64>() / bands.len().max(1) as f64;
-    bands.iter_mut().for_each(|b| *b -= mean);
+    let top = bands.iter().copied().fold(f64::MIN, f64::max);
+    bands
+        .iter_mut()
+        .for_each(|b| *b = (*b - top + BAND_RANGE_DB).max(0.0));
 
     // speed deviation spectrum (percent), Hann-windowed direct DFT on a 100 Hz grid
     let n_sp = (dur * 100.0) as usize;

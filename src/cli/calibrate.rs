@@ -52,11 +52,24 @@ pub fn run(a: Args) -> Result<()> {
         .with_context(|| format!("cannot create report folder {}", a.report.display()))?;
     report::write_rig(&a.rig, &a.output, &outcome, &id)?;
     let j = report::json(&rig, &outcome, &ops, &id);
-    std::fs::write(a.report.join("report.json"), serde_json::to_string_pretty(&j)?)?;
+    std::fs::write(
+        a.report.join("report.json"),
+        serde_json::to_string_pretty(&j)?,
+    )?;
     std::fs::write(
         a.report.join("report.md"),
         report::markdown(&rig, &outcome, &ops, &id),
     )?;
+    let dump: Vec<serde_json::Value> = (0..ops.len())
+        .map(|i| {
+            let v = |w: &crate::calibrate::views::Views| {
+                serde_json::json!({"rpm": w.rpm, "env": w.env, "lines": w.lines, "bands": w.bands, "band_lo_hz": w.band_lo_hz, "speed": w.speed})
+            };
+            serde_json::json!({"recording": ops[i].name, "measured": v(&outcome.measured_views[i]),
+                "before": v(&outcome.views_before[i]), "after": v(&outcome.views_after[i])})
+        })
+        .collect();
+    std::fs::write(a.report.join("views.json"), serde_json::to_string(&dump)?)?;
     // plots for the recording with the largest error before calibration
     let worst = (0..ops.len())
         .max_by(|x, y| {

@@ -31,14 +31,16 @@ pub struct Args {
 }
 
 pub fn run(args: Args) -> Result<()> {
-    // Without flags, connect to a daemon on this machine (the shipped config's endpoint).
-    let settings = if args.zenoh.any() {
+    // Without endpoints (or a zenoh config file), connect to a daemon on this machine (the
+    // shipped config's endpoint); other flags (--user, --mode) apply on top.
+    let local = ZenohSettings {
+        connect: vec![format!("tcp/127.0.0.1:{DEFAULT_PORT}")],
+        ..Default::default()
+    };
+    let settings = if args.zenoh.zenoh_config.is_some() || !args.zenoh.listen.is_empty() {
         args.zenoh.apply(ZenohSettings::default())
     } else {
-        ZenohSettings {
-            connect: vec![format!("tcp/127.0.0.1:{DEFAULT_PORT}")],
-            ..Default::default()
-        }
+        args.zenoh.apply(local)
     };
     let sub = ZenohSubscriber::open(&settings, &args.key_expr)?;
     tracing::info!(

@@ -106,6 +106,19 @@ impl DaemonConfig {
         if let Some(p) = &self.zenoh.config_file {
             self.zenoh.config_file = Some(resolve_relative(base_file, p));
         }
+        let z = &mut self.zenoh;
+        for p in [
+            &mut z.auth.users_file,
+            &mut z.auth.password_file,
+            &mut z.tls.root_ca,
+            &mut z.tls.cert,
+            &mut z.tls.key,
+        ]
+        .into_iter()
+        .flatten()
+        {
+            *p = resolve_relative(base_file, p);
+        }
         if self.recording.dir.is_relative() {
             self.recording.dir = match std::env::var_os("STATE_DIRECTORY") {
                 // systemd may pass several colon-separated directories; the first is ours.

@@ -5,4 +5,5 @@
 //! Key expressions: `rigmon/<rig>/<asset>/<point>/{health,spectrum,status,config}` and the
 //! liveliness token `rigmon/<rig>/<asset>/<point>/alive`.
 
+pub mod access;
 pub mod zenoh;

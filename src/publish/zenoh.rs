@@ -14,6 +14,8 @@ use std::time::{Duration, Instant};
 use zenoh::qos::CongestionControl;
 use zenoh::Wait;
 
+pub use super::access::{AclSettings, AuthSettings, TlsSettings};
+
 /// Default TCP port rigmon listens on (loopback only in the shipped config).
 pub const DEFAULT_PORT: u16 = 7448;
 
@@ -43,6 +45,15 @@ pub struct ZenohSettings {
     /// First key segment (default `rigmon`).
     #[serde(default = "default_prefix")]
     pub key_prefix: String,
+    /// User/password authentication (`[zenoh.auth]`).
+    #[serde(default, skip_serializing_if = "AuthSettings::is_empty")]
+    pub auth: AuthSettings,
+    /// TLS certificates (`[zenoh.tls]`, with the `tls` feature).
+    #[serde(default, skip_serializing_if = "TlsSettings::is_empty")]
+    pub tls: TlsSettings,
+    /// Access-control list (`[zenoh.acl]`).
+    #[serde(default, skip_serializing_if = "AclSettings::is_empty")]
+    pub acl: AclSettings,
 }
 
 fn yes() -> bool {
@@ -65,6 +76,9 @@ impl Default for ZenohSettings {
             multicast_scouting: false,
             config_file: None,
             key_prefix: default_prefix(),
+            auth: AuthSettings::default(),
+            tls: TlsSettings::default(),
+            acl: AclSettings::default(),
         }
     }
 }
@@ -84,6 +98,12 @@ pub struct ZenohArgs {
     /// A zenoh JSON5 config file (the flags above are applied on top of it).
     #[arg(long = "zenoh-config", value_name = "JSON5")]
     pub zenoh_config: Option<PathBuf>,
+    /// User name for zenoh's user/password authentication (with --password-file).
+    #[arg(long, value_name = "NAME", requires = "password_file")]
+    pub user: Option<String>,
+    /// File whose first line is the password for --user.
+    #[arg(long, value_name = "FILE", requires = "user")]
+    pub password_file: Option<PathBuf>,
 }
 
 impl ZenohArgs {
@@ -93,6 +113,7 @@ impl ZenohArgs {
             || !self.connect.is_empty()
             || !self.listen.is_empty()
             || self.zenoh_config.is_some()
+            || self.user.is_some()
     }
 
     /// Apply the flags over `base` (flags win; given endpoint lists replace the base's).
@@ -108,6 +129,10 @@ impl ZenohArgs {
         }
         if let Some(c) = &self.zenoh_config {
             base.config_file = Some(c.clone());
+        }
+        if let (Some(u), Some(p)) = (&self.user, &self.password_file) {
+            base.auth.user = Some(u.clone());
+            base.auth.password_file = Some(p.clone());
         }
         if self.any() {
             base.enabled = true;
@@ -137,6 +162,7 @@ impl ZenohSettings {
                 self.key_prefix
             );
         }
+        super::access::validate(&self.auth, &self.tls, &self.acl)?;
         for e in self.listen.iter().chain(&self.connect) {
             e.parse::<zenoh::config::EndPoint>().map_err(|err| {
                 anyhow!(
@@ -185,6 +211,7 @@ impl ZenohSettings {
             set(&mut c, "connect/timeout_ms", "-1".into())?;
             set(&mut c, "connect/exit_on_failure", "false".into())?;
         }
+        super::access::apply(&mut c, &self.key_prefix, &self.auth, &self.tls, &self.acl)?;
         Ok(c)
     }
 
