@@ -103,9 +103,8 @@ fn disk_full_while_recording_keeps_monitoring_and_status_says_so() {
         }
     }
     let stderr: Vec<String> = err.try_iter().collect();
-    let (t_fail, n_before) = failed_at.unwrap_or_else(|| {
-        panic!("no RECORDING FAILED in STATUS: {got:?}\nstderr: {stderr:?}")
-    });
+    let (t_fail, n_before) = failed_at
+        .unwrap_or_else(|| panic!("no RECORDING FAILED in STATUS: {got:?}\nstderr: {stderr:?}"));
     let status = got
         .iter()
         .flat_map(|m| m.lines())
@@ -113,7 +112,10 @@ fn disk_full_while_recording_keeps_monitoring_and_status_says_so() {
         .unwrap()
         .to_string();
     assert!(status.contains("disk full"), "{status}");
-    assert!(status.contains(".mcap"), "STATUS must name the file: {status}");
+    assert!(
+        status.contains(".mcap"),
+        "STATUS must name the file: {status}"
+    );
     let after = health.len() - n_before;
     assert!(
         after >= 4,
@@ -129,7 +131,11 @@ fn disk_full_while_recording_keeps_monitoring_and_status_says_so() {
     let bytes = std::fs::metadata(first).unwrap().len();
     assert!(bytes <= limit);
     let rec = read_recording(first).unwrap();
-    assert!(rec.duration_s() > 0.0, "nothing readable in {}", first.display());
+    assert!(
+        rec.duration_s() > 0.0,
+        "nothing readable in {}",
+        first.display()
+    );
     println!(
         "FIGURE disk full (RLIMIT_FSIZE {limit} B, EFBIG): STATUS '{status}' {:.1} s after start; \
          {after} health messages in the next 3 s; first file {bytes} B, {:.2} s of signal readable; \
@@ -149,7 +155,9 @@ fn kill_9_while_recording_reads_back_to_the_last_complete_chunk() {
     let out = lines(child.0.stdout.take().unwrap());
     let mut got = Vec::new();
     let t0 = Instant::now();
-    while t0.elapsed() < Duration::from_secs(30) && !got.iter().any(|m: &String| m.contains("READY=1")) {
+    while t0.elapsed() < Duration::from_secs(30)
+        && !got.iter().any(|m: &String| m.contains("READY=1"))
+    {
         drain(&sock, &mut got);
     }
     let ready = Instant::now();
@@ -182,7 +190,11 @@ fn kill_9_while_recording_reads_back_to_the_last_complete_chunk() {
         py_s >= written_s - 1.5,
         "{py_s} s readable of ~{written_s:.1} s: {v}"
     );
-    assert!((rec.duration_s() - py_s).abs() < 0.11, "rigmon {} s vs python {py_s} s", rec.duration_s());
+    assert!(
+        (rec.duration_s() - py_s).abs() < 0.11,
+        "rigmon {} s vs python {py_s} s",
+        rec.duration_s()
+    );
     assert!(health_n > 0, "{v}");
     println!(
         "FIGURE kill -9 after {written_s:.1} s of recording (flush_s 0.5): {py_s:.1} s readable \
@@ -204,7 +216,9 @@ fn sigterm_closes_the_recording_sends_stopping_and_exits_0() {
     let out = lines(child.0.stdout.take().unwrap());
     let mut got = Vec::new();
     let t0 = Instant::now();
-    while t0.elapsed() < Duration::from_secs(30) && !got.iter().any(|m: &String| m.contains("READY=1")) {
+    while t0.elapsed() < Duration::from_secs(30)
+        && !got.iter().any(|m: &String| m.contains("READY=1"))
+    {
         drain(&sock, &mut got);
     }
     std::thread::sleep(Duration::from_millis(2500));
@@ -221,7 +235,9 @@ fn sigterm_closes_the_recording_sends_stopping_and_exits_0() {
     let files = mcaps(&tmp.path().join("rec"));
     assert_eq!(files.len(), 1, "one file per segment: {files:?}");
     let bytes = std::fs::read(&files[0]).unwrap();
-    let summary = mcap::Summary::read(&bytes).unwrap().expect("clean close: summary");
+    let summary = mcap::Summary::read(&bytes)
+        .unwrap()
+        .expect("clean close: summary");
     let topics: Vec<&str> = summary
         .channels
         .values()
@@ -312,9 +328,15 @@ fn signal_faults_raise_quality_flags_and_never_a_fault_alarm() {
             "clipping",
             write_faulty(tmp.path(), "clipping", |r| {
                 let k = channel(r, "vertical");
-                let peak = r.channels[k].samples.iter().fold(0f32, |m, x| m.max(x.abs()));
+                let peak = r.channels[k]
+                    .samples
+                    .iter()
+                    .fold(0f32, |m, x| m.max(x.abs()));
                 let c = 0.5 * peak;
-                r.channels[k].samples.iter_mut().for_each(|x| *x = x.clamp(-c, c));
+                r.channels[k]
+                    .samples
+                    .iter_mut()
+                    .for_each(|x| *x = x.clamp(-c, c));
             }),
             "clipping",
         ),
@@ -326,7 +348,9 @@ fn signal_faults_raise_quality_flags_and_never_a_fault_alarm() {
                 let h = half(r);
                 let peak = r.channels[k].samples.iter().fold(0f32, |m, &x| m.max(x));
                 let c = 0.6 * peak;
-                r.channels[k].samples[h..].iter_mut().for_each(|x| *x = x.min(c));
+                r.channels[k].samples[h..]
+                    .iter_mut()
+                    .for_each(|x| *x = x.min(c));
             }),
             "clipping",
         ),
@@ -355,7 +379,9 @@ fn signal_faults_raise_quality_flags_and_never_a_fault_alarm() {
         assert!(msgs.len() >= 10, "{name}: {} windows", msgs.len());
         let alarms: Vec<String> = msgs
             .iter()
-            .filter(|m| FAULTS.contains(&m.state.as_str()) || FAULTS.contains(&m.window_state.as_str()))
+            .filter(|m| {
+                FAULTS.contains(&m.state.as_str()) || FAULTS.contains(&m.window_state.as_str())
+            })
             .map(|m| format!("{:.1}s {}/{}", m.window.end_s, m.window_state, m.state))
             .collect();
         assert!(alarms.is_empty(), "{name}: false alarm: {alarms:?}");
@@ -366,7 +392,10 @@ fn signal_faults_raise_quality_flags_and_never_a_fault_alarm() {
         if flag.is_empty() {
             let healthy = msgs.iter().filter(|m| m.state == "healthy").count();
             assert!(healthy > 0, "{name}: never healthy");
-            figures.push(format!("{name}: 0 alarms, {healthy}/{} windows healthy", msgs.len()));
+            figures.push(format!(
+                "{name}: 0 alarms, {healthy}/{} windows healthy",
+                msgs.len()
+            ));
             continue;
         }
         assert!(flagged > 0, "{name}: no window flagged '{flag}'");
@@ -392,30 +421,69 @@ fn signal_faults_raise_quality_flags_and_never_a_fault_alarm() {
     }
 }
 
+/// A real ONNX model of the wrong shape for the rig: the shipped model cut down to its first
+/// 50 inputs (orders 0-25), written by rigmon's exporter. tract loads it; the rig gives 100.
+fn wrong_shape_model(dir: &Path) -> PathBuf {
+    use rigmon::model::export;
+    let mut m = export::read(&model()).unwrap();
+    let keep = 50;
+    let first = &mut m.mlp.layers[0];
+    first.w = first.w.slice(ndarray::s![.., ..keep]).to_owned();
+    m.pre.mean = m.pre.mean.slice(ndarray::s![..keep]).to_owned();
+    m.pre.inv_std = m.pre.inv_std.slice(ndarray::s![..keep]).to_owned();
+    m.meta.n_features = keep;
+    m.meta.max_order = keep as f64 * m.meta.bin_width;
+    let p = dir.join("orders-0-25.onnx");
+    export::write(&m, &p).unwrap();
+    // It is a loadable model in its own right, just not for this rig.
+    let clf = rigmon::model::onnx::OnnxClassifier::load(&p).unwrap();
+    assert_eq!(clf.meta().n_features, keep);
+    p
+}
+
 #[test]
 fn a_missing_corrupt_or_wrong_shape_model_stops_the_start_with_a_clear_error() {
     let tmp = tempfile::tempdir().unwrap();
     let corrupt = tmp.path().join("corrupt.onnx");
     std::fs::write(&corrupt, b"this is not an ONNX file").unwrap();
-    // A valid ONNX model for another rig: 100 features of the CWRU drive end, other labels.
-    let wrong = repo().join("models/cwru-de.onnx");
+    let wrong = wrong_shape_model(tmp.path());
     let missing = tmp.path().join("missing.onnx");
-    for (what, m) in [("missing", &missing), ("corrupt", &corrupt), ("wrong shape", &wrong)] {
+    for (what, m, says) in [
+        ("missing", &missing, "cannot read model file"),
+        ("corrupt", &corrupt, "not an ONNX model"),
+        ("wrong shape", &wrong, "model expects 50 bins"),
+    ] {
         let cfg = daemon_config(tmp.path(), &healthy_replay(), m, "1.0", 7654, false);
         let t = Instant::now();
-        let out = Command::new(bin())
-            .args(["run", "--config", cfg.to_str().unwrap()])
-            .output()
-            .unwrap();
+        let mut child = Guard(
+            Command::new(bin())
+                .args(["run", "--config", cfg.to_str().unwrap()])
+                .stdout(Stdio::null())
+                .stderr(Stdio::piped())
+                .spawn()
+                .unwrap(),
+        );
+        let err_lines = lines(child.0.stderr.take().unwrap());
+        // A daemon that starts anyway is killed after 20 s and fails the test (never hangs).
+        let status = wait_exit_or_kill(&mut child.0, Duration::from_secs(20));
         let s = t.elapsed().as_secs_f64();
-        let err = String::from_utf8_lossy(&out.stderr);
-        assert!(!out.status.success(), "{what}: the daemon started");
+        let err: String = rest_of(&err_lines).join("\n");
+        let status = status.unwrap_or_else(|| panic!("{what}: the daemon started and ran: {err}"));
+        assert!(!status.success(), "{what}: the daemon started");
         let name = m.file_name().unwrap().to_str().unwrap();
-        assert!(err.contains(name), "{what}: the error must name {name}: {err}");
-        let last = err.lines().rev().find(|l| !l.trim().is_empty()).unwrap_or("");
+        assert!(
+            err.contains(name),
+            "{what}: the error must name {name}: {err}"
+        );
+        assert!(err.contains(says), "{what}: the error must say '{says}': {err}");
+        let last = err
+            .lines()
+            .rev()
+            .find(|l| !l.trim().is_empty())
+            .unwrap_or("");
         println!(
             "FIGURE model {what}: exit code {:?} after {s:.2} s: {}",
-            out.status.code(),
+            status.code(),
             last.trim()
         );
     }

@@ -6,6 +6,7 @@
 //! SIGHUP reloads.
 
 pub mod analyze;
+pub mod code_pages;
 pub mod notify;
 pub mod reload;
 pub mod signals;

@@ -62,6 +62,36 @@ pub fn wait_exit(child: &mut Child, timeout: Duration) -> std::process::ExitStat
     }
 }
 
+/// Like [`wait_exit`] but returns `None` (after killing it) when the child is still running
+/// at the deadline, so a test can say what it expected instead of panicking here.
+pub fn wait_exit_or_kill(child: &mut Child, timeout: Duration) -> Option<std::process::ExitStatus> {
+    let deadline = Instant::now() + timeout;
+    loop {
+        if let Some(s) = child.try_wait().unwrap() {
+            return Some(s);
+        }
+        if Instant::now() > deadline {
+            let _ = child.kill();
+            let _ = child.wait();
+            return None;
+        }
+        std::thread::sleep(Duration::from_millis(20));
+    }
+}
+
+/// Every line left in a pipe's channel, up to the pipe closing (or 5 s).
+pub fn rest_of(rx: &Receiver<String>) -> Vec<String> {
+    let mut v = Vec::new();
+    let deadline = Instant::now() + Duration::from_secs(5);
+    while let Some(left) = deadline.checked_duration_since(Instant::now()) {
+        match rx.recv_timeout(left) {
+            Ok(l) => v.push(l),
+            Err(_) => break,
+        }
+    }
+    v
+}
+
 pub fn signal(child: &Child, sig: i32) {
     // SAFETY: plain kill(2) on our own child.
     assert_eq!(unsafe { libc::kill(child.id() as i32, sig) }, 0);
