@@ -475,7 +475,10 @@ fn a_missing_corrupt_or_wrong_shape_model_stops_the_start_with_a_clear_error() {
             err.contains(name),
             "{what}: the error must name {name}: {err}"
         );
-        assert!(err.contains(says), "{what}: the error must say '{says}': {err}");
+        assert!(
+            err.contains(says),
+            "{what}: the error must say '{says}': {err}"
+        );
         let last = err
             .lines()
             .rev()
@@ -487,4 +490,36 @@ fn a_missing_corrupt_or_wrong_shape_model_stops_the_start_with_a_clear_error() {
             last.trim()
         );
     }
+}
+
+/// `rigmon bench load` in short: 16 ch x 51.2 kHz through the whole pipeline to a Zenoh
+/// subscriber; the benchmark itself checks every sample and every health message and exits 1
+/// otherwise. (The 60 s figure in the README comes from a release build.)
+#[test]
+fn sustained_load_16_channels_at_51k2_loses_nothing() {
+    let out = Command::new(bin())
+        .args(["bench", "load", "--seconds", "4", "--json"])
+        .current_dir(repo())
+        .output()
+        .unwrap();
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success(),
+        "{stdout}\n{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let v: serde_json::Value = serde_json::from_str(stdout.lines().last().unwrap()).unwrap();
+    assert_eq!(v["ok"], true, "{v}");
+    assert_eq!(v["samples_lost"], 0, "{v}");
+    let windows = v["windows"].as_u64().unwrap();
+    assert!(windows >= 2, "{v}");
+    assert_eq!(v["windows"], v["windows_expected"], "{v}");
+    assert_eq!(v["received"], v["windows"], "{v}");
+    assert_eq!(v["samples_generated"], v["samples_in"], "{v}");
+    println!(
+        "FIGURE load (debug build, 4 s): {:.2}x real time, {} windows, 0 lost, pipeline p99 {:.1} ms",
+        v["real_time_factor"].as_f64().unwrap(),
+        windows,
+        v["latency_ms"]["pipeline_p99"].as_f64().unwrap()
+    );
 }

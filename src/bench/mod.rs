@@ -4,6 +4,7 @@
 
 pub mod features;
 pub mod footprint;
+pub mod load;
 pub mod simulate;
 
 use std::path::PathBuf;

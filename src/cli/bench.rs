@@ -11,6 +11,8 @@ pub enum What {
     Simulate,
     /// Daemon footprint at the rig's rate: CPU share, RSS, publish latency.
     Footprint,
+    /// Sustained load: 16 ch x 51.2 kHz through the whole pipeline as fast as it goes.
+    Load,
 }
 
 /// Arguments of `rigmon bench`.
@@ -22,9 +24,9 @@ pub struct Args {
     /// Rig file (default depends on the benchmark).
     #[arg(long)]
     pub rig: Option<PathBuf>,
-    /// Measuring time in seconds.
-    #[arg(long, default_value_t = 10.0)]
-    pub seconds: f64,
+    /// Measuring time in seconds (default 60 for `load`, 10 for the others).
+    #[arg(long)]
+    pub seconds: Option<f64>,
     /// Print one JSON object.
     #[arg(long)]
     pub json: bool,
@@ -33,12 +35,16 @@ pub struct Args {
 pub fn run(args: Args) -> anyhow::Result<()> {
     let opts = BenchOptions {
         rig: args.rig,
-        seconds: args.seconds,
+        seconds: args.seconds.unwrap_or(match args.what {
+            What::Load => 60.0,
+            _ => 10.0,
+        }),
         json: args.json,
     };
     match args.what {
         What::Features => bench::features::run(&opts),
         What::Simulate => bench::simulate::run(&opts),
         What::Footprint => bench::footprint::run(&opts),
+        What::Load => bench::load::run(&opts),
     }
 }

@@ -7,6 +7,7 @@
 
 pub mod analyze;
 pub mod code_pages;
+pub mod latency;
 pub mod notify;
 pub mod reload;
 pub mod signals;
@@ -95,6 +96,9 @@ pub struct Summary {
     pub reloads: u64,
     pub reloads_rejected: u64,
     pub latency_ms_max: f64,
+    /// Per-window processing latency (last block in -> health out), median and 99th percentile.
+    pub latency_ms_p50: f64,
+    pub latency_ms_p99: f64,
     pub source_error: Option<String>,
     pub wall_s: f64,
 }
@@ -304,6 +308,7 @@ pub fn run_with_source(mut opts: DaemonOptions, source: Box<dyn Source>) -> Resu
     let mut stdout = std::io::stdout().lock();
     let mut stopping = false;
     let mut last_state: Option<String> = None;
+    let mut latencies = latency::LatencyHistogram::default();
 
     let status_msg = |phase: Phase,
                       pipe: &PipelineStatus,
@@ -455,6 +460,7 @@ pub fn run_with_source(mut opts: DaemonOptions, source: Box<dyn Source>) -> Resu
                     let latency_ms = last_block_at.elapsed().as_secs_f64() * 1e3;
                     pipe.latency_ms_last = latency_ms;
                     pipe.latency_ms_max = pipe.latency_ms_max.max(latency_ms);
+                    latencies.record(latency_ms);
                     *summary.states.entry(msg.state.clone()).or_default() += 1;
                     *summary
                         .window_states
@@ -591,6 +597,8 @@ pub fn run_with_source(mut opts: DaemonOptions, source: Box<dyn Source>) -> Resu
     summary.reloads = model_status.reloads;
     summary.reloads_rejected = model_status.reloads_rejected;
     summary.latency_ms_max = pipe.latency_ms_max;
+    summary.latency_ms_p50 = latencies.quantile(0.5);
+    summary.latency_ms_p99 = latencies.quantile(0.99);
     summary.source_error = source_result.as_ref().err().map(|e| format!("{e:#}"));
     summary.wall_s = started.elapsed().as_secs_f64();
     if !stopping {

@@ -134,6 +134,9 @@ impl FeaturePipeline {
                 if s.dropout {
                     quality.dropout.push(name.to_string());
                 }
+                if s.dc_offset {
+                    quality.dc_offset.push(name.to_string());
+                }
             }
         }
         let info = self.tracker.prepare(t_start, speed)?;

@@ -104,6 +104,9 @@ pub struct ChannelScan {
 
 /// Minimum run of identical samples at the extreme value that counts as clipping.
 const CLIP_RUN: usize = 3;
+/// Share of a window's samples sitting exactly at its maximum (or minimum) that counts as
+/// clipping even without a run (0.1 %: 10 samples of a 1 s window at 10 kHz).
+const CLIP_SHARE: f64 = 1e-3;
 
 /// Scan a channel once: first non-finite sample, flat, clipped, dropout.
 pub fn scan(samples: &[f32], sample_rate: f64) -> ChannelScan {
@@ -134,6 +137,15 @@ pub fn scan(samples: &[f32], sample_rate: f64) -> ChannelScan {
         / n;
     out.dc_offset = mean.abs() > var.sqrt();
     let dropout_run = ((0.010 * sample_rate).round() as usize).max(8);
+    // Impulsive vibration clipped by an amplifier or ADC rarely stays at the rail for 3
+    // samples, but many separate samples then share the exact extreme value; an unclipped
+    // signal hits its maximum once or a few times (a few LSB of a quantised one).
+    let at_hi = samples.iter().filter(|&&x| x == hi).count();
+    let at_lo = samples.iter().filter(|&&x| x == lo).count();
+    let many = ((CLIP_SHARE * n).ceil() as usize).max(CLIP_RUN + 1);
+    if at_hi >= many || at_lo >= many {
+        out.clipped = true;
+    }
     let (mut run, mut prev) = (1usize, samples[0]);
     for &x in &samples[1..] {
         if x == prev {
@@ -165,6 +177,24 @@ mod tests {
         let mut q = Quality::default();
         q.check_channel("v", &sine(10_000), 10_000.0);
         assert!(q.is_clean(), "{:?}", q.flags());
+    }
+
+    #[test]
+    fn short_clipped_peaks_without_a_run_are_flagged() {
+        // Impacts ringing at 2.5 kHz sampled at 10 kHz: each excursion past the rail lasts
+        // one or two samples, so only the count of samples at the rail shows the clipping.
+        let ring: Vec<f32> = (0..10_000)
+            .map(|i| {
+                let t = (i % 1000) as f32 / 10_000.0;
+                (-t * 300.0).exp() * (2.0 * std::f32::consts::PI * 2500.0 * t + 0.3).sin()
+                    + 0.001 * ((i * 7919) % 13) as f32
+            })
+            .collect();
+        assert!(!scan(&ring, 10_000.0).clipped, "unclipped ringing");
+        let peak = ring.iter().fold(0f32, |m, x| m.max(x.abs()));
+        let c = 0.5 * peak;
+        let clipped: Vec<f32> = ring.iter().map(|x| x.clamp(-c, c)).collect();
+        assert!(scan(&clipped, 10_000.0).clipped);
     }
 
     #[test]

@@ -123,7 +123,16 @@ pub fn load(path: &Path, rig: &RigConfig, opts: &ImportOptions) -> Result<Record
                 rec.rpm = Some(rpm);
                 rec.provenance.notes.push(format!("rpm {rpm} from --rpm"));
             }
-            check_finite(path, &rec)?;
+            // rigmon's own recordings keep what a live source delivered, NaN/Inf bursts
+            // included (losing nothing); the daemon's pipeline flags and zeroes them per window.
+            check_finite_tacho_edges(path, &rec)?;
+            let bad = count_non_finite(&rec);
+            if bad > 0 {
+                rec.provenance.notes.push(format!(
+                    "{bad} NaN/Inf samples kept as recorded (the daemon flags them per window; \
+                     `rigmon features` refuses such windows)"
+                ));
+            }
             return Ok(rec);
         }
     };
@@ -215,6 +224,33 @@ pub fn resolve_sample_rate(
             path.display()
         ),
     }
+}
+
+/// NaN/Inf samples in the acceleration channels and the analog tacho.
+pub fn count_non_finite(rec: &Recording) -> usize {
+    let tacho = match &rec.tacho {
+        Some(Tacho::Analog { samples, .. }) => samples.iter().filter(|x| !x.is_finite()).count(),
+        _ => 0,
+    };
+    rec.channels
+        .iter()
+        .map(|c| c.samples.iter().filter(|x| !x.is_finite()).count())
+        .sum::<usize>()
+        + tacho
+}
+
+/// Tacho edge times must be finite (a NaN edge has no place on the sample clock).
+fn check_finite_tacho_edges(path: &Path, rec: &Recording) -> Result<()> {
+    if let Some(Tacho::Edges { times_s }) = &rec.tacho {
+        if let Some(i) = times_s.iter().position(|x| !x.is_finite()) {
+            bail!(
+                "{}: tacho edge {i} is {}; edge times must be finite",
+                path.display(),
+                times_s[i]
+            );
+        }
+    }
+    Ok(())
 }
 
 /// Refuse NaN/Inf samples, naming the channel and the sample index.
