@@ -641,8 +641,8 @@ fn survives_a_router_restart_and_answers_queries_and_liveliness() {
             .expect("health resumed after the router restart"),
     )
     .unwrap();
-    eprintln!(
-        "health resumed {:.1} s after the router restarted",
+    println!(
+        "FIGURE router restart: health resumed {:.1} s after the router restarted",
         t.elapsed().as_secs_f64()
     );
     assert_eq!(first.state, label);
@@ -854,7 +854,7 @@ fn serial_emulator_corrupt_frames_and_unplug_are_counted_in_status_and_health_re
         .find(|(l, _)| l.contains("reconnected"))
         .unwrap_or_else(|| panic!("no 'reconnected' line in the daemon log: {text:?}"));
     println!(
-        "serial reconnect {:.0} ms after replug (reconnect_max_ms = 200), {disconnected_seen} status messages with connected = false, reconnects = {reconnects}, bad frames = {bad}",
+        "FIGURE serial reconnect {:.0} ms after replug (reconnect_max_ms = 200), {disconnected_seen} status messages with connected = false, reconnects = {reconnects}, bad frames = {bad}",
         reconnected.saturating_duration_since(replugged).as_secs_f64() * 1e3
     );
     assert!(daemon.0.try_wait().unwrap().is_none(), "daemon exited");

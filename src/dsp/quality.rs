@@ -140,10 +140,25 @@ pub fn scan(samples: &[f32], sample_rate: f64) -> ChannelScan {
     // Impulsive vibration clipped by an amplifier or ADC rarely stays at the rail for 3
     // samples, but many separate samples then share the exact extreme value; an unclipped
     // signal hits its maximum once or a few times (a few LSB of a quantised one).
-    let at_hi = samples.iter().filter(|&&x| x == hi).count();
-    let at_lo = samples.iter().filter(|&&x| x == lo).count();
+    // A clipped rail is a spike in the histogram: more samples sit exactly at the extreme
+    // than in the 2 % of the range just inside it (a quantised or periodic signal that merely
+    // repeats its maximum has its neighbours there too).
+    let band = 0.02 * (hi - lo);
+    let (mut at_hi, mut near_hi, mut at_lo, mut near_lo) = (0usize, 0usize, 0usize, 0usize);
+    for &x in samples {
+        if x == hi {
+            at_hi += 1;
+        } else if x >= hi - band {
+            near_hi += 1;
+        }
+        if x == lo {
+            at_lo += 1;
+        } else if x <= lo + band {
+            near_lo += 1;
+        }
+    }
     let many = ((CLIP_SHARE * n).ceil() as usize).max(CLIP_RUN + 1);
-    if at_hi >= many || at_lo >= many {
+    if (at_hi >= many && at_hi >= 2 * near_hi) || (at_lo >= many && at_lo >= 2 * near_lo) {
         out.clipped = true;
     }
     let (mut run, mut prev) = (1usize, samples[0]);
@@ -191,6 +206,11 @@ mod tests {
             })
             .collect();
         assert!(!scan(&ring, 10_000.0).clipped, "unclipped ringing");
+        // A periodic, coarsely quantised signal repeats its maximum without being clipped.
+        let steps: Vec<f32> = (0..10_000)
+            .map(|i| ((i * 7919) % 1000) as f32 / 500.0 - 1.0)
+            .collect();
+        assert!(!scan(&steps, 10_000.0).clipped, "repeated maximum");
         let peak = ring.iter().fold(0f32, |m, x| m.max(x.abs()));
         let c = 0.5 * peak;
         let clipped: Vec<f32> = ring.iter().map(|x| x.clamp(-c, c)).collect();
