@@ -28,7 +28,26 @@ pub fn generate(
     progress: bool,
 ) -> Result<DatasetSummary> {
     super::rig_simulation(rig)?;
-    let runs = plan.expand()?;
+    let mut runs = plan.expand()?;
+    // a plan must not undo a calibration: calibrated effects keep their fitted values
+    if let Some(stamp) = &rig.calibration {
+        let names: Vec<&str> = stamp
+            .effects
+            .iter()
+            .filter_map(|e| e.get("name").and_then(|n| n.as_str()))
+            .collect();
+        let mut dropped = std::collections::BTreeSet::new();
+        for r in &mut runs {
+            dropped.extend(r.keep_calibrated(&names));
+        }
+        if !dropped.is_empty() {
+            tracing::info!(
+                "calibration {}: the plan's {:?} ignored (calibrated effects keep their values)",
+                stamp.id,
+                dropped
+            );
+        }
+    }
     std::fs::create_dir_all(dir)
         .with_context(|| format!("cannot create output directory {}", dir.display()))?;
     let pool = rayon::ThreadPoolBuilder::new()

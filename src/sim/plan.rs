@@ -142,6 +142,36 @@ pub struct PlannedRun {
     pub scenario: Scenario,
 }
 
+impl PlannedRun {
+    /// Keep a calibrated rig's effects (names of its `[calibration] effects`): drop the
+    /// plan's draws of the parameters those effects set, so a plan cannot undo a calibration.
+    /// A calibrated `speed_fluctuation` turns a plan's sine profile back into its constant
+    /// speed (the simulator then applies `[simulation.speed_fluctuation]`). Returns the plan
+    /// keys dropped.
+    pub fn keep_calibrated(&mut self, effects: &[&str]) -> Vec<&'static str> {
+        let o = &mut self.scenario.overrides;
+        let mut dropped = Vec::new();
+        for e in effects {
+            let key = match *e {
+                "slip" => o.slip.take().map(|_| "slip"),
+                "contact_angle" => o.contact_angle_deg.take().map(|_| "contact_angle_deg"),
+                "resonance" => o.resonance_hz.take().map(|_| "resonance_hz"),
+                "unbalance" => o.unbalance_scale.take().map(|_| "unbalance_scale"),
+                "speed_fluctuation" => match self.scenario.profile {
+                    SpeedProfile::Sine { rpm, .. } => {
+                        self.scenario.profile = SpeedProfile::Constant { rpm };
+                        Some("speed_fluctuation")
+                    }
+                    _ => None,
+                },
+                _ => None,
+            };
+            dropped.extend(key);
+        }
+        dropped
+    }
+}
+
 /// SplitMix64 step: independent, reproducible seeds per (case, recording).
 fn mix(mut z: u64) -> u64 {
     z = z.wrapping_add(0x9E37_79B9_7F4A_7C15);
@@ -313,6 +343,29 @@ random = { rpm = [500, 700] }
         };
         assert!((500.0..=700.0).contains(&rpm));
         assert_ne!(a[0].scenario.seed, a[1].scenario.seed);
+    }
+
+    #[test]
+    fn calibrated_effects_survive_the_plan() {
+        let p = Plan::parse(&PLAN.replace(
+            "defect_width_mm = [0.2, 0.5]",
+            "slip = [0.0, 0.01]\nspeed_fluctuation = [0.01, 0.02]",
+        ))
+        .unwrap();
+        let mut runs = p.expand().unwrap();
+        assert!(runs[0].scenario.overrides.slip.is_some());
+        assert!(matches!(
+            runs[0].scenario.profile,
+            SpeedProfile::Sine { .. }
+        ));
+        let dropped = runs[0].keep_calibrated(&["slip", "speed_fluctuation"]);
+        assert_eq!(dropped, vec!["slip", "speed_fluctuation"]);
+        assert_eq!(runs[0].scenario.overrides.slip, None);
+        assert_eq!(
+            runs[0].scenario.profile,
+            SpeedProfile::Constant { rpm: 600.0 }
+        );
+        assert!(runs[1].keep_calibrated(&["resonance"]).is_empty());
     }
 
     #[test]
