@@ -497,6 +497,33 @@ fn sighup_swaps_the_model_without_losing_windows_and_rejects_a_bad_one() {
     take(&mut msgs, 3);
     assert!(msgs.iter().all(|m| m.model.sha256 == sha0));
 
+    // A real ONNX model of the wrong shape (its first 50 inputs only): rejected too.
+    {
+        use rigmon::model::export;
+        let mut m = export::read(&model()).unwrap();
+        let keep = 50;
+        let first = &mut m.mlp.layers[0];
+        first.w = first.w.slice(ndarray::s![.., ..keep]).to_owned();
+        m.pre.mean = m.pre.mean.slice(ndarray::s![..keep]).to_owned();
+        m.pre.inv_std = m.pre.inv_std.slice(ndarray::s![..keep]).to_owned();
+        m.meta.n_features = keep;
+        m.meta.max_order = keep as f64 * m.meta.bin_width;
+        export::write(&m, &live_model).unwrap();
+    }
+    signal(&child.0, libc::SIGHUP);
+    let mut seen = Vec::new();
+    assert!(
+        wait_line(
+            &err,
+            "model expects 50 bins",
+            Duration::from_secs(20),
+            &mut seen
+        ),
+        "{seen:?}"
+    );
+    take(&mut msgs, 3);
+    assert!(msgs.iter().all(|m| m.model.sha256 == sha0));
+
     // A good new model: swapped in between two windows.
     std::fs::copy(&variant, &live_model).unwrap();
     signal(&child.0, libc::SIGHUP);
