@@ -3,6 +3,9 @@
 //! Python eclipse-zenoh client, a NOTIFY_SOCKET datagram socket, Unix signals, MCAP files read
 //! back, and `systemd-analyze verify`.
 
+#[path = "common/wrong_shape.rs"]
+mod wrong_shape;
+
 use rigmon::health::message::HealthMessage;
 use std::collections::BTreeMap;
 use std::io::{BufRead, BufReader, Read};
@@ -498,18 +501,7 @@ fn sighup_swaps_the_model_without_losing_windows_and_rejects_a_bad_one() {
     assert!(msgs.iter().all(|m| m.model.sha256 == sha0));
 
     // A real ONNX model of the wrong shape (its first 50 inputs only): rejected too.
-    {
-        use rigmon::model::export;
-        let mut m = export::read(&model()).unwrap();
-        let keep = 50;
-        let first = &mut m.mlp.layers[0];
-        first.w = first.w.slice(ndarray::s![.., ..keep]).to_owned();
-        m.pre.mean = m.pre.mean.slice(ndarray::s![..keep]).to_owned();
-        m.pre.inv_std = m.pre.inv_std.slice(ndarray::s![..keep]).to_owned();
-        m.meta.n_features = keep;
-        m.meta.max_order = keep as f64 * m.meta.bin_width;
-        export::write(&m, &live_model).unwrap();
-    }
+    wrong_shape::write_wrong_shape_model(&model(), &live_model);
     signal(&child.0, libc::SIGHUP);
     let mut seen = Vec::new();
     assert!(

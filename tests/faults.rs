@@ -8,6 +8,8 @@
 
 #[path = "common/daemon_harness.rs"]
 mod harness;
+#[path = "common/wrong_shape.rs"]
+mod wrong_shape;
 
 use harness::*;
 use rigmon::health::message::HealthMessage;
@@ -421,23 +423,12 @@ fn signal_faults_raise_quality_flags_and_never_a_fault_alarm() {
     }
 }
 
-/// A real ONNX model of the wrong shape for the rig: the shipped model cut down to its first
-/// 50 inputs (orders 0-25), written by rigmon's exporter. tract loads it; the rig gives 100.
+/// The wrong-shape model (see tests/common/wrong_shape.rs), checked to load on its own.
 fn wrong_shape_model(dir: &Path) -> PathBuf {
-    use rigmon::model::export;
-    let mut m = export::read(&model()).unwrap();
-    let keep = 50;
-    let first = &mut m.mlp.layers[0];
-    first.w = first.w.slice(ndarray::s![.., ..keep]).to_owned();
-    m.pre.mean = m.pre.mean.slice(ndarray::s![..keep]).to_owned();
-    m.pre.inv_std = m.pre.inv_std.slice(ndarray::s![..keep]).to_owned();
-    m.meta.n_features = keep;
-    m.meta.max_order = keep as f64 * m.meta.bin_width;
     let p = dir.join("orders-0-25.onnx");
-    export::write(&m, &p).unwrap();
-    // It is a loadable model in its own right, just not for this rig.
+    wrong_shape::write_wrong_shape_model(&model(), &p);
     let clf = rigmon::model::onnx::OnnxClassifier::load(&p).unwrap();
-    assert_eq!(clf.meta().n_features, keep);
+    assert_eq!(clf.meta().n_features, wrong_shape::KEEP);
     p
 }
 
