@@ -3,7 +3,7 @@
 //! Data flows one way: [`acquire`] (sources) -> [`dsp`] (features) -> [`model`] (inference)
 //! -> [`health`] (state machine) -> [`publish`], [`record`] (sinks). [`sim`] and [`train`]
 //! sit beside the stream and produce models; [`calibrate`] fits the simulator to measured
-//! recordings.
+//! recordings (residual views, effect catalog, held-out acceptance, calibrated rig file).
 //! Lower modules never import higher ones.
 
 pub mod acquire;

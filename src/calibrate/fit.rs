@@ -19,11 +19,11 @@ use std::collections::{BTreeMap, HashMap};
 use std::sync::{Arc, Mutex};
 
 /// Relative and absolute cuts an effect must make, in its own components, on the fit part...
-pub const FIT_CUT: (f64, f64) = (0.15, 0.05);
+pub const FIT_CUT: (f64, f64) = (0.25, 0.05);
 /// ... and on the held-out part.
 pub const HELD_CUT: (f64, f64) = (0.10, 0.03);
 
-/// Acceptance rule, on the effect's own error components: the fit part drops by >= 15 %
+/// Acceptance rule, on the effect's own error components: the fit part drops by >= 25 %
 /// and >= 0.05 AND the held-out part by >= 10 % and >= 0.03.
 pub fn accepts(fit: (f64, f64), held: (f64, f64)) -> bool {
     let cut = |(b, a): (f64, f64), (rel, abs): (f64, f64)| b - a >= rel * b && b - a >= abs;
@@ -84,7 +84,10 @@ impl<'a> Twin<'a> {
         let measured = ops
             .par_iter()
             .map(|m| {
-                views::compute(&m.recording, rig).with_context(|| format!("views of {}", m.name))
+                let mut v = views::compute(&m.recording, rig)
+                    .with_context(|| format!("views of {}", m.name))?;
+                v.healthy = m.faults.is_empty();
+                Ok(v)
             })
             .collect::<Result<Vec<_>>>()?;
         Ok(Twin {

@@ -100,7 +100,7 @@ pub fn markdown(rig: &RigConfig, o: &Outcome, ops: &[Measured], id: &str) -> Str
             o.after.env,
         ),
         (
-            "lines (raw spectrum lines, dB)",
+            "lines (raw-spectrum lines of healthy recordings, summed dB / 10)",
             o.before.lines,
             o.after.lines,
         ),

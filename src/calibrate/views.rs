@@ -48,6 +48,9 @@ pub struct Views {
     pub amplitude_hz: Vec<f64>,
     /// Envelope order spectrum in dB above its median (unthresholded), on the `env` grid.
     pub env_db: Vec<f64>,
+    /// The measured recording is labelled healthy (set by the caller; `lines` is compared
+    /// on healthy recordings only, see [`super::error`]).
+    pub healthy: bool,
 }
 
 /// Order of `env[i]`.
@@ -149,6 +152,7 @@ pub fn compute(rec: &Recording, rig: &RigConfig) -> Result<Views> {
         speed,
         amplitude_hz,
         env_db,
+        healthy: false,
     })
 }
 
