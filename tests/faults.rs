@@ -466,7 +466,10 @@ fn a_missing_corrupt_or_wrong_shape_model_stops_the_start_with_a_clear_error() {
             err.contains(name),
             "{what}: the error must name {name}: {err}"
         );
-        assert!(err.contains(says), "{what}: the error must say '{says}': {err}");
+        assert!(
+            err.contains(says),
+            "{what}: the error must say '{says}': {err}"
+        );
         let last = err
             .lines()
             .rev()
