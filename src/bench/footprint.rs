@@ -7,11 +7,11 @@
 //! and publish latency = health received here - the window's end in wall time (`end_ns`:
 //! the source's start time + sample clock). Goals: <= 2 % of one core, <= 30 MB RSS, <= 20 ms.
 
-use super::{machine_line, BenchOptions};
+use super::{abs, free_port, machine_line, BenchOptions};
 use crate::health::message::HealthMessage;
 use crate::publish::zenoh::{ZenohSettings, ZenohSubscriber};
 use anyhow::{bail, Context, Result};
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::process::{Child, Command, Stdio};
 use std::sync::atomic::Ordering;
 use std::sync::{Arc, Mutex};
@@ -54,12 +54,6 @@ fn rss_mb(pid: u32) -> (f64, f64) {
     (status_mb(pid, "VmRSS:"), status_mb(pid, "VmHWM:"))
 }
 
-fn free_port() -> Result<u16> {
-    Ok(std::net::TcpListener::bind("127.0.0.1:0")?
-        .local_addr()?
-        .port())
-}
-
 fn percentile(sorted: &[f64], p: f64) -> f64 {
     if sorted.is_empty() {
         return f64::NAN;
@@ -75,10 +69,6 @@ impl Drop for ChildGuard {
         let _ = self.0.kill();
         let _ = self.0.wait();
     }
-}
-
-fn abs(p: &Path) -> Result<PathBuf> {
-    std::fs::canonicalize(p).with_context(|| format!("{} not found", p.display()))
 }
 
 pub fn run(opts: &BenchOptions) -> Result<()> {

@@ -12,7 +12,7 @@
 //! what the queues, model, health logic and publishing cost on top of the DSP. Real-time
 //! CPU and RSS at the rig's own rate are `rigmon bench footprint`.
 
-use super::{machine_line, BenchOptions};
+use super::{abs, free_port, machine_line, BenchOptions};
 use crate::acquire::{send_block, BlockSender, SampleBlock, Source, SourceStats, StopToken};
 use crate::config::daemon::DaemonConfig;
 use crate::config::{ChannelConfig, ChannelKind, RigConfig};
@@ -168,21 +168,6 @@ fn load_rig(base: &Path) -> Result<RigConfig> {
     rig.acquisition.sample_rate_hz = Some(SAMPLE_RATE);
     rig.machine.id = format!("{}-load", rig.machine.id);
     Ok(rig)
-}
-
-fn abs(p: &Path) -> Result<PathBuf> {
-    std::fs::canonicalize(p).with_context(|| {
-        format!(
-            "{} not found (run from the repository root or pass --rig)",
-            p.display()
-        )
-    })
-}
-
-fn free_port() -> Result<u16> {
-    Ok(std::net::TcpListener::bind("127.0.0.1:0")?
-        .local_addr()?
-        .port())
 }
 
 /// Feature extraction alone, in this thread, on windows of 4 s of the same generated signal

@@ -7,7 +7,8 @@ pub mod footprint;
 pub mod load;
 pub mod simulate;
 
-use std::path::PathBuf;
+use anyhow::{Context, Result};
+use std::path::{Path, PathBuf};
 
 /// Options shared by every benchmark.
 #[derive(Debug, Clone)]
@@ -39,4 +40,21 @@ pub fn machine_line() -> String {
         "release"
     };
     format!("{cpu}, {cores} cores, {profile} build")
+}
+
+/// A free TCP port on loopback for a benchmark's own Zenoh session.
+pub(crate) fn free_port() -> Result<u16> {
+    Ok(std::net::TcpListener::bind("127.0.0.1:0")?
+        .local_addr()?
+        .port())
+}
+
+/// `p` made absolute (the benchmarks run from the repository root).
+pub(crate) fn abs(p: &Path) -> Result<PathBuf> {
+    std::fs::canonicalize(p).with_context(|| {
+        format!(
+            "{} not found (run from the repository root, or pass --rig)",
+            p.display()
+        )
+    })
 }
