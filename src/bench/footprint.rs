@@ -7,7 +7,7 @@
 //! and publish latency = health received here - the window's end in wall time (`end_ns`:
 //! the source's start time + sample clock). Goals: <= 2 % of one core, <= 30 MB RSS, <= 20 ms.
 
-use super::{abs, free_port, machine_line, BenchOptions};
+use super::{abs, cpu_seconds, free_port, machine_line, percentile, BenchOptions};
 use crate::health::message::HealthMessage;
 use crate::publish::zenoh::{ZenohSettings, ZenohSubscriber};
 use anyhow::{bail, Context, Result};
@@ -20,24 +20,6 @@ use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 const GOAL_CPU_PCT: f64 = 2.0;
 const GOAL_RSS_MB: f64 = 30.0;
 const GOAL_LATENCY_MS: f64 = 20.0;
-
-/// CPU seconds (user + system) of a process, from /proc/<pid>/stat.
-fn cpu_seconds(pid: u32) -> Result<f64> {
-    let s = std::fs::read_to_string(format!("/proc/{pid}/stat"))
-        .with_context(|| format!("reading /proc/{pid}/stat (did the daemon exit?)"))?;
-    // Fields after the command name (which is in parentheses and may hold spaces).
-    let rest = s.rsplit_once(')').map(|(_, r)| r).unwrap_or("");
-    let f: Vec<&str> = rest.split_whitespace().collect();
-    // utime, stime are fields 14 and 15 of stat(5); f[0] is field 3.
-    let ticks = |i: usize| {
-        f.get(i)
-            .and_then(|v| v.parse::<f64>().ok())
-            .unwrap_or(f64::NAN)
-    };
-    // SAFETY: sysconf has no preconditions.
-    let hz = unsafe { libc::sysconf(libc::_SC_CLK_TCK) } as f64;
-    Ok((ticks(11) + ticks(12)) / hz)
-}
 
 /// A `/proc/<pid>/status` memory line in MB.
 fn status_mb(pid: u32, key: &str) -> f64 {
@@ -52,14 +34,6 @@ fn status_mb(pid: u32, key: &str) -> f64 {
 /// (VmRSS, VmHWM) of a process in MB.
 fn rss_mb(pid: u32) -> (f64, f64) {
     (status_mb(pid, "VmRSS:"), status_mb(pid, "VmHWM:"))
-}
-
-fn percentile(sorted: &[f64], p: f64) -> f64 {
-    if sorted.is_empty() {
-        return f64::NAN;
-    }
-    let i = ((sorted.len() - 1) as f64 * p).round() as usize;
-    sorted[i]
 }
 
 /// Kills the daemon if the benchmark stops early.

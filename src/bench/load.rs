@@ -12,7 +12,7 @@
 //! what the queues, model, health logic and publishing cost on top of the DSP. Real-time
 //! CPU and RSS at the rig's own rate are `rigmon bench footprint`.
 
-use super::{abs, free_port, machine_line, BenchOptions};
+use super::{abs, cpu_seconds, free_port, machine_line, percentile, BenchOptions};
 use crate::acquire::{send_block, BlockSender, SampleBlock, Source, SourceStats, StopToken};
 use crate::config::daemon::DaemonConfig;
 use crate::config::{ChannelConfig, ChannelKind, RigConfig};
@@ -196,16 +196,19 @@ fn baseline(rig: &RigConfig, generator: &Generator, seconds: f64) -> Result<f64>
         .map(|k| k * hop)
         .take_while(|s| s + win <= tacho.len())
         .collect();
+    let mut views: Vec<(&str, &[f32])> = Vec::with_capacity(names.len());
     let t0 = Instant::now();
     let mut n = 0u64;
     while t0.elapsed().as_secs_f64() < seconds {
         for &s in &starts {
-            let chans: Vec<(&str, &[f32])> = names
-                .iter()
-                .zip(&stretch.channels)
-                .map(|(n, c)| (n.as_str(), &c[s..s + win]))
-                .collect();
-            pipeline.process_window(s as f64 / SAMPLE_RATE, &chans, &speed)?;
+            views.clear();
+            views.extend(
+                names
+                    .iter()
+                    .zip(&stretch.channels)
+                    .map(|(n, c)| (n.as_str(), &c[s..s + win])),
+            );
+            pipeline.process_window(s as f64 / SAMPLE_RATE, &views, &speed)?;
             n += 1;
         }
     }
@@ -312,9 +315,9 @@ pub fn run(opts: &BenchOptions) -> Result<()> {
             }
         })
     };
-    let cpu0 = process_cpu_s();
+    let cpu0 = cpu_seconds(std::process::id())?;
     let summary = daemon::run_with_source(dopts, source).context("the pipeline failed")?;
-    let cpu = process_cpu_s() - cpu0;
+    let cpu = cpu_seconds(std::process::id())? - cpu0;
     let _ = timer.join();
     let _ = ticker.join();
     bar.finish_and_clear();
@@ -323,13 +326,6 @@ pub fn run(opts: &BenchOptions) -> Result<()> {
         .join()
         .map_err(|_| anyhow::anyhow!("the subscriber thread panicked"))??;
     transit.sort_by(|a, b| a.total_cmp(b));
-    let pct = |v: &[f64], p: f64| {
-        if v.is_empty() {
-            f64::NAN
-        } else {
-            v[((v.len() - 1) as f64 * p).round() as usize]
-        }
-    };
 
     let produced = produced.load(Ordering::Relaxed);
     let win = (rig.features.window_s * SAMPLE_RATE).round() as u64;
@@ -390,8 +386,8 @@ pub fn run(opts: &BenchOptions) -> Result<()> {
                 "pipeline_p50": summary.latency_ms_p50,
                 "pipeline_p99": summary.latency_ms_p99,
                 "pipeline_max": summary.latency_ms_max,
-                "publish_to_receive_p50": pct(&transit, 0.5),
-                "publish_to_receive_p99": pct(&transit, 0.99),
+                "publish_to_receive_p50": percentile(&transit, 0.5),
+                "publish_to_receive_p99": percentile(&transit, 0.99),
             },
             "baseline": {"what": "features alone, 16 channels, this thread", "windows_per_s": base},
             "ratio_to_baseline": windows_per_s / base,
@@ -420,8 +416,8 @@ pub fn run(opts: &BenchOptions) -> Result<()> {
             summary.latency_ms_p50,
             summary.latency_ms_p99,
             summary.latency_ms_max,
-            pct(&transit, 0.5),
-            pct(&transit, 0.99)
+            percentile(&transit, 0.5),
+            percentile(&transit, 0.99)
         );
         println!(
             "  baseline    features alone: {base:.1} windows/s in one thread; whole pipeline {windows_per_s:.1} windows/s (ratio {:.2}); process CPU {:.0} % of one core",
@@ -433,18 +429,4 @@ pub fn run(opts: &BenchOptions) -> Result<()> {
         bail!("load benchmark failed: {}", problems.join("; "));
     }
     Ok(())
-}
-
-/// CPU seconds (user + system) of this process so far.
-fn process_cpu_s() -> f64 {
-    let mut u = std::mem::MaybeUninit::<libc::rusage>::zeroed();
-    // SAFETY: getrusage writes into the struct we own.
-    let rc = unsafe { libc::getrusage(libc::RUSAGE_SELF, u.as_mut_ptr()) };
-    if rc != 0 {
-        return f64::NAN;
-    }
-    // SAFETY: initialised by a successful getrusage.
-    let u = unsafe { u.assume_init() };
-    let tv = |t: libc::timeval| t.tv_sec as f64 + t.tv_usec as f64 / 1e6;
-    tv(u.ru_utime) + tv(u.ru_stime)
 }

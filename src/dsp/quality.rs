@@ -111,41 +111,39 @@ const CLIP_SHARE: f64 = 1e-3;
 /// Scan a channel once: first non-finite sample, flat, clipped, dropout.
 pub fn scan(samples: &[f32], sample_rate: f64) -> ChannelScan {
     let mut out = ChannelScan::default();
-    if let Some(i) = samples.iter().position(|x| !x.is_finite()) {
-        out.non_finite = Some(i);
-        return out;
-    }
     if samples.is_empty() {
         out.flat = true;
         return out;
     }
-    let (mut lo, mut hi) = (f32::INFINITY, f32::NEG_INFINITY);
-    for &x in samples {
+    // Pass 1: the first non-finite sample, range and mean.
+    let (mut lo, mut hi, mut sum) = (f32::INFINITY, f32::NEG_INFINITY, 0.0f64);
+    for (i, &x) in samples.iter().enumerate() {
+        if !x.is_finite() {
+            out.non_finite = Some(i);
+            return out;
+        }
         lo = lo.min(x);
         hi = hi.max(x);
+        sum += f64::from(x);
     }
     if hi - lo <= 0.0 {
         out.flat = true;
         return out;
     }
     let n = samples.len() as f64;
-    let mean = samples.iter().map(|&x| f64::from(x)).sum::<f64>() / n;
-    let var = samples
-        .iter()
-        .map(|&x| (f64::from(x) - mean).powi(2))
-        .sum::<f64>()
-        / n;
-    out.dc_offset = mean.abs() > var.sqrt();
+    let mean = sum / n;
+    // Pass 2: variance, runs of identical samples, and the histogram at the rails. Clipped
+    // impulsive vibration rarely stays at the rail for CLIP_RUN samples, but then many separate
+    // samples share the exact extreme: a spike in the histogram, more samples exactly at the
+    // extreme than in the 2 % of the range just inside it (a quantised or periodic signal
+    // that merely repeats its maximum has its neighbours there too).
     let dropout_run = ((0.010 * sample_rate).round() as usize).max(8);
-    // Impulsive vibration clipped by an amplifier or ADC rarely stays at the rail for 3
-    // samples, but many separate samples then share the exact extreme value; an unclipped
-    // signal hits its maximum once or a few times (a few LSB of a quantised one).
-    // A clipped rail is a spike in the histogram: more samples sit exactly at the extreme
-    // than in the 2 % of the range just inside it (a quantised or periodic signal that merely
-    // repeats its maximum has its neighbours there too).
     let band = 0.02 * (hi - lo);
     let (mut at_hi, mut near_hi, mut at_lo, mut near_lo) = (0usize, 0usize, 0usize, 0usize);
+    let mut sq = 0.0f64;
+    let (mut run, mut prev) = (0usize, f32::NAN);
     for &x in samples {
+        sq += (f64::from(x) - mean).powi(2);
         if x == hi {
             at_hi += 1;
         } else if x >= hi - band {
@@ -156,13 +154,6 @@ pub fn scan(samples: &[f32], sample_rate: f64) -> ChannelScan {
         } else if x <= lo + band {
             near_lo += 1;
         }
-    }
-    let many = ((CLIP_SHARE * n).ceil() as usize).max(CLIP_RUN + 1);
-    if (at_hi >= many && at_hi >= 2 * near_hi) || (at_lo >= many && at_lo >= 2 * near_lo) {
-        out.clipped = true;
-    }
-    let (mut run, mut prev) = (1usize, samples[0]);
-    for &x in &samples[1..] {
         if x == prev {
             run += 1;
             if run >= CLIP_RUN && (x == hi || x == lo) {
@@ -175,6 +166,11 @@ pub fn scan(samples: &[f32], sample_rate: f64) -> ChannelScan {
             run = 1;
             prev = x;
         }
+    }
+    out.dc_offset = mean.abs() > (sq / n).sqrt();
+    let many = ((CLIP_SHARE * n).ceil() as usize).max(CLIP_RUN + 1);
+    if (at_hi >= many && at_hi >= 2 * near_hi) || (at_lo >= many && at_lo >= 2 * near_lo) {
+        out.clipped = true;
     }
     out
 }

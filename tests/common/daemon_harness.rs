@@ -49,17 +49,9 @@ pub fn lines(r: impl Read + Send + 'static) -> Receiver<String> {
 }
 
 pub fn wait_exit(child: &mut Child, timeout: Duration) -> std::process::ExitStatus {
-    let deadline = Instant::now() + timeout;
-    loop {
-        if let Some(s) = child.try_wait().unwrap() {
-            return s;
-        }
-        if Instant::now() > deadline {
-            let _ = child.kill();
-            panic!("process {} did not exit within {timeout:?}", child.id());
-        }
-        std::thread::sleep(Duration::from_millis(20));
-    }
+    let pid = child.id();
+    wait_exit_or_kill(child, timeout)
+        .unwrap_or_else(|| panic!("process {pid} did not exit within {timeout:?}"))
 }
 
 /// Like [`wait_exit`] but returns `None` (after killing it) when the child is still running
