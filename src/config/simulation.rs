@@ -36,6 +36,41 @@ pub struct SimulationConfig {
     /// `rigmon calibrate`); off when absent.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub speed_fluctuation: Option<SpeedFluctuationConfig>,
+    /// Shaft-order lines at the sensor beyond what the rotor model transmits (found by
+    /// `rigmon calibrate` as `unbalance`); off when absent.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub shaft_lines: Option<ShaftLinesConfig>,
+}
+
+/// `[simulation.shaft_lines]`: vibration locked to the shaft angle at orders 1, 2, ... on the
+/// radial channels (vertical, horizontal 90 deg behind), added to what the rotor model gives.
+/// Order k has amplitude `amplitudes_m_s2[k-1] * (rpm / ref_rpm)^exponent`: unbalance force
+/// grows with speed^2, and the path to the sensor adds 0 (a mass-controlled support) to about
+/// 2 (a stiff one below its resonance) to the exponent.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ShaftLinesConfig {
+    /// Speed at which the amplitudes hold, rpm.
+    pub ref_rpm: f64,
+    /// Growth of every line with speed.
+    pub exponent: f64,
+    /// Amplitude of orders 1, 2, ... at `ref_rpm`, m/s^2.
+    pub amplitudes_m_s2: Vec<f64>,
+    /// Phase of order 1 relative to the tacho mark, degrees (order k: k times it).
+    #[serde(default)]
+    pub phase_deg: f64,
+}
+
+impl ShaftLinesConfig {
+    /// Amplitude of order `k` (1-based) at `rpm`, m/s^2.
+    pub fn amplitude(&self, k: usize, rpm: f64) -> f64 {
+        let a = self
+            .amplitudes_m_s2
+            .get(k.wrapping_sub(1))
+            .copied()
+            .unwrap_or(0.0);
+        a * (rpm / self.ref_rpm).max(0.0).powf(self.exponent)
+    }
 }
 
 /// `[simulation.speed_fluctuation]`: rpm(t) = rpm (1 + fraction sin(2 pi t / period_s)),
@@ -64,6 +99,7 @@ impl Default for SimulationConfig {
             tacho: TachoConfig::default(),
             channel_map: BTreeMap::new(),
             speed_fluctuation: None,
+            shaft_lines: None,
         }
     }
 }
@@ -371,11 +407,37 @@ pub const SIGNALS: [&str; 5] = [
 ];
 
 impl SimulationConfig {
+    /// The section with the sensor-stage keys (noise, quantisation, electrical and
+    /// shaft-order lines, tacho) at their defaults: what the mechanical simulation depends
+    /// on (see `sim::EngineRun`).
+    pub fn engine_part(&self) -> SimulationConfig {
+        let d = SimulationConfig::default();
+        let mut s = self.clone();
+        s.structure.noise_rms_m_s2 = d.structure.noise_rms_m_s2;
+        s.structure.adc_resolution_m_s2 = d.structure.adc_resolution_m_s2;
+        s.structure.line_hz = d.structure.line_hz;
+        s.structure.line_amplitudes_m_s2 = d.structure.line_amplitudes_m_s2;
+        s.shaft_lines = None;
+        s.tacho = d.tacho;
+        s
+    }
+
     /// Physical sanity checks; messages name the key and what to do.
     pub fn validate(&self) -> Result<()> {
         if let Some(f) = &self.speed_fluctuation {
             if !(f.fraction >= 0.0 && f.fraction < 0.5 && f.period_s > 0.0) {
                 bail!("[simulation.speed_fluctuation]: fraction must be in [0, 0.5) and period_s > 0 (got {} and {})", f.fraction, f.period_s);
+            }
+        }
+        if let Some(l) = &self.shaft_lines {
+            if !(l.ref_rpm.is_finite() && l.ref_rpm > 0.0)
+                || !(l.exponent.is_finite() && (0.0..=8.0).contains(&l.exponent))
+                || l.amplitudes_m_s2
+                    .iter()
+                    .any(|a| !(a.is_finite() && *a >= 0.0))
+                || !l.phase_deg.is_finite()
+            {
+                bail!("[simulation.shaft_lines]: ref_rpm must be > 0, exponent in [0, 8] and amplitudes_m_s2 >= 0 (got {}, {} and {:?})", l.ref_rpm, l.exponent, l.amplitudes_m_s2);
             }
         }
         let pos = |name: &str, v: f64| -> Result<()> {

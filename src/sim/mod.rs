@@ -6,8 +6,9 @@
 //!
 //! Parts: [`rotor`] (beam FE + Guyan reduction + supports), [`bearing_contact`] (balls, cage,
 //! Hertz contact), [`defects`] (slot geometry), [`structure`] (resonances), [`profile`]
-//! (speed), [`integrate`] (the stepper), [`decimate`] (anti-aliasing), [`scenario`], [`plan`]
-//! (datasets) and [`output`] (MCAP/WAV).
+//! (speed), [`integrate`] (the stepper), [`decimate`] (anti-aliasing), [`sensor`] (noise,
+//! electrical and shaft-order lines, units, tacho: the stage after the mechanics, see
+//! [`run_engine`]), [`scenario`], [`plan`] (datasets) and [`output`] (MCAP/WAV).
 
 pub mod bearing_contact;
 pub mod dataset;
@@ -20,6 +21,7 @@ pub mod plan;
 pub mod profile;
 pub mod rotor;
 pub mod scenario;
+pub mod sensor;
 pub mod signature;
 pub mod structure;
 
@@ -29,13 +31,12 @@ pub use scenario::{label_of, Fault, Overrides, Scenario};
 use crate::bearing::{BearingGeometry, FaultOrders};
 use crate::config::simulation::{SimulationConfig, SIGNALS};
 use crate::config::{ChannelKind, RigConfig};
-use crate::recording::{Channel, Provenance, Recording, Tacho};
+use crate::recording::Recording;
 use anyhow::{bail, Context, Result};
 use bearing_contact::BallBearing;
 use integrate::Engine;
 use rand::rngs::StdRng;
-use rand::{Rng, SeedableRng};
-use rand_distr::StandardNormal;
+use rand::SeedableRng;
 use rotor::RotorModel;
 use std::collections::BTreeMap;
 use structure::Structure;
@@ -81,7 +82,17 @@ fn signal_for(sim: &SimulationConfig, name: &str, axis: &str) -> Option<usize> {
     SIGNALS.iter().position(|s| *s == key)
 }
 
-fn unit_scale(unit: &str, channel: &str) -> Result<f64> {
+/// The structural mode the rig's classifier channel sees most of (see
+/// [`structure::dominant_mode_hz`]), Hz: where the model puts the resonance that impacts
+/// ring through, whether or not a simulation excites it.
+pub fn dominant_resonance_hz(rig: &RigConfig, sim: &SimulationConfig) -> Option<f64> {
+    let ch = rig.classifier_channel()?;
+    let signal = SIGNALS[signal_for(sim, &ch.name, &ch.axis)?];
+    structure::dominant_mode_hz(&sim.structure.resonances, signal)
+}
+
+/// Factor from m/s^2 to a channel's unit (m/s^2, mm/s^2 or g).
+pub fn unit_scale(unit: &str, channel: &str) -> Result<f64> {
     match unit.trim() {
         "m/s^2" | "m/s2" | "m/s²" => Ok(1.0),
         "g" => Ok(1.0 / G0),
@@ -127,6 +138,61 @@ pub fn simulate_with(
     base: &SimulationConfig,
     scenario: &Scenario,
 ) -> Result<Recording> {
+    let run = run_engine(rig, base, scenario)?;
+    sensor::finish(rig, &scenario.overrides.apply(base), scenario, &run)
+}
+
+/// The mechanical part of one simulation: the housing signals the rig's channels need and
+/// the shaft angles, before the sensor stage ([`sensor::finish`]: noise, electrical and
+/// shaft-order lines, units, quantisation, tacho). It depends only on
+/// [`SimulationConfig::engine_part`], so a caller that varies sensor-stage keys alone (as
+/// calibration does) can run it once and finish it many times.
+#[derive(Debug, Clone)]
+pub struct EngineRun {
+    out: integrate::EngineOutput,
+    /// Random state after the engine; the sensor stage continues from a copy of it.
+    rng: StdRng,
+    fs: f64,
+    n_out: usize,
+    alpha: f64,
+    oversampling: usize,
+}
+
+/// Acceleration channels that map to a simulated signal, in rig order: (channel, signal
+/// index, scale from m/s^2 to the channel's unit).
+fn channel_signals<'a>(
+    rig: &'a RigConfig,
+    sim: &SimulationConfig,
+) -> Result<Vec<(&'a crate::config::ChannelConfig, usize, f64)>> {
+    let mut chans = Vec::new();
+    for c in rig
+        .channels
+        .iter()
+        .filter(|c| c.kind == ChannelKind::Acceleration)
+    {
+        if let Some(sig) = signal_for(sim, &c.name, &c.axis) {
+            chans.push((
+                c,
+                sig,
+                unit_scale(&c.unit, &c.name)? / c.sensitivity.max(f64::MIN_POSITIVE),
+            ));
+        }
+    }
+    if chans.is_empty() {
+        bail!(
+            "rig {:?}: none of the acceleration channels maps to a simulated signal; set [simulation.channel_map] (signals: {SIGNALS:?})",
+            rig.machine.id
+        );
+    }
+    Ok(chans)
+}
+
+/// Run the mechanical part of a scenario (validates the section and the scenario).
+pub fn run_engine(
+    rig: &RigConfig,
+    base: &SimulationConfig,
+    scenario: &Scenario,
+) -> Result<EngineRun> {
     let sim = scenario.overrides.apply(base);
     sim.validate()?;
     if !(scenario.seconds > 0.0 && scenario.seconds <= 3600.0) {
@@ -147,27 +213,7 @@ pub fn simulate_with(
     let alpha = contact_angle_deg(rig, &sim);
     let geom: BearingGeometry = rig.bearing;
 
-    // Channels: acceleration channels that map to a simulated signal, in rig order.
-    let mut chans = Vec::new();
-    for c in rig
-        .channels
-        .iter()
-        .filter(|c| c.kind == ChannelKind::Acceleration)
-    {
-        if let Some(sig) = signal_for(&sim, &c.name, &c.axis) {
-            chans.push((
-                c,
-                sig,
-                unit_scale(&c.unit, &c.name)? / c.sensitivity.max(f64::MIN_POSITIVE),
-            ));
-        }
-    }
-    if chans.is_empty() {
-        bail!(
-            "rig {:?}: none of the acceleration channels maps to a simulated signal; set [simulation.channel_map] (signals: {SIGNALS:?})",
-            rig.machine.id
-        );
-    }
+    let chans = channel_signals(rig, &sim)?;
     let want: Vec<usize> = chans.iter().map(|c| c.1).collect();
 
     let rotor = RotorModel::build(&sim)?;
@@ -200,158 +246,13 @@ pub fn simulate_with(
     };
     let mut rng = StdRng::seed_from_u64(scenario.seed);
     let out = engine.run(n_out, &want, &mut rng)?;
-
-    // Sensor noise, units.
-    let mut channels = Vec::with_capacity(chans.len());
-    let adc = sim.structure.adc_resolution_m_s2;
-    // electrical line interference: harmonics of the line frequency, random phases
-    let lines: Vec<(f64, f64, f64)> = sim
-        .structure
-        .line_amplitudes_m_s2
-        .iter()
-        .enumerate()
-        .map(|(h, &a)| {
-            (
-                a,
-                std::f64::consts::TAU * sim.structure.line_hz * (h + 1) as f64 / fs,
-                rng.random_range(0.0..std::f64::consts::TAU),
-            )
-        })
-        .collect();
-    for ((c, _, scale), sig) in chans.iter().zip(out.signals) {
-        // quantisation step in the channel's unit, a power of two (exact in f32)
-        let lsb = if adc > 0.0 {
-            2f64.powf((adc * scale).log2().round())
-        } else {
-            0.0
-        };
-        let samples: Vec<f32> = sig
-            .iter()
-            .enumerate()
-            .map(|(i, &a)| {
-                let z: f64 = rng.sample(StandardNormal);
-                let hum: f64 = lines
-                    .iter()
-                    .map(|&(amp, w, ph)| amp * (w * i as f64 + ph).sin())
-                    .sum();
-                let y = (a + hum + sim.structure.noise_rms_m_s2 * z) * scale;
-                (if lsb > 0.0 {
-                    (y / lsb).round() * lsb
-                } else {
-                    y
-                }) as f32
-            })
-            .collect();
-        channels.push(Channel {
-            name: c.name.clone(),
-            axis: c.axis.clone(),
-            unit: c.unit.clone(),
-            samples,
-        });
-    }
-
-    // Analog tacho if the rig has a tacho channel.
-    let tacho = match rig.channels.iter().find(|c| c.kind == ChannelKind::Tacho) {
-        Some(tc) => {
-            let ppr = rig.pulses_per_rev().max(1) as f64;
-            let duty = sim.tacho.duty;
-            let samples = (0..n_out)
-                .map(|i| {
-                    let pa = out.boundary_angles[i] * ppr / std::f64::consts::TAU;
-                    let pb = out.boundary_angles[i + 1] * ppr / std::f64::consts::TAU;
-                    let frac = high_fraction(pa, pb, duty);
-                    let z: f64 = rng.sample(StandardNormal);
-                    let y = (sim.tacho.high_v * frac + sim.tacho.noise_v * z)
-                        / tc.sensitivity.max(f64::MIN_POSITIVE);
-                    // a 16-bit tacho input over +-8 V: 2^-12 V steps
-                    ((y * 4096.0).round() / 4096.0) as f32
-                })
-                .collect();
-            Some(Tacho::Analog {
-                samples,
-                unit: tc.unit.clone(),
-            })
-        }
-        None => None,
-    };
-
-    let mean_rpm = scenario.profile.mean_rpm(scenario.seconds);
-    let orders = model_fault_orders(rig, &sim);
-    let mut md = BTreeMap::new();
-    md.insert("label".to_string(), scenario.label().to_string());
-    let faults: Vec<&str> = scenario.faults.iter().map(Fault::label).collect();
-    md.insert(
-        "faults".into(),
-        if faults.is_empty() {
-            "healthy".into()
-        } else {
-            faults.join(",")
-        },
-    );
-    md.insert("rpm".into(), format!("{mean_rpm:.3}"));
-    md.insert("speed_profile".into(), scenario.profile.describe());
-    md.insert("seed".into(), scenario.seed.to_string());
-    md.insert("seconds".into(), format!("{}", scenario.seconds));
-    md.insert("rig".into(), rig.machine.id.clone());
-    md.insert(
-        "generator".into(),
-        format!("rigmon-sim {}", env!("CARGO_PKG_VERSION")),
-    );
-    md.insert("contact_angle_deg".into(), format!("{alpha}"));
-    md.insert("slip".into(), format!("{}", sim.bearing.slip));
-    md.insert("slip_jitter".into(), format!("{}", sim.bearing.slip_jitter));
-    md.insert("bpfo_order".into(), format!("{:.5}", orders.bpfo));
-    md.insert("bpfi_order".into(), format!("{:.5}", orders.bpfi));
-    md.insert("ftf_order".into(), format!("{:.5}", orders.ftf));
-    md.insert("bsf_order".into(), format!("{:.5}", orders.bsf));
-    if !scenario.faults.is_empty() {
-        md.insert("defect_width_mm".into(), format!("{}", sim.defect.width_mm));
-        md.insert(
-            "defect_length_mm".into(),
-            format!("{}", sim.defect.length_mm),
-        );
-        md.insert("defect_depth_mm".into(), format!("{}", sim.defect.depth_mm));
-        md.insert(
-            "defect_shape".into(),
-            format!("{:?}", sim.defect.shape).to_lowercase(),
-        );
-    }
-    md.insert(
-        "noise_rms_m_s2".into(),
-        format!("{}", sim.structure.noise_rms_m_s2),
-    );
-    if let Some(r) = sim.structure.resonances.first() {
-        md.insert("resonance_hz".into(), format!("{}", r.hz));
-    }
-    for (k, v) in scenario.overrides.to_metadata() {
-        md.insert(format!("override.{k}"), v);
-    }
-    for (k, v) in &scenario.metadata {
-        md.insert(k.clone(), v.clone());
-    }
-    md.insert(
-        "simulation".into(),
-        toml::to_string(&sim).unwrap_or_default(),
-    );
-
-    Ok(Recording {
-        sample_rate: fs,
-        start_time_ns: 0,
-        channels,
-        tacho,
-        rpm: Some(mean_rpm),
-        provenance: Provenance {
-            source_path: String::new(),
-            format: "simulated".into(),
-            notes: vec![format!(
-                "rigmon simulator: rig {}, {} internal steps per sample, max {} balls loaded, max journal excursion {:.2} um",
-                rig.machine.id,
-                k,
-                out.max_loaded,
-                out.max_excursion * 1e6
-            )],
-        },
-        metadata: md,
+    Ok(EngineRun {
+        out,
+        rng,
+        fs,
+        n_out,
+        alpha,
+        oversampling: k,
     })
 }
 

@@ -152,21 +152,25 @@ impl PlannedRun {
         let o = &mut self.scenario.overrides;
         let mut dropped = Vec::new();
         for e in effects {
-            let key = match *e {
-                "slip" => o.slip.take().map(|_| "slip"),
-                "contact_angle" => o.contact_angle_deg.take().map(|_| "contact_angle_deg"),
-                "resonance" => o.resonance_hz.take().map(|_| "resonance_hz"),
-                "unbalance" => o.unbalance_scale.take().map(|_| "unbalance_scale"),
-                "speed_fluctuation" => match self.scenario.profile {
-                    SpeedProfile::Sine { rpm, .. } => {
+            match *e {
+                "slip" => dropped.extend(o.slip.take().map(|_| "slip")),
+                "contact_angle" => {
+                    dropped.extend(o.contact_angle_deg.take().map(|_| "contact_angle_deg"))
+                }
+                "resonance" => {
+                    dropped.extend(o.resonance_hz.take().map(|_| "resonance_hz"));
+                    dropped.extend(o.resonance_damping.take().map(|_| "resonance_damping"));
+                }
+                "unbalance" => dropped.extend(o.unbalance_scale.take().map(|_| "unbalance_scale")),
+                "noise" => dropped.extend(o.noise_rms_m_s2.take().map(|_| "noise_rms_m_s2")),
+                "speed_fluctuation" => {
+                    if let SpeedProfile::Sine { rpm, .. } = self.scenario.profile {
                         self.scenario.profile = SpeedProfile::Constant { rpm };
-                        Some("speed_fluctuation")
+                        dropped.push("speed_fluctuation");
                     }
-                    _ => None,
-                },
-                _ => None,
-            };
-            dropped.extend(key);
+                }
+                _ => {}
+            }
         }
         dropped
     }

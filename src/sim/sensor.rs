@@ -1,0 +1,213 @@
+//! The sensor stage of a simulation: from the engine's housing signals and shaft angles
+//! ([`super::EngineRun`]) to a [`Recording`]: white sensor noise, electrical line
+//! interference, shaft-order lines, units and quantisation per channel, the analog tacho
+//! and the metadata (labels, the simulation section used).
+
+use super::{channel_signals, high_fraction, model_fault_orders, EngineRun, Fault, Scenario};
+use crate::config::simulation::{SimulationConfig, SIGNALS};
+use crate::config::{ChannelKind, RigConfig};
+use crate::recording::{Channel, Provenance, Recording, Tacho};
+use anyhow::Result;
+use rand::Rng;
+use rand_distr::StandardNormal;
+use std::collections::BTreeMap;
+
+/// Finish an engine run with the full simulation section `sim` (the scenario's overrides
+/// applied); its engine part must be the one the run was made with.
+pub fn finish(
+    rig: &RigConfig,
+    sim: &SimulationConfig,
+    scenario: &Scenario,
+    run: &EngineRun,
+) -> Result<Recording> {
+    let (out, fs, n_out, alpha, k) = (&run.out, run.fs, run.n_out, run.alpha, run.oversampling);
+    let mut rng = run.rng.clone();
+    let chans = channel_signals(rig, sim)?;
+    // Sensor noise, units.
+    let mut channels = Vec::with_capacity(chans.len());
+    let adc = sim.structure.adc_resolution_m_s2;
+    // electrical line interference: harmonics of the line frequency, random phases
+    let lines: Vec<(f64, f64, f64)> = sim
+        .structure
+        .line_amplitudes_m_s2
+        .iter()
+        .enumerate()
+        .map(|(h, &a)| {
+            (
+                a,
+                std::f64::consts::TAU * sim.structure.line_hz * (h + 1) as f64 / fs,
+                rng.random_range(0.0..std::f64::consts::TAU),
+            )
+        })
+        .collect();
+    // shaft-order lines: per sample, the shaft angle and speed from the sample's boundaries
+    let shaft_lines = sim.shaft_lines.as_ref().map(|l| {
+        let b = &out.boundary_angles;
+        let orders: Vec<(f64, Vec<f64>)> = (1..=l.amplitudes_m_s2.len())
+            .map(|k| {
+                let amp = (0..n_out)
+                    .map(|i| {
+                        let rpm = (b[i + 1] - b[i]) * fs * 60.0 / std::f64::consts::TAU;
+                        l.amplitude(k, rpm)
+                    })
+                    .collect();
+                (k as f64, amp)
+            })
+            .collect();
+        (l.phase_deg.to_radians(), orders)
+    });
+    let shaft_line = |signal: usize, i: usize| -> f64 {
+        let Some((phase, orders)) = &shaft_lines else {
+            return 0.0;
+        };
+        let vertical = match SIGNALS[signal] {
+            "vertical" | "support_vertical" => true,
+            "horizontal" | "support_horizontal" => false,
+            _ => return 0.0,
+        };
+        let th = 0.5 * (out.boundary_angles[i] + out.boundary_angles[i + 1]) + phase;
+        orders
+            .iter()
+            .map(|(k, amp)| {
+                let x = k * th;
+                amp[i] * if vertical { x.cos() } else { x.sin() }
+            })
+            .sum()
+    };
+    for ((c, signal, scale), sig) in chans.iter().zip(&out.signals) {
+        // quantisation step in the channel's unit, a power of two (exact in f32)
+        let lsb = if adc > 0.0 {
+            2f64.powf((adc * scale).log2().round())
+        } else {
+            0.0
+        };
+        let samples: Vec<f32> = sig
+            .iter()
+            .enumerate()
+            .map(|(i, &a)| {
+                let z: f64 = rng.sample(StandardNormal);
+                let hum: f64 = lines
+                    .iter()
+                    .map(|&(amp, w, ph)| amp * (w * i as f64 + ph).sin())
+                    .sum();
+                let y =
+                    (a + hum + shaft_line(*signal, i) + sim.structure.noise_rms_m_s2 * z) * scale;
+                (if lsb > 0.0 {
+                    (y / lsb).round() * lsb
+                } else {
+                    y
+                }) as f32
+            })
+            .collect();
+        channels.push(Channel {
+            name: c.name.clone(),
+            axis: c.axis.clone(),
+            unit: c.unit.clone(),
+            samples,
+        });
+    }
+
+    // Analog tacho if the rig has a tacho channel.
+    let tacho = match rig.channels.iter().find(|c| c.kind == ChannelKind::Tacho) {
+        Some(tc) => {
+            let ppr = rig.pulses_per_rev().max(1) as f64;
+            let duty = sim.tacho.duty;
+            let samples = (0..n_out)
+                .map(|i| {
+                    let pa = out.boundary_angles[i] * ppr / std::f64::consts::TAU;
+                    let pb = out.boundary_angles[i + 1] * ppr / std::f64::consts::TAU;
+                    let frac = high_fraction(pa, pb, duty);
+                    let z: f64 = rng.sample(StandardNormal);
+                    let y = (sim.tacho.high_v * frac + sim.tacho.noise_v * z)
+                        / tc.sensitivity.max(f64::MIN_POSITIVE);
+                    // a 16-bit tacho input over +-8 V: 2^-12 V steps
+                    ((y * 4096.0).round() / 4096.0) as f32
+                })
+                .collect();
+            Some(Tacho::Analog {
+                samples,
+                unit: tc.unit.clone(),
+            })
+        }
+        None => None,
+    };
+
+    let mean_rpm = scenario.profile.mean_rpm(scenario.seconds);
+    let orders = model_fault_orders(rig, &sim);
+    let mut md = BTreeMap::new();
+    md.insert("label".to_string(), scenario.label().to_string());
+    let faults: Vec<&str> = scenario.faults.iter().map(Fault::label).collect();
+    md.insert(
+        "faults".into(),
+        if faults.is_empty() {
+            "healthy".into()
+        } else {
+            faults.join(",")
+        },
+    );
+    md.insert("rpm".into(), format!("{mean_rpm:.3}"));
+    md.insert("speed_profile".into(), scenario.profile.describe());
+    md.insert("seed".into(), scenario.seed.to_string());
+    md.insert("seconds".into(), format!("{}", scenario.seconds));
+    md.insert("rig".into(), rig.machine.id.clone());
+    md.insert(
+        "generator".into(),
+        format!("rigmon-sim {}", env!("CARGO_PKG_VERSION")),
+    );
+    md.insert("contact_angle_deg".into(), format!("{alpha}"));
+    md.insert("slip".into(), format!("{}", sim.bearing.slip));
+    md.insert("slip_jitter".into(), format!("{}", sim.bearing.slip_jitter));
+    md.insert("bpfo_order".into(), format!("{:.5}", orders.bpfo));
+    md.insert("bpfi_order".into(), format!("{:.5}", orders.bpfi));
+    md.insert("ftf_order".into(), format!("{:.5}", orders.ftf));
+    md.insert("bsf_order".into(), format!("{:.5}", orders.bsf));
+    if !scenario.faults.is_empty() {
+        md.insert("defect_width_mm".into(), format!("{}", sim.defect.width_mm));
+        md.insert(
+            "defect_length_mm".into(),
+            format!("{}", sim.defect.length_mm),
+        );
+        md.insert("defect_depth_mm".into(), format!("{}", sim.defect.depth_mm));
+        md.insert(
+            "defect_shape".into(),
+            format!("{:?}", sim.defect.shape).to_lowercase(),
+        );
+    }
+    md.insert(
+        "noise_rms_m_s2".into(),
+        format!("{}", sim.structure.noise_rms_m_s2),
+    );
+    if let Some(r) = sim.structure.resonances.first() {
+        md.insert("resonance_hz".into(), format!("{}", r.hz));
+    }
+    for (k, v) in scenario.overrides.to_metadata() {
+        md.insert(format!("override.{k}"), v);
+    }
+    for (k, v) in &scenario.metadata {
+        md.insert(k.clone(), v.clone());
+    }
+    md.insert(
+        "simulation".into(),
+        toml::to_string(&sim).unwrap_or_default(),
+    );
+
+    Ok(Recording {
+        sample_rate: fs,
+        start_time_ns: 0,
+        channels,
+        tacho,
+        rpm: Some(mean_rpm),
+        provenance: Provenance {
+            source_path: String::new(),
+            format: "simulated".into(),
+            notes: vec![format!(
+                "rigmon simulator: rig {}, {} internal steps per sample, max {} balls loaded, max journal excursion {:.2} um",
+                rig.machine.id,
+                k,
+                out.max_loaded,
+                out.max_excursion * 1e6
+            )],
+        },
+        metadata: md,
+    })
+}
