@@ -5,12 +5,14 @@
 //! |---|---|---|
 //! | `slip` | `slip` 0-0.06 | `bearing.slip` |
 //! | `contact_angle` | `contact_angle_deg` 0-40 | `bearing.contact_angle_deg` |
-//! | `resonance` | `hz` 800-0.4 fs | `structure.resonances[0].hz` |
-//! | `unbalance` | `scale` 0.1-300 (log) | `rotor.discs[*].unbalance_g_mm` x scale |
+//! | `resonance` | `hz` 800-0.4 fs (log), `damping` 0.01-0.12 (log) | `structure.resonances[0]` |
+//! | `unbalance` | `order1_m_s2` 0.001-10 (log), `exponent` 0-6 (two speeds or more; else 2), `order2_m_s2` 0.0001-10 (log) | `shaft_lines` at the highest measured speed |
 //! | `line_interference` | `line_hz` {50, 60}, `amplitude_m_s2` 0.01-3 (log) | `structure.line_hz`, `line_amplitudes_m_s2` |
 //! | `speed_fluctuation` | `fraction` 0.002-0.1 (log), `period_s` 0.2-5 (log) | `speed_fluctuation.fraction`, `.period_s` |
+//! | `looseness` | `harmonics_m_s2` 0.0005-3 (log), `slope` -2-3, `highest_order` {5, 10, 20, 30} | `shaft_lines` orders 3..highest: `harmonics_m_s2` (k / k_mid)^`slope`, k_mid the geometric mean order |
+//! | `noise` | `noise_rms_m_s2` 0.003-3 (log) | `structure.noise_rms_m_s2` |
 
-use crate::config::simulation::{SimulationConfig, SpeedFluctuationConfig};
+use crate::config::simulation::{ShaftLinesConfig, SimulationConfig, SpeedFluctuationConfig};
 use serde::Serialize;
 
 /// Effects the calibrator can add.
@@ -23,15 +25,19 @@ pub enum Effect {
     Unbalance,
     LineInterference,
     SpeedFluctuation,
+    Looseness,
+    Noise,
 }
 
-pub const ALL: [Effect; 6] = [
+pub const ALL: [Effect; 8] = [
     Effect::Slip,
     Effect::ContactAngle,
     Effect::Resonance,
     Effect::Unbalance,
     Effect::LineInterference,
     Effect::SpeedFluctuation,
+    Effect::Looseness,
+    Effect::Noise,
 ];
 
 /// How a parameter is searched.
@@ -49,6 +55,19 @@ pub struct Param {
     pub range: Range,
 }
 
+/// What the measured data fix about the search: the lowest sample rate (bounds the
+/// resonance), the highest speed (reference of the shaft lines) and whether there are
+/// recordings at two or more distinct speeds (only then can a growth with speed be fitted).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Context {
+    pub fs: f64,
+    pub max_rpm: f64,
+    pub several_speeds: bool,
+}
+
+/// Exponent of the shaft lines when one speed cannot fix it: the unbalance force's speed^2.
+pub const DEFAULT_EXPONENT: f64 = 2.0;
+
 impl Effect {
     pub fn name(&self) -> &'static str {
         match self {
@@ -58,6 +77,8 @@ impl Effect {
             Effect::Unbalance => "unbalance",
             Effect::LineInterference => "line_interference",
             Effect::SpeedFluctuation => "speed_fluctuation",
+            Effect::Looseness => "looseness",
+            Effect::Noise => "noise",
         }
     }
 
@@ -66,21 +87,34 @@ impl Effect {
     /// model physically (e.g. a contact angle reshaping the resonance bands).
     pub fn components(&self) -> &'static [&'static str] {
         match self {
-            Effect::Slip | Effect::ContactAngle => &["env"],
-            Effect::Resonance => &["bands"],
-            Effect::Unbalance | Effect::LineInterference => &["lines"],
+            Effect::Slip | Effect::ContactAngle => &["env", "peaks"],
+            Effect::Resonance => &["bands", "modes"],
+            Effect::Unbalance => &["orders"],
+            Effect::LineInterference => &["lines"],
             Effect::SpeedFluctuation => &["speed", "lines"],
+            Effect::Looseness => &["harmonics"],
+            Effect::Noise => &["floor"],
         }
     }
 
-    /// Parameters and bounds; `fs` is the lowest measured sample rate.
-    pub fn params(&self, fs: f64) -> Vec<Param> {
+    /// Parameters and bounds.
+    pub fn params(&self, cx: &Context) -> Vec<Param> {
         let p = |name, range| Param { name, range };
         match self {
             Effect::Slip => vec![p("slip", Range::Linear(0.0, 0.06))],
             Effect::ContactAngle => vec![p("contact_angle_deg", Range::Linear(0.0, 40.0))],
-            Effect::Resonance => vec![p("hz", Range::Log(800.0, 0.4 * fs))],
-            Effect::Unbalance => vec![p("scale", Range::Log(0.1, 300.0))],
+            Effect::Resonance => vec![
+                p("hz", Range::Log(800.0, 0.4 * cx.fs)),
+                p("damping", Range::Log(0.01, 0.12)),
+            ],
+            Effect::Unbalance => {
+                let mut v = vec![p("order1_m_s2", Range::Log(0.001, 10.0))];
+                if cx.several_speeds {
+                    v.push(p("exponent", Range::Linear(0.0, 6.0)));
+                }
+                v.push(p("order2_m_s2", Range::Log(0.0001, 10.0)));
+                v
+            }
             Effect::LineInterference => vec![
                 p("line_hz", Range::Choice(vec![50.0, 60.0])),
                 p("amplitude_m_s2", Range::Log(0.01, 3.0)),
@@ -89,23 +123,42 @@ impl Effect {
                 p("period_s", Range::Log(0.2, 5.0)),
                 p("fraction", Range::Log(0.002, 0.1)),
             ],
+            Effect::Looseness => vec![
+                p("harmonics_m_s2", Range::Log(0.0005, 3.0)),
+                p("slope", Range::Linear(-2.0, 3.0)),
+                p("highest_order", Range::Choice(vec![5.0, 10.0, 20.0, 30.0])),
+            ],
+            Effect::Noise => vec![p("noise_rms_m_s2", Range::Log(0.003, 3.0))],
         }
     }
 
     /// Starting values for a search (the rig's current value where there is one).
-    pub fn start(&self, sim: &SimulationConfig, fs: f64) -> Vec<f64> {
+    pub fn start(&self, sim: &SimulationConfig, cx: &Context) -> Vec<f64> {
         match self {
             Effect::Slip => vec![sim.bearing.slip],
             Effect::ContactAngle => vec![sim.bearing.contact_angle_deg.unwrap_or(0.0)],
-            Effect::Resonance => vec![sim.structure.resonances.first().map_or(0.2 * fs, |r| r.hz)],
-            Effect::Unbalance => vec![1.0],
+            Effect::Resonance => match sim.structure.resonances.first() {
+                Some(r) => vec![r.hz, r.damping],
+                None => vec![0.2 * cx.fs, 0.03],
+            },
+            Effect::Unbalance => {
+                let mut v = vec![0.01];
+                if cx.several_speeds {
+                    v.push(DEFAULT_EXPONENT);
+                }
+                v.push(0.001);
+                v
+            }
             Effect::LineInterference => vec![50.0, 0.1],
             Effect::SpeedFluctuation => vec![1.0, 0.01],
+            Effect::Looseness => vec![0.01, 0.0, 10.0],
+            Effect::Noise => vec![sim.structure.noise_rms_m_s2],
         }
     }
 
-    /// The simulation section with this effect switched on at `values`.
-    pub fn apply(&self, base: &SimulationConfig, values: &[f64]) -> SimulationConfig {
+    /// The simulation section with this effect switched on at `values` (in the order of
+    /// [`Effect::params`]).
+    pub fn apply(&self, base: &SimulationConfig, values: &[f64], cx: &Context) -> SimulationConfig {
         let mut s = base.clone();
         match self {
             Effect::Slip => s.bearing.slip = values[0],
@@ -113,13 +166,33 @@ impl Effect {
             Effect::Resonance => {
                 if let Some(r) = s.structure.resonances.first_mut() {
                     r.hz = values[0];
+                    r.damping = values[1];
                 }
             }
             Effect::Unbalance => {
-                for d in &mut s.rotor.discs {
-                    d.unbalance_g_mm *= values[0];
+                let (exponent, order2) = if cx.several_speeds {
+                    (values[1], values[2])
+                } else {
+                    (DEFAULT_EXPONENT, values[1])
+                };
+                let lines = shaft_lines(&mut s, cx, 2);
+                lines.exponent = exponent;
+                lines.amplitudes_m_s2[0] = values[0];
+                lines.amplitudes_m_s2[1] = order2;
+            }
+            Effect::Looseness => {
+                let highest = values[2].round().max(3.0) as usize;
+                let mid = ((3..=highest).map(|k| (k as f64).ln()).sum::<f64>()
+                    / (highest - 2) as f64)
+                    .exp();
+                let lines = shaft_lines(&mut s, cx, highest);
+                lines.amplitudes_m_s2.truncate(highest);
+                for (k, a) in (3..).zip(&mut lines.amplitudes_m_s2[2..]) {
+                    *a = values[0] * (k as f64 / mid).powf(values[1]);
                 }
             }
+            Effect::Noise => s.structure.noise_rms_m_s2 = values[0],
+
             Effect::LineInterference => {
                 s.structure.line_hz = values[0];
                 s.structure.line_amplitudes_m_s2 = vec![values[1]];
@@ -133,4 +206,24 @@ impl Effect {
         }
         s
     }
+}
+
+/// The section's shaft lines (created at the highest measured speed with the default
+/// exponent when absent) with at least `orders` entries. Unbalance owns orders 1-2,
+/// looseness 3 and up; they share the reference speed and the exponent.
+fn shaft_lines<'a>(
+    s: &'a mut SimulationConfig,
+    cx: &Context,
+    orders: usize,
+) -> &'a mut ShaftLinesConfig {
+    let lines = s.shaft_lines.get_or_insert_with(|| ShaftLinesConfig {
+        ref_rpm: cx.max_rpm,
+        exponent: DEFAULT_EXPONENT,
+        amplitudes_m_s2: Vec::new(),
+        phase_deg: 0.0,
+    });
+    if lines.amplitudes_m_s2.len() < orders {
+        lines.amplitudes_m_s2.resize(orders, 0.0);
+    }
+    lines
 }

@@ -1,28 +1,89 @@
 //! The calibration error: one scalar, the sum of named components, each comparing one view
-//! of a measured recording with its simulated twin, averaged over recordings:
-//! - `env`, `bands`: mean absolute difference in dB over the view's grid;
-//! - `lines`: summed absolute dB difference over the 1 Hz bins, divided by [`LINES_PER`]
-//!   (one missing 10 dB line counts 1), on recordings labelled **healthy** only: in a faulty
-//!   recording the raw-spectrum lines are the fault's own harmonics, which `env` compares,
-//!   while in a healthy one they are what unbalance and electrical pick-up put there;
-//! - `speed`: half the summed absolute difference of the speed-deviation spectra, percent.
+//! of a measured recording with its simulated twin. Each component is averaged over the
+//! recordings it applies to (a recording where it does not apply has it `NaN`, shown as
+//! `null` in reports):
+//! - `env` (every recording), `bands` (every recording): mean absolute difference in dB over
+//!   the view's grid;
+//! - `peaks` (recordings with a located fault comb): fault-order location difference in per
+//!   mille of the fault order, per located fault family (a family the simulation does not
+//!   show counts the search half-width, 80 per mille);
+//! - `ratios` (the same recordings): harmonic (2nd / 1st) and sideband ratio differences of
+//!   the located fault families, summed dB / 10;
+//! - `lines` (recordings labelled **healthy**): summed absolute dB difference over the 1 Hz
+//!   bins, divided by [`LINES_PER`] (one missing 10 dB line counts 1); in a faulty recording
+//!   the raw-spectrum lines are the fault's own harmonics, which `env` compares, while in a
+//!   healthy one they are what unbalance and electrical pick-up put there;
+//! - `orders` (every recording: the shaft lines are there whatever the bearing's state): the
+//!   1x and 2x lines in dB above the higher of the two floors (6 dB threshold), mean absolute
+//!   dB difference;
+//! - `harmonics` (every recording): the shaft orders 3x-30x the same way, summed dB / 10
+//!   (looseness);
+//! - `modes` (recordings whose measured dominant resonance stands out): distance, in 100 Hz
+//!   bands, from the measured dominant resonance to the model's dominant structural mode on
+//!   the classifier axis (the calibrator puts the model's mode in the simulated view, so a
+//!   healthy simulation that hardly excites its resonances is still compared; a simulated
+//!   view without one that stands out counts [`MODE_MISSING_BANDS`]);
+//! - `floor` (recordings labelled healthy: in a faulty one the impacts' skirts cover the
+//!   quiet part of the spectrum): difference of the absolute broadband floors, dB;
+//! - `speed` (every recording): half the summed absolute difference of the speed-deviation
+//!   spectra, percent.
+//!
 //! The README defines it too.
 
-use super::views::Views;
+use super::fault_peaks::SEARCH;
+use super::shaft_orders::levels_db;
+use super::views::{Views, BAND_HZ};
 use serde::Serialize;
 
 /// Error components; `total` is their sum.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Serialize)]
 pub struct ErrorParts {
     pub env: f64,
+    pub peaks: f64,
+    pub ratios: f64,
     pub lines: f64,
+    pub orders: f64,
+    pub harmonics: f64,
     pub bands: f64,
+    pub modes: f64,
+    pub floor: f64,
     pub speed: f64,
     pub total: f64,
 }
 
-/// Divisor of the summed `lines` difference, dB.
+/// Component names, in report order.
+pub const NAMES: [&str; 10] = [
+    "env",
+    "peaks",
+    "ratios",
+    "lines",
+    "orders",
+    "harmonics",
+    "bands",
+    "modes",
+    "floor",
+    "speed",
+];
+
+/// `modes` when the measured resonance stands out and the simulated one does not (its
+/// location is then only noise), in bands.
+pub const MODE_MISSING_BANDS: f64 = 10.0;
+
+/// Divisor of the summed `lines` and `ratios` differences, dB.
 pub const LINES_PER: f64 = 10.0;
+
+/// The smallest cut of each component that counts as a change (acceptance, see
+/// [`super::fit::accepts`]), in the component's unit.
+pub fn min_cut(name: &str) -> f64 {
+    match name {
+        "peaks" => 2.0,
+        "orders" => 0.5,
+        "modes" => 1.0,
+        "floor" => 0.5,
+        "harmonics" => 0.5,
+        _ => 0.05,
+    }
+}
 
 fn mean_abs(a: &[f64], b: &[f64]) -> f64 {
     let n = a.len().min(b.len());
@@ -32,9 +93,34 @@ fn mean_abs(a: &[f64], b: &[f64]) -> f64 {
     a.iter().zip(b).map(|(x, y)| (x - y).abs()).sum::<f64>() / n as f64
 }
 
+/// `peaks` and `ratios` of one pair (NaN without a located measured comb).
+fn fault_parts(m: &Views, s: &Views) -> (f64, f64) {
+    if m.fault_peaks.is_empty() {
+        return (f64::NAN, f64::NAN);
+    }
+    let (mut peaks, mut ratios) = (0.0, 0.0);
+    for p in &m.fault_peaks {
+        match s.fault_peaks.iter().find(|q| q.family == p.family) {
+            Some(q) => {
+                peaks += 1000.0 * (p.order - q.order).abs() / p.order;
+                let d = |a: Option<f64>, b: Option<f64>| match (a, b) {
+                    (Some(a), Some(b)) => (a - b).abs(),
+                    _ => 0.0,
+                };
+                ratios +=
+                    (d(p.harmonic_db, q.harmonic_db) + d(p.sideband_db, q.sideband_db)) / LINES_PER;
+            }
+            None => peaks += 1000.0 * SEARCH,
+        }
+    }
+    let n = m.fault_peaks.len() as f64;
+    (peaks / n, ratios / n)
+}
+
 /// Error of one measured/simulated pair.
 pub fn pair(m: &Views, s: &Views) -> ErrorParts {
     let env = mean_abs(&m.env, &s.env);
+    let (peaks, ratios) = fault_parts(m, s);
     let lines = if m.healthy {
         m.lines
             .iter()
@@ -43,9 +129,27 @@ pub fn pair(m: &Views, s: &Views) -> ErrorParts {
             .sum::<f64>()
             / LINES_PER
     } else {
-        0.0
+        f64::NAN
     };
+    let (lm, ls) = levels_db(&m.shaft, &s.shaft);
+    let orders = mean_abs(&lm[..2], &ls[..2]);
+    let harmonics = lm[2..]
+        .iter()
+        .zip(&ls[2..])
+        .map(|(a, b)| (a - b).abs())
+        .sum::<f64>()
+        / LINES_PER;
     let bands = mean_abs(&m.bands, &s.bands);
+    let modes = match (m.mode.prominent, s.mode.prominent) {
+        (false, _) => f64::NAN,
+        (true, true) => (m.mode.hz - s.mode.hz).abs() / BAND_HZ,
+        (true, false) => MODE_MISSING_BANDS,
+    };
+    let floor = if m.healthy {
+        (m.floor_db - s.floor_db).abs()
+    } else {
+        f64::NAN
+    };
     let n = m.speed.len().min(s.speed.len());
     let speed = 0.5
         * m.speed[..n]
@@ -55,39 +159,80 @@ pub fn pair(m: &Views, s: &Views) -> ErrorParts {
             .sum::<f64>();
     ErrorParts {
         env,
+        peaks,
+        ratios,
         lines,
+        orders,
+        harmonics,
         bands,
+        modes,
+        floor,
         speed,
-        total: env + lines + bands + speed,
+        total: 0.0,
     }
+    .summed()
 }
 
 impl ErrorParts {
-    /// Sum of the named components (`env`, `lines`, `bands`, `speed`).
+    /// The value of one named component (`total` for an unknown name).
+    pub fn get(&self, name: &str) -> f64 {
+        match name {
+            "env" => self.env,
+            "peaks" => self.peaks,
+            "ratios" => self.ratios,
+            "lines" => self.lines,
+            "orders" => self.orders,
+            "harmonics" => self.harmonics,
+            "bands" => self.bands,
+            "modes" => self.modes,
+            "floor" => self.floor,
+            "speed" => self.speed,
+            _ => self.total,
+        }
+    }
+
+    fn get_mut(&mut self, name: &str) -> &mut f64 {
+        match name {
+            "env" => &mut self.env,
+            "peaks" => &mut self.peaks,
+            "ratios" => &mut self.ratios,
+            "lines" => &mut self.lines,
+            "orders" => &mut self.orders,
+            "harmonics" => &mut self.harmonics,
+            "bands" => &mut self.bands,
+            "modes" => &mut self.modes,
+            "floor" => &mut self.floor,
+            "speed" => &mut self.speed,
+            _ => &mut self.total,
+        }
+    }
+
+    /// Sum of the named components (those that apply).
     pub fn of(&self, names: &[&str]) -> f64 {
         names
             .iter()
-            .map(|n| match *n {
-                "env" => self.env,
-                "lines" => self.lines,
-                "bands" => self.bands,
-                "speed" => self.speed,
-                _ => self.total,
-            })
+            .map(|n| self.get(n))
+            .filter(|v| v.is_finite())
             .sum()
+    }
+
+    /// With `total` set to the sum of the components.
+    fn summed(mut self) -> Self {
+        self.total = self.of(&NAMES);
+        self
     }
 }
 
-/// Mean over pairs.
+/// Mean over pairs, each component over the pairs it applies to (0 when none).
 pub fn mean(parts: &[ErrorParts]) -> ErrorParts {
-    let n = parts.len().max(1) as f64;
     let mut e = ErrorParts::default();
-    for p in parts {
-        e.env += p.env / n;
-        e.lines += p.lines / n;
-        e.bands += p.bands / n;
-        e.speed += p.speed / n;
+    for name in NAMES {
+        let v: Vec<f64> = parts
+            .iter()
+            .map(|p| p.get(name))
+            .filter(|v| v.is_finite())
+            .collect();
+        *e.get_mut(name) = v.iter().fold(0.0, |a, b| a + b) / v.len().max(1) as f64;
     }
-    e.total = e.env + e.lines + e.bands + e.speed;
-    e
+    e.summed()
 }

@@ -1,7 +1,9 @@
 //! Where a residual is: peaks of measured-minus-simulated views, expressed in orders or Hz,
 //! and whether they follow the shaft (`speed`: same order at different speeds), stay put
 //! (`frequency`: same Hz at different speeds) or cannot be told (`undetermined`: one speed
-//! only). Narrowband content comes from the `lines` and `env` views, broadband from `bands`.
+//! only). Narrowband content comes from the `lines` and `env` views, broadband from `bands`,
+//! modulation from the fault combs' sideband ratios (`modulation`) and misplaced fault lines
+//! from their located orders (`peaks`).
 
 use super::views::{env_order, Views, BAND_HZ, LINES_MIN_HZ};
 use serde::Serialize;
@@ -15,10 +17,12 @@ pub struct Unexplained {
     pub unit: String,
     /// `speed`, `frequency` or `undetermined`.
     pub locked_to: String,
-    /// `lines` (narrowband, raw spectrum), `env` (envelope order spectrum) or `bands`
-    /// (broadband).
+    /// `lines` (narrowband, raw spectrum), `env` (envelope order spectrum), `bands`
+    /// (broadband), `modulation` (sideband ratio of a fault comb) or `peaks` (a fault comb
+    /// located elsewhere than simulated).
     pub view: String,
-    /// Measured above simulated, dB (largest over recordings).
+    /// Measured above simulated, dB (largest over recordings); for `peaks` the location
+    /// difference in per mille.
     pub excess_db: f64,
     /// Recordings showing it.
     pub recordings: usize,
@@ -33,6 +37,10 @@ struct Peak {
 
 const LINE_EXCESS_DB: f64 = 10.0;
 const BAND_EXCESS_DB: f64 = 6.0;
+/// Sideband ratio mismatch reported as modulation, dB.
+const SIDEBAND_EXCESS_DB: f64 = 6.0;
+/// Fault-order location mismatch reported, per mille.
+const PEAK_OFF_PER_MILLE: f64 = 5.0;
 
 fn peaks(res: &[f64], min_db: f64) -> Vec<(usize, f64)> {
     (0..res.len())
@@ -52,7 +60,33 @@ pub fn locate(pairs: &[(&Views, &Views)]) -> Vec<Unexplained> {
     let mut line_peaks = Vec::new();
     let mut env_peaks = Vec::new();
     let mut band_peaks = Vec::new();
+    let mut modulation = Vec::new();
+    let mut misplaced = Vec::new();
     for (r, (m, s)) in pairs.iter().enumerate() {
+        for p in &m.fault_peaks {
+            let Some(q) = s.fault_peaks.iter().find(|q| q.family == p.family) else {
+                continue;
+            };
+            if let (Some(a), Some(b)) = (p.sideband_db, q.sideband_db) {
+                if (a - b).abs() > SIDEBAND_EXCESS_DB {
+                    modulation.push(Peak {
+                        rec: r,
+                        hz: p.order * speeds[r],
+                        order: p.order,
+                        excess: a - b,
+                    });
+                }
+            }
+            let off = 1000.0 * (p.order - q.order).abs() / p.order;
+            if off > PEAK_OFF_PER_MILLE {
+                misplaced.push(Peak {
+                    rec: r,
+                    hz: p.order * speeds[r],
+                    order: p.order,
+                    excess: off,
+                });
+            }
+        }
         let fr = speeds[r];
         let res: Vec<f64> = m.lines.iter().zip(&s.lines).map(|(a, b)| a - b).collect();
         for (i, e) in peaks(&res, LINE_EXCESS_DB) {
@@ -89,6 +123,8 @@ pub fn locate(pairs: &[(&Views, &Views)]) -> Vec<Unexplained> {
     group(&line_peaks, &speeds, "lines", &mut out);
     group(&env_peaks, &speeds, "env", &mut out);
     group(&band_peaks, &speeds, "bands", &mut out);
+    group(&modulation, &speeds, "modulation", &mut out);
+    group(&misplaced, &speeds, "peaks", &mut out);
     out.sort_by(|a, b| b.excess_db.total_cmp(&a.excess_db));
     out
 }
@@ -97,6 +133,8 @@ fn group(peaks: &[Peak], speeds: &[f64], view: &str, out: &mut Vec<Unexplained>)
     let distinct = |a: f64, b: f64| (a - b).abs() > 0.05 * a.max(b);
     let several_speeds = speeds.iter().any(|&a| distinct(a, speeds[0]));
     let broadband = view == "bands";
+    // envelope and fault-comb findings are orders by nature
+    let by_order = matches!(view, "env" | "modulation" | "peaks");
     let mut used = vec![false; peaks.len()];
     for (i, p) in peaks.iter().enumerate() {
         if used[i] {
@@ -122,14 +160,14 @@ fn group(peaks: &[Peak], speeds: &[f64], view: &str, out: &mut Vec<Unexplained>)
             v.len()
         };
         let (members, unit, locked) = if several_speeds {
-            if speeds_of(&same_order) >= 2 && (view == "env" || speeds_of(&same_hz) < 2) {
+            if speeds_of(&same_order) >= 2 && (by_order || speeds_of(&same_hz) < 2) {
                 (same_order, "order", "speed")
             } else if speeds_of(&same_hz) >= 2 {
                 (same_hz, "Hz", "frequency")
             } else {
                 continue;
             }
-        } else if view == "env" {
+        } else if by_order {
             (same_order, "order", "undetermined")
         } else {
             (same_hz, "Hz", "undetermined")

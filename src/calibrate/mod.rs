@@ -1,15 +1,19 @@
 //! Simulator calibration against measured recordings (`rigmon calibrate`): simulate the
 //! measured operating points ([`measured`]), compare physically meaningful views
-//! ([`views`]) with one scalar error of named components ([`error`]), locate the residual
+//! ([`views`]: envelope and raw spectra, [`fault_peaks`], [`shaft_orders`], [`modes`]) with
+//! one scalar error of named components ([`error`]), locate the residual
 //! ([`locate`]), attribute it greedily to catalog effects ([`catalog`], [`search`],
 //! [`fit`]) confirmed on a held-out part, and report ([`report`], [`plots`]).
 
 pub mod catalog;
 pub mod error;
+pub mod fault_peaks;
 pub mod fit;
 pub mod locate;
 pub mod measured;
+pub mod modes;
 pub mod plots;
 pub mod report;
 pub mod search;
+pub mod shaft_orders;
 pub mod views;

@@ -1,6 +1,6 @@
 //! Calibration PNGs: measured vs simulated before and after calibration (envelope order
-//! spectrum and band energies) and the residual (measured minus calibrated simulation) of
-//! the envelope and raw-line views, for one recording.
+//! spectrum, band energies, shaft-order lines) and the residual (measured minus calibrated
+//! simulation) of the envelope and raw-line views, for one recording.
 
 use super::views::{env_order, Views, BAND_HZ, LINES_MIN_HZ};
 use crate::plots::ensure_font;
@@ -68,13 +68,15 @@ const MEAS: RGBColor = RGBColor(0, 0, 0);
 const BEFORE: RGBColor = RGBColor(220, 50, 30);
 const AFTER: RGBColor = RGBColor(30, 90, 220);
 
-/// `spectra.png`: envelope order spectra and band energies, measured / before / after.
+/// `spectra.png`: envelope order spectra, band energies and shaft-order lines, measured /
+/// before / after.
 pub fn spectra(path: &Path, name: &str, m: &Views, b: &Views, a: &Views) -> Result<()> {
     ensure_font()?;
-    let root = BitMapBackend::new(path, (1400, 900)).into_drawing_area();
+    let root = BitMapBackend::new(path, (1400, 1300)).into_drawing_area();
     root.fill(&WHITE)
         .map_err(|x| anyhow!("drawing {}: {x}", path.display()))?;
-    let (top, bottom) = root.split_vertically(450);
+    let (top, rest) = root.split_vertically(450);
+    let (bottom, orders_area) = rest.split_vertically(430);
     let env = |v: &Views| {
         v.env_db
             .iter()
@@ -109,6 +111,26 @@ pub fn spectra(path: &Path, name: &str, m: &Views, b: &Views, a: &Views) -> Resu
             ("measured", MEAS, bands(m)),
             ("simulated before", BEFORE, bands(b)),
             ("simulated after", AFTER, bands(a)),
+        ],
+    )?;
+    let orders = |v: &Views| {
+        v.shaft
+            .amplitude
+            .iter()
+            .enumerate()
+            .filter(|(_, x)| **x > 0.0)
+            .map(|(k, x)| ((k + 1) as f64, 20.0 * x.log10()))
+            .collect()
+    };
+    chart(
+        &orders_area,
+        "shaft-order lines (1x, 2x: unbalance; 3x and up: looseness)",
+        "order",
+        "dB re 1 channel unit",
+        &[
+            ("measured", MEAS, orders(m)),
+            ("simulated before", BEFORE, orders(b)),
+            ("simulated after", AFTER, orders(a)),
         ],
     )?;
     root.present()

@@ -2,7 +2,7 @@
 //! file (the rig's TOML with the calibrated `[simulation]` section and a `[calibration]` stamp
 //! `{id, effects}`), and the calibration id (hash of the calibrated section and the inputs).
 
-use super::error::ErrorParts;
+use super::error::{min_cut, ErrorParts, NAMES};
 use super::fit::{Outcome, FIT_CUT, HELD_CUT};
 use super::measured::Measured;
 use crate::config::RigConfig;
@@ -35,8 +35,30 @@ fn r3(v: f64) -> f64 {
 }
 
 fn parts(e: &ErrorParts) -> Value {
-    json!({"env": r3(e.env), "lines": r3(e.lines), "bands": r3(e.bands), "speed": r3(e.speed), "total": r3(e.total)})
+    let mut m = serde_json::Map::new();
+    for n in NAMES {
+        m.insert(n.into(), json!(r3(e.get(n))));
+    }
+    m.insert("total".into(), json!(r3(e.total)));
+    Value::Object(m)
 }
+
+/// What each component compares, for the Markdown table.
+const DESCRIPTIONS: [(&str, &str); 10] = [
+    ("env", "envelope order spectrum, mean dB"),
+    ("peaks", "fault-order locations, per mille"),
+    ("ratios", "harmonic and sideband ratios, summed dB / 10"),
+    (
+        "lines",
+        "raw-spectrum lines of healthy recordings, summed dB / 10",
+    ),
+    ("orders", "1x and 2x lines, mean dB"),
+    ("harmonics", "shaft orders 3x-30x, summed dB / 10"),
+    ("bands", "100 Hz band energies, mean dB"),
+    ("modes", "dominant resonance location, 100 Hz bands"),
+    ("floor", "absolute broadband floor, dB"),
+    ("speed", "speed-deviation spectrum"),
+];
 
 /// The report object printed by `--json`.
 pub fn json(rig: &RigConfig, o: &Outcome, ops: &[Measured], id: &str) -> Value {
@@ -44,7 +66,8 @@ pub fn json(rig: &RigConfig, o: &Outcome, ops: &[Measured], id: &str) -> Value {
         .accepted
         .iter()
         .map(|t| {
-            json!({"name": t.name, "params": t.params, "error_before": r3(t.error_before),
+            json!({"name": t.name, "params": t.params, "at_bound": t.at_bound, "refits": t.refits,
+                   "error_before": r3(t.error_before),
                    "error_after": r3(t.error_after), "fit_before": r3(t.fit_before),
                    "fit_after": r3(t.fit_after), "held_before": r3(t.held_before),
                    "held_after": r3(t.held_after)})
@@ -76,8 +99,9 @@ pub fn json(rig: &RigConfig, o: &Outcome, ops: &[Measured], id: &str) -> Value {
         "unexplained": o.unexplained,
         "rounds": o.rounds,
         "split": split,
-        "acceptance": {"fit_cut_relative": FIT_CUT.0, "fit_cut_absolute": FIT_CUT.1,
-                        "held_cut_relative": HELD_CUT.0, "held_cut_absolute": HELD_CUT.1},
+        "acceptance": {"fit_cut_relative": FIT_CUT.0, "fit_cut_min_cuts": FIT_CUT.1,
+                        "held_cut_relative": HELD_CUT.0, "held_cut_min_cuts": HELD_CUT.1,
+                        "min_cut": NAMES.iter().map(|n| (n.to_string(), min_cut(n))).collect::<std::collections::BTreeMap<_, _>>()},
     })
 }
 
@@ -93,29 +117,13 @@ pub fn markdown(rig: &RigConfig, o: &Outcome, ops: &[Measured], id: &str) -> Str
         o.after.total
     );
     let _ = writeln!(s, "| component | before | after |\n|---|---|---|");
-    for (n, b, a) in [
-        (
-            "env (envelope order spectrum, dB)",
-            o.before.env,
-            o.after.env,
-        ),
-        (
-            "lines (raw-spectrum lines of healthy recordings, summed dB / 10)",
-            o.before.lines,
-            o.after.lines,
-        ),
-        (
-            "bands (100 Hz band energies, dB)",
-            o.before.bands,
-            o.after.bands,
-        ),
-        (
-            "speed (speed-deviation spectrum)",
-            o.before.speed,
-            o.after.speed,
-        ),
-    ] {
-        let _ = writeln!(s, "| {n} | {b:.3} | {a:.3} |");
+    for (n, what) in DESCRIPTIONS {
+        let _ = writeln!(
+            s,
+            "| {n} ({what}) | {:.3} | {:.3} |",
+            o.before.get(n),
+            o.after.get(n)
+        );
     }
     let _ = writeln!(s, "\n## Split (checkerboard by recording)\n\n| recording | label | rpm | part |\n|---|---|---|---|");
     for (m, f) in ops.iter().zip(&o.fit_part) {
@@ -145,6 +153,13 @@ pub fn markdown(rig: &RigConfig, o: &Outcome, ops: &[Measured], id: &str) -> Str
             t.held_before,
             t.held_after
         );
+        if !t.at_bound.is_empty() {
+            let _ = writeln!(
+                s,
+                "  - at a search bound (the bound, not the data, may have set it): {}",
+                t.at_bound.join(", ")
+            );
+        }
     }
     let _ = writeln!(s, "\n## Every trial, by round\n\n| round | effect | params | fit before -> after | held-out before -> after | accepted |\n|---|---|---|---|---|---|");
     for (r, round) in o.rounds.iter().enumerate() {

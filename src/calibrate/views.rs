@@ -9,12 +9,21 @@
 //! - `bands`: energy in 100 Hz bands from 300 Hz to 0.4 fs, dB within [`BAND_RANGE_DB`] of
 //!   the strongest band (0 below): where the structural resonances put the impact energy;
 //! - `speed`: amplitude spectrum (0.2-5 Hz) of the relative shaft-speed deviation in percent,
-//!   from the speed source: speed fluctuation.
+//!   from the speed source: speed fluctuation;
+//! - `fault_peaks`: the located fault orders of the recording's labelled faults, with their
+//!   harmonic and sideband ratios ([`super::fault_peaks`]);
+//! - `shaft`: the shaft-order lines 1x-30x and their floors ([`super::shaft_orders`]);
+//! - `mode`: the dominant structural resonance ([`super::modes`]);
+//! - `floor_db`: the absolute broadband floor (sensor noise).
 
+use super::fault_peaks::{self, DbSpectrum, FaultPeak};
+use super::modes::{self, Mode};
+use super::shaft_orders::{self, ShaftOrders};
 use crate::config::RigConfig;
 use crate::dsp::order_spectrum::whole_recording;
 use crate::dsp::speed::SpeedTrack;
 use crate::recording::Recording;
+use crate::sim::Fault;
 use anyhow::{Context, Result};
 use realfft::RealFftPlanner;
 
@@ -32,6 +41,8 @@ const THRESHOLD_DB: f64 = 6.0;
 /// Bands more than this below the strongest band count as 0.
 pub const BAND_RANGE_DB: f64 = 20.0;
 const CAP_DB: f64 = 60.0;
+/// Quantile of the spectrum taken as the broadband (sensor noise) floor.
+pub const FLOOR_QUANTILE: f64 = 0.1;
 
 /// All views of one recording.
 #[derive(Debug, Clone, Default)]
@@ -44,13 +55,19 @@ pub struct Views {
     /// Lower edge of each band, Hz.
     pub band_lo_hz: Vec<f64>,
     pub speed: Vec<f64>,
-    /// Welch amplitude spectrum (1 Hz bins from 0 Hz), channel unit.
-    pub amplitude_hz: Vec<f64>,
     /// Envelope order spectrum in dB above its median (unthresholded), on the `env` grid.
     pub env_db: Vec<f64>,
-    /// The measured recording is labelled healthy (set by the caller; `lines` is compared
-    /// on healthy recordings only, see [`super::error`]).
+    /// The recording is labelled healthy (`lines` is compared on healthy recordings only,
+    /// see [`super::error`]).
     pub healthy: bool,
+    /// Located fault orders of the labelled faults (those with a visible comb).
+    pub fault_peaks: Vec<FaultPeak>,
+    pub shaft: ShaftOrders,
+    pub mode: Mode,
+    /// The broadband floor: the [`FLOOR_QUANTILE`] quantile of the Welch amplitude spectrum
+    /// from 300 Hz to 0.4 fs (the quietest part, where no resonance rings), dB re 1 channel
+    /// unit (absolute: the other spectral views are relative to their floors).
+    pub floor_db: f64,
 }
 
 /// Order of `env[i]`.
@@ -58,8 +75,8 @@ pub fn env_order(i: usize) -> f64 {
     ENV_MIN_ORDER + i as f64 * ENV_STEP
 }
 
-/// Compute the views of a recording's classifier channel.
-pub fn compute(rec: &Recording, rig: &RigConfig) -> Result<Views> {
+/// Compute the views of a recording's classifier channel; `faults` is its label.
+pub fn compute(rec: &Recording, rig: &RigConfig, faults: &[Fault]) -> Result<Views> {
     let ch = rig
         .classifier_channel()
         .and_then(|c| rec.channel(&c.name))
@@ -76,11 +93,12 @@ pub fn compute(rec: &Recording, rig: &RigConfig) -> Result<Views> {
         fs,
         &track,
         rig.features.lowpass_hz.min(0.45 * fs),
-        ENV_MAX_ORDER + 0.5,
+        ENV_MAX_ORDER.max(fault_peaks::MAX_ORDER) + 0.5,
     )?;
     let n_env = ((ENV_MAX_ORDER - ENV_MIN_ORDER) / ENV_STEP) as usize + 1;
     let lo_line = (ENV_MIN_ORDER / whole.order_step) as usize;
-    let med = median(&whole.amplitude[lo_line.min(whole.amplitude.len() - 1)..]).max(1e-30);
+    let hi_line = (((ENV_MAX_ORDER + 0.5) / whole.order_step) as usize).min(whole.amplitude.len());
+    let med = median(&whole.amplitude[lo_line.min(hi_line - 1)..hi_line]).max(1e-30);
     let env_db: Vec<f64> = (0..n_env)
         .map(|i| {
             let x = env_order(i) / whole.order_step;
@@ -91,6 +109,20 @@ pub fn compute(rec: &Recording, rig: &RigConfig) -> Result<Views> {
         })
         .collect();
     let env = env_db.iter().map(|d| threshold(*d)).collect();
+    let whole_db: Vec<f64> = whole
+        .amplitude
+        .iter()
+        .map(|a| 20.0 * (a / med).max(1e-6).log10())
+        .collect();
+    let spec = DbSpectrum {
+        db: &whole_db,
+        step: whole.order_step,
+    };
+    let nominal = rig.bearing.fault_orders();
+    let fault_peaks = faults
+        .iter()
+        .filter_map(|f| fault_peaks::locate(&spec, *f, &nominal))
+        .collect();
 
     // Welch amplitude and power spectra, 1 Hz bins
     let nseg = (fs.round() as usize).min(ch.samples.len());
@@ -106,6 +138,13 @@ pub fn compute(rec: &Recording, rig: &RigConfig) -> Result<Views> {
         })
         .collect();
     let band_hi = 0.4 * fs;
+    let floor_db = 20.0
+        * quantile(
+            &amplitude_hz[hz_bin(BAND_MIN_HZ)..=hz_bin(band_hi)],
+            FLOOR_QUANTILE,
+        )
+        .max(1e-30)
+        .log10();
     let mut bands = Vec::new();
     let mut band_lo_hz = Vec::new();
     let mut lo = BAND_MIN_HZ;
@@ -115,6 +154,7 @@ pub fn compute(rec: &Recording, rig: &RigConfig) -> Result<Views> {
         band_lo_hz.push(lo);
         lo += BAND_HZ;
     }
+    let mode = modes::dominant(&bands, &band_lo_hz, BAND_HZ);
     let top = bands.iter().copied().fold(f64::MIN, f64::max);
     bands
         .iter_mut()
@@ -150,9 +190,12 @@ pub fn compute(rec: &Recording, rig: &RigConfig) -> Result<Views> {
         bands,
         band_lo_hz,
         speed,
-        amplitude_hz,
         env_db,
-        healthy: false,
+        healthy: faults.is_empty(),
+        fault_peaks,
+        shaft: shaft_orders::measure(&ch.samples, fs, &track),
+        mode,
+        floor_db,
     })
 }
 
@@ -162,13 +205,18 @@ fn threshold(db: f64) -> f64 {
 
 /// Median of a slice (0 when empty).
 pub fn median(x: &[f64]) -> f64 {
+    quantile(x, 0.5)
+}
+
+/// The `q` quantile of a slice (nearest rank; 0 when empty).
+pub fn quantile(x: &[f64], q: f64) -> f64 {
     if x.is_empty() {
         return 0.0;
     }
     let mut v = x.to_vec();
-    let mid = v.len() / 2;
-    v.select_nth_unstable_by(mid, |a, b| a.total_cmp(b));
-    v[mid]
+    let k = ((q.clamp(0.0, 1.0) * v.len() as f64) as usize).min(v.len() - 1);
+    v.select_nth_unstable_by(k, |a, b| a.total_cmp(b));
+    v[k]
 }
 
 /// Welch estimate (Hann, 50 % overlap): per-bin peak amplitude and power, `nseg/2+1` bins.

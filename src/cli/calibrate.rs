@@ -63,7 +63,9 @@ pub fn run(a: Args) -> Result<()> {
     let dump: Vec<serde_json::Value> = (0..ops.len())
         .map(|i| {
             let v = |w: &crate::calibrate::views::Views| {
-                serde_json::json!({"rpm": w.rpm, "env": w.env, "lines": w.lines, "bands": w.bands, "band_lo_hz": w.band_lo_hz, "speed": w.speed})
+                serde_json::json!({"rpm": w.rpm, "env": w.env, "lines": w.lines, "bands": w.bands, "band_lo_hz": w.band_lo_hz, "speed": w.speed,
+                    "fault_peaks": w.fault_peaks, "shaft_orders": {"amplitude": w.shaft.amplitude, "floor": w.shaft.floor},
+                    "mode": {"hz": w.mode.hz, "prominent": w.mode.prominent}})
             };
             serde_json::json!({"recording": ops[i].name, "measured": v(&outcome.measured_views[i]),
                 "before": v(&outcome.views_before[i]), "after": v(&outcome.views_after[i])})

@@ -11,6 +11,7 @@ unbalance line that grows with speed squared and an analog once-per-rev tacho ch
 Each case injects ONE effect with parameters that are written to truth.json and never given
 to `rigmon calibrate`; `baseline` injects nothing, `outside` injects a component that no
 effect in rigmon's catalog explains (an order-locked narrowband line at a non-integer order).
+`looseness` adds shaft harmonics 3x..Nx, `noise` changes the sensor noise.
 
     python3 measured_like.py --out DIR --case CASE [--seed N] [--seconds S]
 
@@ -61,6 +62,8 @@ CASES = {
     "unbalance": ("unbalance", {"order1_m_s2": 0.25, "at_rpm": 1200.0}),
     "line_interference": ("line_interference", {"line_hz": 60.0, "amplitude_m_s2": 0.6}),
     "speed_fluctuation": ("speed_fluctuation", {"fraction": 0.04, "period_s": 0.8}),
+    "looseness": ("looseness", {"harmonics_m_s2": 0.1, "highest_order": 10, "at_rpm": 1200.0}),
+    "noise": ("noise", {"noise_rms_m_s2": 0.1}),
     "outside": (None, {}),
 }
 OUTSIDE = {"location": 17.3, "unit": "order", "locked_to": "speed", "amplitude_m_s2": 0.5}
@@ -150,7 +153,7 @@ def record(label, rpm, case, params, seconds, rng):
         if axis == 0 and contact > 0:
             # an angular contact carries part of each impact axially
             y += np.sin(np.radians(contact)) * ring(n, times, amps, resonances, 1, rng)
-        y += NOISE_RMS * rng.standard_normal(n)
+        y += params.get("noise_rms_m_s2", NOISE_RMS) * rng.standard_normal(n)
         chans.append(y)
     # 1x unbalance, vertical and horizontal (90 degrees apart), amplitude ~ speed^2
     a1 = UNBALANCE_1X_AT_1200 * (rpm / 1200.0) ** 2
@@ -158,6 +161,13 @@ def record(label, rpm, case, params, seconds, rng):
         a1 = params["order1_m_s2"] * (rpm / params["at_rpm"]) ** 2
     chans[1] += a1 * np.cos(2 * np.pi * revs + 0.4)
     chans[2] += 0.7 * a1 * np.sin(2 * np.pi * revs + 0.4)
+    if case == "looseness":
+        # mechanical looseness: shaft harmonics 3x..Nx, each growing with speed^2
+        a = params["harmonics_m_s2"] * (rpm / params["at_rpm"]) ** 2
+        for k in range(3, params["highest_order"] + 1):
+            ph = rng.uniform(0, 2 * np.pi)
+            chans[1] += a * np.cos(2 * np.pi * k * revs + ph)
+            chans[2] += 0.7 * a * np.sin(2 * np.pi * k * revs + ph)
     if case == "line_interference":
         ph = rng.uniform(0, 2 * np.pi)
         for c, g in zip(chans, (0.5, 1.0, 0.8)):
