@@ -299,7 +299,16 @@ profile = { kind = "ramp", from_rpm = 600.0, to_rpm = 900.0, seconds = 0.5 }
     )
     .unwrap();
     let dir = tempfile::tempdir().unwrap();
-    let s = sim::dataset::generate(&r, &plan, dir.path(), "mcap", Some(2), false).unwrap();
+    let s = sim::dataset::generate(
+        &r,
+        &plan,
+        dir.path(),
+        "mcap",
+        Some(2),
+        false,
+        Default::default(),
+    )
+    .unwrap();
     assert_eq!(s.recordings, 4);
     let csv = std::fs::read_to_string(dir.path().join("labels.csv")).unwrap();
     let lines: Vec<&str> = csv.lines().collect();
@@ -436,6 +445,72 @@ fn shaft_lines_have_their_configured_amplitudes() {
                 "{ch} order {}: {got} vs {w}",
                 k + 1
             );
+        }
+    }
+}
+
+/// A calibrated rig file and a plan that draws the calibrated parameters: `fixed` keeps the
+/// fitted noise and resonance in every recording; `spread` draws them from the plan's
+/// ranges moved onto the fitted values (same width for the frequency, same ratio for the
+/// noise), so they vary around the calibration instead of over the plan's original ranges.
+#[test]
+fn a_dataset_keeps_or_spreads_a_calibration() {
+    use rigmon::sim::dataset::{generate, CalibratedDraws};
+    let r = rig("cwru-de-calibrated.toml");
+    let sim = r.simulation.as_ref().unwrap();
+    let noise = sim.structure.noise_rms_m_s2;
+    let hz = sim.structure.resonances[0].hz;
+    let plan = sim::plan::Plan::parse(
+        r#"
+name = "spread"
+seed = 5
+seconds = 0.2
+[random]
+noise_rms_m_s2 = [0.1, 1.0]
+resonance_hz = [2000.0, 5000.0]
+[[case]]
+faults = "healthy"
+rpm = 1796
+recordings = 12
+"#,
+    )
+    .unwrap();
+    for mode in [CalibratedDraws::Fixed, CalibratedDraws::Spread] {
+        let dir = tempfile::tempdir().unwrap();
+        generate(&r, &plan, dir.path(), "mcap", Some(2), false, mode).unwrap();
+        let mut noises = Vec::new();
+        let mut freqs = Vec::new();
+        for e in std::fs::read_dir(dir.path()).unwrap() {
+            let p = e.unwrap().path();
+            if p.extension().is_some_and(|x| x == "mcap") {
+                let rec = rigmon::recording::mcap_layout::read_recording(&p).unwrap();
+                noises.push(rec.metadata["noise_rms_m_s2"].parse::<f64>().unwrap());
+                freqs.push(rec.metadata["resonance_hz"].parse::<f64>().unwrap());
+            }
+        }
+        assert_eq!(noises.len(), 12);
+        match mode {
+            CalibratedDraws::Fixed => {
+                assert!(noises.iter().all(|&n| n == noise), "{noises:?} vs {noise}");
+                assert!(freqs.iter().all(|&f| f == hz), "{freqs:?} vs {hz}");
+            }
+            CalibratedDraws::Spread => {
+                let (lo, hi) = (noise / 10f64.sqrt(), noise * 10f64.sqrt());
+                assert!(
+                    noises.iter().all(|&n| n >= lo * 0.999 && n <= hi * 1.001),
+                    "{noises:?} outside [{lo}, {hi}]"
+                );
+                assert!(
+                    freqs.iter().all(|&f| (f - hz).abs() <= 1500.0 + 1.0),
+                    "{freqs:?}"
+                );
+                let spread = |v: &[f64]| {
+                    v.iter().cloned().fold(f64::MIN, f64::max)
+                        - v.iter().cloned().fold(f64::MAX, f64::min)
+                };
+                assert!(spread(&noises) > 0.2 * (hi - lo), "{noises:?}");
+                assert!(spread(&freqs) > 600.0, "{freqs:?}");
+            }
         }
     }
 }

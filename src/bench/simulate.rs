@@ -59,7 +59,7 @@ pub fn run(opts: &BenchOptions) -> Result<()> {
         .map(|n| n.get())
         .unwrap_or(1);
     let ext = "mcap";
-    let ds = generate(&rig, &plan, &dir, ext, None, false)
+    let ds = generate(&rig, &plan, &dir, ext, None, false, Default::default())
         .with_context(|| format!("thesis plan into {}", dir.display()))?;
     let _ = std::fs::remove_dir_all(&dir);
     let expected_one_core = ds.seconds * per_signal_s;

@@ -2,7 +2,10 @@
 //! `<dir>/*.mcap` plus `<dir>/labels.csv` (`path,label`, paths relative to the CSV).
 
 use crate::config::RigConfig;
-use crate::sim::{dataset::generate, plan::Plan};
+use crate::sim::{
+    dataset::{generate, CalibratedDraws},
+    plan::Plan,
+};
 use anyhow::{bail, Result};
 use std::path::PathBuf;
 
@@ -27,6 +30,18 @@ pub struct Args {
     /// No progress bar.
     #[arg(long, short)]
     pub quiet: bool,
+    /// With a calibrated rig file: `fixed` keeps the fitted values in every recording (the
+    /// plan's draws of them are dropped); `spread` centres the plan's ranges on them,
+    /// keeping the plan's spread.
+    #[arg(long, value_enum, default_value = "fixed")]
+    pub calibrated: Calibrated,
+}
+
+/// `--calibrated`.
+#[derive(clap::ValueEnum, Clone, Copy, Debug)]
+pub enum Calibrated {
+    Fixed,
+    Spread,
 }
 
 pub fn run(args: Args) -> Result<()> {
@@ -36,7 +51,19 @@ pub fn run(args: Args) -> Result<()> {
         bail!("--threads 0: give at least 1 (or leave it out for all cores)");
     }
     let ext = if args.wav { "wav" } else { "mcap" };
-    let s = generate(&rig, &plan, &args.output, ext, args.threads, !args.quiet)?;
+    let calibrated = match args.calibrated {
+        Calibrated::Fixed => CalibratedDraws::Fixed,
+        Calibrated::Spread => CalibratedDraws::Spread,
+    };
+    let s = generate(
+        &rig,
+        &plan,
+        &args.output,
+        ext,
+        args.threads,
+        !args.quiet,
+        calibrated,
+    )?;
     eprintln!(
         "plan {:?}: {} recordings, {:.0} s of signal in {:.1} s wall -> {}",
         plan.name,

@@ -3,7 +3,7 @@
 //! (`path,label`, paths relative to the CSV; the manifest `train`, `evaluate` and `finetune`
 //! read).
 
-use super::plan::Plan;
+use super::plan::{calibrated_keys, Plan, PlannedRun};
 use crate::config::RigConfig;
 use anyhow::{Context, Result};
 use indicatif::{ProgressBar, ProgressStyle};
@@ -18,6 +18,61 @@ pub struct DatasetSummary {
     pub wall_s: f64,
 }
 
+/// What a plan may do to the parameters a calibrated rig file has fitted.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub enum CalibratedDraws {
+    /// Every recording keeps the fitted values: the plan's draws of them are dropped.
+    #[default]
+    Fixed,
+    /// The plan's ranges of them are moved onto the fitted values, keeping their spread
+    /// (width, or ratio for scale-like parameters); effects no plan key draws stay fixed.
+    Spread,
+}
+
+/// Expand the plan for a rig: a plan must not undo a calibration, so the calibrated effects
+/// keep their fitted values ([`CalibratedDraws::Fixed`]) or the plan's ranges are centred on
+/// them ([`CalibratedDraws::Spread`]). Logs what it changed.
+fn apply_calibration(
+    rig: &RigConfig,
+    plan: &Plan,
+    calibrated: CalibratedDraws,
+) -> Result<Vec<PlannedRun>> {
+    let Some(stamp) = &rig.calibration else {
+        return plan.expand();
+    };
+    let mut plan = plan.clone();
+    let mut fixed: Vec<&str> = Vec::new();
+    for effect in &stamp.effects {
+        let name = effect.get("name").and_then(|n| n.as_str()).unwrap_or("");
+        let keys = calibrated_keys(effect);
+        if calibrated == CalibratedDraws::Fixed || keys.is_empty() {
+            fixed.push(name);
+            continue;
+        }
+        for (key, value, how) in keys {
+            if let Some([lo, hi]) = plan.recentre(key, value, how) {
+                tracing::info!(
+                    "calibration {}: the plan's {key} drawn from [{lo:.4}, {hi:.4}] around the fitted {value:.4}",
+                    stamp.id
+                );
+            }
+        }
+    }
+    let mut runs = plan.expand()?;
+    let mut dropped = std::collections::BTreeSet::new();
+    for r in &mut runs {
+        dropped.extend(r.keep_calibrated(&fixed));
+    }
+    if !dropped.is_empty() {
+        tracing::info!(
+            "calibration {}: the plan's {:?} ignored (calibrated effects keep their values)",
+            stamp.id,
+            dropped
+        );
+    }
+    Ok(runs)
+}
+
 /// Generate a dataset (library entry point, also used by the benchmark).
 pub fn generate(
     rig: &RigConfig,
@@ -26,28 +81,10 @@ pub fn generate(
     ext: &str,
     threads: Option<usize>,
     progress: bool,
+    calibrated: CalibratedDraws,
 ) -> Result<DatasetSummary> {
     super::rig_simulation(rig)?;
-    let mut runs = plan.expand()?;
-    // a plan must not undo a calibration: calibrated effects keep their fitted values
-    if let Some(stamp) = &rig.calibration {
-        let names: Vec<&str> = stamp
-            .effects
-            .iter()
-            .filter_map(|e| e.get("name").and_then(|n| n.as_str()))
-            .collect();
-        let mut dropped = std::collections::BTreeSet::new();
-        for r in &mut runs {
-            dropped.extend(r.keep_calibrated(&names));
-        }
-        if !dropped.is_empty() {
-            tracing::info!(
-                "calibration {}: the plan's {:?} ignored (calibrated effects keep their values)",
-                stamp.id,
-                dropped
-            );
-        }
-    }
+    let runs = apply_calibration(rig, plan, calibrated)?;
     std::fs::create_dir_all(dir)
         .with_context(|| format!("cannot create output directory {}", dir.display()))?;
     let pool = rayon::ThreadPoolBuilder::new()

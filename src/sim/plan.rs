@@ -78,6 +78,72 @@ impl RandomRanges {
     }
 }
 
+impl RandomRanges {
+    /// The range of a plan key (`noise_rms_m_s2`, `resonance_hz`, ...), if the key exists.
+    fn range_mut(&mut self, key: &str) -> Option<&mut Option<[f64; 2]>> {
+        Some(match key {
+            "slip" => &mut self.slip,
+            "contact_angle_deg" => &mut self.contact_angle_deg,
+            "unbalance_scale" => &mut self.unbalance_scale,
+            "noise_rms_m_s2" => &mut self.noise_rms_m_s2,
+            "resonance_hz" => &mut self.resonance_hz,
+            "resonance_damping" => &mut self.resonance_damping,
+            _ => return None,
+        })
+    }
+}
+
+/// How a plan range is moved onto a calibrated value.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Recentre {
+    /// Keep the width, centre on the value (clamped at 0): slip, contact angle, frequency.
+    Shift,
+    /// Keep the ratio hi/lo, put the geometric centre on the value: noise, damping, scales.
+    Scale,
+}
+
+/// The plan keys a calibrated effect sets, with the value the fitted effect gives each
+/// (from its `[calibration] effects` entry) and how a range moves onto it. Effects that no
+/// plan key draws (line interference, looseness, speed fluctuation) have none.
+pub fn calibrated_keys(effect: &toml::Table) -> Vec<(&'static str, f64, Recentre)> {
+    let num = |k: &str| effect.get(k).and_then(|v| v.as_float());
+    let name = effect.get("name").and_then(|n| n.as_str()).unwrap_or("");
+    let keys: Vec<(&'static str, Option<f64>, Recentre)> = match name {
+        "slip" => vec![("slip", num("slip"), Recentre::Shift)],
+        "contact_angle" => vec![(
+            "contact_angle_deg",
+            num("contact_angle_deg"),
+            Recentre::Shift,
+        )],
+        "resonance" => vec![
+            ("resonance_hz", num("hz"), Recentre::Shift),
+            ("resonance_damping", num("damping"), Recentre::Scale),
+        ],
+        "noise" => vec![("noise_rms_m_s2", num("noise_rms_m_s2"), Recentre::Scale)],
+        // the fitted shaft lines sit on top of the rotor's own unbalance at scale 1
+        "unbalance" => vec![("unbalance_scale", Some(1.0), Recentre::Scale)],
+        _ => vec![],
+    };
+    keys.into_iter()
+        .filter_map(|(k, v, how)| v.filter(|v| v.is_finite()).map(|v| (k, v, how)))
+        .collect()
+}
+
+fn recentre([lo, hi]: [f64; 2], value: f64, how: Recentre) -> [f64; 2] {
+    match how {
+        Recentre::Shift => {
+            let half = 0.5 * (hi - lo);
+            let lo = (value - half).max(0.0);
+            [lo, lo.max(value + half)]
+        }
+        Recentre::Scale if lo > 0.0 && value > 0.0 => {
+            let half = (hi / lo).sqrt();
+            [value / half, value * half]
+        }
+        Recentre::Scale => [value, value],
+    }
+}
+
 fn draw(rng: &mut StdRng, r: Option<[f64; 2]>) -> Option<f64> {
     r.map(|[lo, hi]| {
         if hi > lo {
@@ -225,6 +291,23 @@ impl Plan {
         Ok(())
     }
 
+    /// Move the plan's (and every case's) range of `key` onto `value`, keeping its spread
+    /// ([`Recentre`]); the dataset then varies a calibrated parameter around its fitted value
+    /// instead of either ignoring the calibration or fixing the value. Returns the plan-level
+    /// range after the move (or the first case's), `None` when no range draws `key`.
+    pub fn recentre(&mut self, key: &str, value: f64, how: Recentre) -> Option<[f64; 2]> {
+        let mut moved = None;
+        let ranges =
+            std::iter::once(&mut self.random).chain(self.cases.iter_mut().map(|c| &mut c.random));
+        for r in ranges {
+            if let Some(Some(range)) = r.range_mut(key) {
+                *range = recentre(*range, value, how);
+                moved = moved.or(Some(*range));
+            }
+        }
+        moved
+    }
+
     /// Total recordings and seconds of signal.
     pub fn totals(&self) -> (usize, f64) {
         let n = self.cases.iter().map(|c| c.recordings).sum();
@@ -370,6 +453,42 @@ random = { rpm = [500, 700] }
             SpeedProfile::Constant { rpm: 600.0 }
         );
         assert!(runs[1].keep_calibrated(&["resonance"]).is_empty());
+    }
+
+    #[test]
+    fn recentring_keeps_the_spread_around_the_calibrated_value() {
+        let mut plan = Plan::parse(&PLAN.replace(
+            "[random]\n",
+            "[random]\nnoise_rms_m_s2 = [0.1, 1.0]\nresonance_hz = [2000.0, 5000.0]\n",
+        ))
+        .unwrap();
+        let n = plan
+            .recentre("noise_rms_m_s2", 0.04, Recentre::Scale)
+            .unwrap();
+        assert!((n[1] / n[0] - 10.0).abs() < 1e-9 && ((n[0] * n[1]).sqrt() - 0.04).abs() < 1e-12);
+        assert_eq!(
+            plan.recentre("resonance_hz", 4200.0, Recentre::Shift),
+            Some([2700.0, 5700.0])
+        );
+        assert_eq!(
+            plan.recentre("resonance_hz", 1000.0, Recentre::Shift),
+            Some([0.0, 2500.0])
+        );
+        assert_eq!(plan.recentre("slip", 0.02, Recentre::Shift), None);
+        let runs = plan.expand().unwrap();
+        for r in &runs {
+            let v = r.scenario.overrides.noise_rms_m_s2.unwrap();
+            assert!((n[0]..=n[1]).contains(&v), "{v} outside {n:?}");
+        }
+        let e: toml::Table =
+            toml::from_str("name = \"resonance\"\nhz = 4187.0\ndamping = 0.01").unwrap();
+        assert_eq!(
+            calibrated_keys(&e),
+            vec![
+                ("resonance_hz", 4187.0, Recentre::Shift),
+                ("resonance_damping", 0.01, Recentre::Scale)
+            ]
+        );
     }
 
     #[test]
