@@ -6,7 +6,7 @@
 //! | `slip` | `slip` 0-0.06 | `bearing.slip` |
 //! | `contact_angle` | `contact_angle_deg` 0-40 | `bearing.contact_angle_deg` |
 //! | `resonance` | `hz` 800-0.4 fs (log), `damping` 0.01-0.12 (log) | `structure.resonances[0]` |
-//! | `unbalance` | `order1_m_s2` 0.001-10 (log), `exponent` 0-6 (two speeds or more; else 2), `order2_m_s2` 0.0001-10 (log) | `shaft_lines` at the highest measured speed |
+//! | `unbalance` | `line1_m_s2` 0.001-10 (log), `exponent` 0-6 (two speeds or more; else 2), `line2_m_s2` 0.0001-10 (log): the 1x and 2x lines added to the rotor's own response | `shaft_lines` at the highest measured speed |
 //! | `line_interference` | `line_hz` {50, 60}, `amplitude_m_s2` 0.01-3 (log) | `structure.line_hz`, `line_amplitudes_m_s2` |
 //! | `speed_fluctuation` | `fraction` 0.002-0.1 (log), `period_s` 0.2-5 (log) | `speed_fluctuation.fraction`, `.period_s` |
 //! | `looseness` | `harmonics_m_s2` 0.0005-3 (log), `slope` -2-3, `highest_order` {5, 10, 20, 30} | `shaft_lines` orders 3..highest: `harmonics_m_s2` (k / k_mid)^`slope`, k_mid the geometric mean order |
@@ -108,11 +108,11 @@ impl Effect {
                 p("damping", Range::Log(0.01, 0.12)),
             ],
             Effect::Unbalance => {
-                let mut v = vec![p("order1_m_s2", Range::Log(0.001, 10.0))];
+                let mut v = vec![p("line1_m_s2", Range::Log(0.001, 10.0))];
                 if cx.several_speeds {
                     v.push(p("exponent", Range::Linear(0.0, 6.0)));
                 }
-                v.push(p("order2_m_s2", Range::Log(0.0001, 10.0)));
+                v.push(p("line2_m_s2", Range::Log(0.0001, 10.0)));
                 v
             }
             Effect::LineInterference => vec![

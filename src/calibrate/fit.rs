@@ -54,6 +54,8 @@ pub fn accepts(
 #[derive(Debug, Clone, Serialize)]
 pub struct Trial {
     pub name: String,
+    /// The fitted parameters; for an accepted effect, its final ones (after any re-fit,
+    /// while the error fields stay those of the round it was added in).
     pub params: BTreeMap<String, f64>,
     pub fit_before: f64,
     pub fit_after: f64,
@@ -91,6 +93,8 @@ pub struct Trial {
 pub struct Refit {
     pub name: String,
     pub params: BTreeMap<String, f64>,
+    /// Parameters the re-fit left at a search bound.
+    pub at_bound: Vec<String>,
     /// Position in the accepted list.
     #[serde(skip)]
     pub index: usize,
@@ -211,8 +215,9 @@ impl<'a> Twin<'a> {
     }
 }
 
-/// Extra, reportable parameters derived from the simulation: the 1x amplitude the
-/// unbalance lines give at the highest measured speed (rotor model included), m/s^2.
+/// Extra, reportable parameters derived from the simulation: the total 1x and 2x amplitudes
+/// (rotor model plus the added lines) at the highest measured speed, m/s^2: what a
+/// measurement of the rig would read.
 fn derived(twin: &Twin, effect: Effect, sim: &SimulationConfig) -> Result<BTreeMap<String, f64>> {
     let mut out = BTreeMap::new();
     if effect == Effect::Unbalance {
@@ -223,35 +228,40 @@ fn derived(twin: &Twin, effect: Effect, sim: &SimulationConfig) -> Result<BTreeM
             .max_by(|a, b| a.1.rpm.total_cmp(&b.1.rpm))
             .context("no operating points")?;
         let v = twin.simulated(sim, i)?;
-        let a = v.shaft.amplitude[0] * twin.unit_to_m_s2;
-        out.insert("order1_m_s2".into(), round_sig(a));
+        for (k, a) in v.shaft.amplitude.iter().take(2).enumerate() {
+            out.insert(
+                format!("order{}_m_s2", k + 1),
+                round_sig(a * twin.unit_to_m_s2),
+            );
+        }
         out.insert("at_rpm".into(), m.rpm.round());
     }
     Ok(out)
 }
 
-/// Bounded search of one effect's parameters on the fit part, on its own components,
-/// starting from `base`: (values, objective, evaluations).
+/// Bounded search of one effect's parameters on the fit part, on its own components, on top
+/// of `base`, starting from `start` (default: [`Effect::start`]): (values, objective,
+/// evaluations).
 fn search_effect(
     twin: &Twin,
     effect: Effect,
     base: &SimulationConfig,
+    start: Option<&[f64]>,
     fit: &[usize],
     cx: &catalog::Context,
 ) -> Result<(Vec<f64>, f64, usize)> {
     let own = effect.components();
     let mut failure = None;
-    let found = search::minimize(
-        &effect.params(cx),
-        &effect.start(base, cx),
-        &mut |x| match twin.error(&effect.apply(base, x, cx), fit) {
-            Ok(e) => e.of(own),
-            Err(e) => {
-                failure.get_or_insert(e);
-                f64::INFINITY
-            }
-        },
-    );
+    let start = start.map_or_else(|| effect.start(base, cx), <[f64]>::to_vec);
+    let found = search::minimize(&effect.params(cx), &start, &mut |x| match twin
+        .error(&effect.apply(base, x, cx), fit)
+    {
+        Ok(e) => e.of(own),
+        Err(e) => {
+            failure.get_or_insert(e);
+            f64::INFINITY
+        }
+    });
     match failure {
         Some(e) => Err(e.context(format!("trying effect {}", effect.name()))),
         None => Ok(found),
@@ -302,6 +312,14 @@ pub fn calibrate(rig: &RigConfig, ops: &[Measured], fit_part: Vec<bool>) -> Resu
     let fit: Vec<usize> = all.iter().copied().filter(|&i| fit_part[i]).collect();
     let held: Vec<usize> = all.iter().copied().filter(|&i| !fit_part[i]).collect();
     let cx = context(ops);
+    if let Some(i) = crate::sim::dominant_resonance(rig, &base).filter(|&i| i > 0) {
+        tracing::warn!(
+            "the classifier channel sees most of resonances[{i}] ({:.0} Hz), but the `resonance` \
+             effect fits resonances[0] and `modes` compares the dominant one: list the mode the \
+             sensor sees first in [[simulation.structure.resonances]]",
+            base.structure.resonances[i].hz
+        );
+    }
     let before = twin.error(&base, &all)?;
     let mut current = base.clone();
     let mut accepted: Vec<Trial> = Vec::new();
@@ -317,13 +335,13 @@ pub fn calibrate(rig: &RigConfig, ops: &[Measured], fit_part: Vec<bool>) -> Resu
                 continue;
             }
             let own = effect.components();
-            let (values, _, mut evals) = search_effect(&twin, effect, &current, &fit, &cx)?;
+            let (values, _, mut evals) = search_effect(&twin, effect, &current, None, &fit, &cx)?;
             let mut cand = effect.apply(&current, &values, &cx);
             // an effect that moves a view an accepted effect was fitted on gets that effect
             // re-fitted with it before it is judged (e.g. at 1796 rpm a 60 Hz line falls on
             // the 2x line an accepted unbalance was fitted to)
             let mut refits = Vec::new();
-            let cand_fit_parts = twin.error(&cand, &fit)?;
+            let mut cand_fit_parts = twin.error(&cand, &fit)?;
             for (k, a) in accepted.iter().enumerate() {
                 let ae = a.effect.expect("accepted effects carry their effect");
                 let moved = ae
@@ -331,12 +349,15 @@ pub fn calibrate(rig: &RigConfig, ops: &[Measured], fit_part: Vec<bool>) -> Resu
                     .iter()
                     .any(|c| cand_fit_parts.get(c) > cur_fit_parts.get(c) + min_cut(c));
                 if moved {
-                    let (v, _, n) = search_effect(&twin, ae, &cand, &fit, &cx)?;
+                    // from its accepted values, so the re-fit only moves what it must
+                    let (v, _, n) = search_effect(&twin, ae, &cand, Some(&a.values), &fit, &cx)?;
                     evals += n;
                     cand = ae.apply(&cand, &v, &cx);
+                    cand_fit_parts = twin.error(&cand, &fit)?;
                     refits.push(Refit {
                         name: a.name.clone(),
                         params: named_params(&twin, ae, &v, &cand, &cx)?,
+                        at_bound: at_bound(ae, &v, &cx),
                         index: k,
                         values: v,
                     });
@@ -400,6 +421,7 @@ pub fn calibrate(rig: &RigConfig, ops: &[Measured], fit_part: Vec<bool>) -> Resu
                     let a = &mut accepted[r.index];
                     a.values = r.values.clone();
                     a.params = r.params.clone();
+                    a.at_bound = r.at_bound.clone();
                 }
                 accepted.push(t);
             }

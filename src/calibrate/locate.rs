@@ -21,8 +21,9 @@ pub struct Unexplained {
     /// (broadband), `modulation` (sideband ratio of a fault comb) or `peaks` (a fault comb
     /// located elsewhere than simulated).
     pub view: String,
-    /// Measured above simulated, dB (largest over recordings); for `peaks` the location
-    /// difference in per mille.
+    /// Measured above simulated, dB (largest over recordings); for `modulation` the
+    /// measured minus the simulated sideband ratio, dB, negative when the simulation's
+    /// sidebands are the stronger; for `peaks` the location difference in per mille.
     pub excess_db: f64,
     /// Recordings showing it.
     pub recordings: usize,
@@ -177,7 +178,12 @@ fn group(peaks: &[Peak], speeds: &[f64], view: &str, out: &mut Vec<Unexplained>)
         if n < 2 && speeds.len() > 1 {
             continue;
         }
-        let excess = members.iter().map(|&j| peaks[j].excess).fold(0.0, f64::max);
+        // the largest in magnitude, sign kept (a modulation mismatch may go either way)
+        let excess = members
+            .iter()
+            .map(|&j| peaks[j].excess)
+            .max_by(|a, b| a.abs().total_cmp(&b.abs()))
+            .unwrap_or(0.0);
         for &j in &members {
             used[j] = true;
         }

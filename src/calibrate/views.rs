@@ -24,7 +24,7 @@ use crate::dsp::order_spectrum::whole_recording;
 use crate::dsp::speed::SpeedTrack;
 use crate::recording::Recording;
 use crate::sim::Fault;
-use anyhow::{Context, Result};
+use anyhow::{bail, Context, Result};
 use realfft::RealFftPlanner;
 
 pub const ENV_MAX_ORDER: f64 = 12.0;
@@ -34,6 +34,9 @@ pub const LINES_MIN_HZ: usize = 2;
 pub const LINES_MAX_HZ: usize = 1000;
 pub const BAND_HZ: f64 = 100.0;
 pub const BAND_MIN_HZ: f64 = 300.0;
+/// Lowest sample rate the views are defined for: raw lines to [`LINES_MAX_HZ`], bands from
+/// [`BAND_MIN_HZ`] to 0.4 fs.
+pub const MIN_SAMPLE_RATE_HZ: f64 = 2.0 * LINES_MAX_HZ as f64;
 pub const SPEED_MIN_HZ: f64 = 0.2;
 pub const SPEED_MAX_HZ: f64 = 5.0;
 pub const SPEED_STEP_HZ: f64 = 0.05;
@@ -83,6 +86,14 @@ pub fn compute(rec: &Recording, rig: &RigConfig, faults: &[Fault]) -> Result<Vie
         .or_else(|| rec.channels.first())
         .context("the recording has no acceleration channel")?;
     let fs = rec.sample_rate;
+    if !(fs >= MIN_SAMPLE_RATE_HZ) {
+        bail!(
+            "channel {:?} is sampled at {fs} Hz; calibration compares raw lines up to \
+             {LINES_MAX_HZ} Hz and band energies from {BAND_MIN_HZ} Hz to 0.4 fs, so it needs \
+             at least {MIN_SAMPLE_RATE_HZ} Hz: record faster or check the file's sample rate",
+            ch.name
+        );
+    }
     let track = SpeedTrack::for_recording(rec, rig)?;
     let dur = rec.duration_s();
     let rpm = track.mean_rpm(0.0, dur);
@@ -249,4 +260,22 @@ fn welch(x: &[f32], nseg: usize) -> (Vec<f64>, Vec<f64>) {
     let amp = pow.iter().map(|p| 2.0 * (p / c).sqrt() / wsum).collect();
     let pw = pow.iter().map(|p| p / c).collect();
     (amp, pw)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Too slow a recording is an error that says why, not a panic on an empty band range.
+    #[test]
+    fn a_slow_recording_is_refused_with_its_rate() {
+        let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
+        let rig = RigConfig::load(&root.join("config/lut-rig.toml")).unwrap();
+        let sc = crate::sim::Scenario::constant(&[], 588.0, 1.0, 7);
+        let mut rec = crate::sim::simulate(&rig, &sc).unwrap();
+        assert!(compute(&rec, &rig, &[]).is_ok());
+        rec.sample_rate = 500.0;
+        let e = format!("{:#}", compute(&rec, &rig, &[]).unwrap_err());
+        assert!(e.contains("500 Hz") && e.contains("2000 Hz"), "{e}");
+    }
 }

@@ -69,7 +69,12 @@ impl ShaftLinesConfig {
             .get(k.wrapping_sub(1))
             .copied()
             .unwrap_or(0.0);
-        a * (rpm / self.ref_rpm).max(0.0).powf(self.exponent)
+        a * self.speed_gain(rpm)
+    }
+
+    /// The speed law every order follows: (rpm / ref_rpm)^exponent.
+    pub fn speed_gain(&self, rpm: f64) -> f64 {
+        (rpm / self.ref_rpm).max(0.0).powf(self.exponent)
     }
 }
 

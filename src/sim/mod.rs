@@ -83,12 +83,17 @@ fn signal_for(sim: &SimulationConfig, name: &str, axis: &str) -> Option<usize> {
 }
 
 /// The structural mode the rig's classifier channel sees most of (see
-/// [`structure::dominant_mode_hz`]), Hz: where the model puts the resonance that impacts
+/// [`structure::dominant_mode`]), Hz: where the model puts the resonance that impacts
 /// ring through, whether or not a simulation excites it.
 pub fn dominant_resonance_hz(rig: &RigConfig, sim: &SimulationConfig) -> Option<f64> {
+    dominant_resonance(rig, sim).map(|i| sim.structure.resonances[i].hz)
+}
+
+/// The index in `[[simulation.structure.resonances]]` of [`dominant_resonance_hz`]'s mode.
+pub fn dominant_resonance(rig: &RigConfig, sim: &SimulationConfig) -> Option<usize> {
     let ch = rig.classifier_channel()?;
     let signal = SIGNALS[signal_for(sim, &ch.name, &ch.axis)?];
-    structure::dominant_mode_hz(&sim.structure.resonances, signal)
+    structure::dominant_mode(&sim.structure.resonances, signal)
 }
 
 /// Factor from m/s^2 to a channel's unit (m/s^2, mm/s^2 or g).

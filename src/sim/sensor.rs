@@ -40,41 +40,46 @@ pub fn finish(
             )
         })
         .collect();
-    // shaft-order lines: per sample, the shaft angle and speed from the sample's boundaries
+    // shaft-order lines: per sample, the shaft angle and speed from the sample's boundaries;
+    // the speed law (rpm / ref)^exponent is one gain per sample for every order, and orders
+    // without amplitude or above Nyquist at that sample's speed are skipped (no aliases)
     let shaft_lines = sim.shaft_lines.as_ref().map(|l| {
         let b = &out.boundary_angles;
-        let orders: Vec<(f64, Vec<f64>)> = (1..=l.amplitudes_m_s2.len())
-            .map(|k| {
-                let amp = (0..n_out)
-                    .map(|i| {
-                        let rpm = (b[i + 1] - b[i]) * fs * 60.0 / std::f64::consts::TAU;
-                        l.amplitude(k, rpm)
-                    })
-                    .collect();
-                (k as f64, amp)
-            })
+        let shaft_hz: Vec<f64> = (0..n_out)
+            .map(|i| (b[i + 1] - b[i]) * fs / std::f64::consts::TAU)
             .collect();
-        (l.phase_deg.to_radians(), orders)
+        let gain: Vec<f64> = shaft_hz.iter().map(|&f| l.speed_gain(60.0 * f)).collect();
+        let orders: Vec<(f64, f64)> = l
+            .amplitudes_m_s2
+            .iter()
+            .enumerate()
+            .filter(|(_, &a)| a != 0.0)
+            .map(|(k, &a)| ((k + 1) as f64, a))
+            .collect();
+        (l.phase_deg.to_radians(), shaft_hz, gain, orders)
     });
-    let shaft_line = |signal: usize, i: usize| -> f64 {
-        let Some((phase, orders)) = &shaft_lines else {
+    let shaft_line = |vertical: bool, i: usize| -> f64 {
+        let Some((phase, shaft_hz, gain, orders)) = &shaft_lines else {
             return 0.0;
         };
-        let vertical = match SIGNALS[signal] {
-            "vertical" | "support_vertical" => true,
-            "horizontal" | "support_horizontal" => false,
-            _ => return 0.0,
-        };
         let th = 0.5 * (out.boundary_angles[i] + out.boundary_angles[i + 1]) + phase;
+        let nyquist = 0.5 * fs;
         orders
             .iter()
-            .map(|(k, amp)| {
+            .take_while(|(k, _)| k * shaft_hz[i] < nyquist)
+            .map(|(k, a)| {
                 let x = k * th;
-                amp[i] * if vertical { x.cos() } else { x.sin() }
+                a * gain[i] * if vertical { x.cos() } else { x.sin() }
             })
             .sum()
     };
     for ((c, signal, scale), sig) in chans.iter().zip(&out.signals) {
+        // shaft lines act on the radial housing signals: cos on vertical, sin on horizontal
+        let radial = match SIGNALS[*signal] {
+            "vertical" | "support_vertical" => Some(true),
+            "horizontal" | "support_horizontal" => Some(false),
+            _ => None,
+        };
         // quantisation step in the channel's unit, a power of two (exact in f32)
         let lsb = if adc > 0.0 {
             2f64.powf((adc * scale).log2().round())
@@ -90,8 +95,11 @@ pub fn finish(
                     .iter()
                     .map(|&(amp, w, ph)| amp * (w * i as f64 + ph).sin())
                     .sum();
-                let y =
-                    (a + hum + shaft_line(*signal, i) + sim.structure.noise_rms_m_s2 * z) * scale;
+                let y = (a
+                    + hum
+                    + radial.map_or(0.0, |v| shaft_line(v, i))
+                    + sim.structure.noise_rms_m_s2 * z)
+                    * scale;
                 (if lsb > 0.0 {
                     (y / lsb).round() * lsb
                 } else {

@@ -65,8 +65,8 @@ impl Structure {
 
 /// The mode a sensor on `axis` (`axial`, `vertical` or `horizontal` of the test-bearing
 /// housing) sees most of, by its gain participation^2 / modal mass (drive and sensing along
-/// the axis): its frequency, Hz. None for other signals or without resonances.
-pub fn dominant_mode_hz(res: &[ResonanceConfig], axis: &str) -> Option<f64> {
+/// the axis): its index in `res`. None for other signals or without resonances.
+pub fn dominant_mode(res: &[ResonanceConfig], axis: &str) -> Option<usize> {
     let p = |r: &ResonanceConfig| match axis {
         "axial" => Some(r.axial),
         "vertical" => Some(r.vertical),
@@ -74,9 +74,10 @@ pub fn dominant_mode_hz(res: &[ResonanceConfig], axis: &str) -> Option<f64> {
         _ => None,
     };
     res.iter()
-        .filter_map(|r| p(r).map(|p| (r.hz, p * p / r.modal_mass_kg)))
+        .enumerate()
+        .filter_map(|(i, r)| p(r).map(|p| (i, p * p / r.modal_mass_kg)))
         .max_by(|a, b| a.1.total_cmp(&b.1))
-        .map(|(hz, _)| hz)
+        .map(|(i, _)| i)
 }
 
 #[cfg(test)]
