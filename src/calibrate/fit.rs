@@ -9,7 +9,7 @@
 use super::catalog::{self, Effect, ALL};
 use super::error::{self, min_cut, ErrorParts};
 use super::locate::{locate, Unexplained};
-use super::measured::Measured;
+use super::measured::{several_speeds, Measured};
 use super::modes::Mode;
 use super::search;
 use super::views::{self, Views};
@@ -462,12 +462,11 @@ pub fn context(ops: &[Measured]) -> catalog::Context {
         .iter()
         .map(|m| m.recording.sample_rate)
         .fold(f64::INFINITY, f64::min);
-    let max_rpm = ops.iter().map(|m| m.rpm).fold(0.0, f64::max);
-    let min_rpm = ops.iter().map(|m| m.rpm).fold(f64::INFINITY, f64::min);
+    let rpm: Vec<f64> = ops.iter().map(|m| m.rpm).collect();
     catalog::Context {
         fs,
-        max_rpm,
-        several_speeds: max_rpm > 1.05 * min_rpm,
+        max_rpm: rpm.iter().copied().fold(0.0, f64::max),
+        several_speeds: several_speeds(&rpm),
     }
 }
 

@@ -5,6 +5,7 @@
 //! modulation from the fault combs' sideband ratios (`modulation`) and misplaced fault lines
 //! from their located orders (`peaks`).
 
+use super::measured::{distinct_speeds, several_speeds};
 use super::views::{env_order, Views, BAND_HZ, LINES_MIN_HZ};
 use serde::Serialize;
 
@@ -131,8 +132,7 @@ pub fn locate(pairs: &[(&Views, &Views)]) -> Vec<Unexplained> {
 }
 
 fn group(peaks: &[Peak], speeds: &[f64], view: &str, out: &mut Vec<Unexplained>) {
-    let distinct = |a: f64, b: f64| (a - b).abs() > 0.05 * a.max(b);
-    let several_speeds = speeds.iter().any(|&a| distinct(a, speeds[0]));
+    let several_speeds = several_speeds(speeds);
     let broadband = view == "bands";
     // envelope and fault-comb findings are orders by nature
     let by_order = matches!(view, "env" | "modulation" | "peaks");
@@ -151,7 +151,7 @@ fn group(peaks: &[Peak], speeds: &[f64], view: &str, out: &mut Vec<Unexplained>)
         let speeds_of = |idx: &[usize]| {
             let mut v: Vec<f64> = idx.iter().map(|&j| speeds[peaks[j].rec]).collect();
             v.sort_by(f64::total_cmp);
-            v.dedup_by(|a, b| !distinct(*a, *b));
+            v.dedup_by(|a, b| !distinct_speeds(*a, *b));
             v.len()
         };
         let recs = |idx: &[usize]| {

@@ -12,6 +12,17 @@ use crate::train::dataset::{manifest_path, read_manifest};
 use anyhow::{bail, Context, Result};
 use std::path::{Path, PathBuf};
 
+/// Two operating speeds count as different when they differ by more than 5 %: enough to tell
+/// order-locked from frequency-locked content, and to fit a speed law.
+pub fn distinct_speeds(a: f64, b: f64) -> bool {
+    (a - b).abs() > 0.05 * a.max(b)
+}
+
+/// Whether `rpm` holds more than one operating speed ([`distinct_speeds`]).
+pub fn several_speeds(rpm: &[f64]) -> bool {
+    rpm.iter().any(|&a| distinct_speeds(a, rpm[0]))
+}
+
 /// One measured recording at one operating point.
 #[derive(Debug, Clone)]
 pub struct Measured {

@@ -77,6 +77,14 @@ pub fn spectra(path: &Path, name: &str, m: &Views, b: &Views, a: &Views) -> Resu
         .map_err(|x| anyhow!("drawing {}: {x}", path.display()))?;
     let (top, rest) = root.split_vertically(450);
     let (bottom, orders_area) = rest.split_vertically(430);
+    // one view of the measured recording and of the simulation before and after
+    let three = |view: &dyn Fn(&Views) -> Vec<(f64, f64)>| {
+        [
+            ("measured", MEAS, view(m)),
+            ("simulated before", BEFORE, view(b)),
+            ("simulated after", AFTER, view(a)),
+        ]
+    };
     let env = |v: &Views| {
         v.env_db
             .iter()
@@ -89,11 +97,7 @@ pub fn spectra(path: &Path, name: &str, m: &Views, b: &Views, a: &Views) -> Resu
         &format!("{name}: envelope order spectrum"),
         "order",
         "dB above median",
-        &[
-            ("measured", MEAS, env(m)),
-            ("simulated before", BEFORE, env(b)),
-            ("simulated after", AFTER, env(a)),
-        ],
+        &three(&env),
     )?;
     let bands = |v: &Views| {
         v.bands
@@ -107,11 +111,7 @@ pub fn spectra(path: &Path, name: &str, m: &Views, b: &Views, a: &Views) -> Resu
         "band energy (100 Hz bands)",
         "Hz",
         "dB re mean band",
-        &[
-            ("measured", MEAS, bands(m)),
-            ("simulated before", BEFORE, bands(b)),
-            ("simulated after", AFTER, bands(a)),
-        ],
+        &three(&bands),
     )?;
     let orders = |v: &Views| {
         v.shaft
@@ -127,11 +127,7 @@ pub fn spectra(path: &Path, name: &str, m: &Views, b: &Views, a: &Views) -> Resu
         "shaft-order lines (1x, 2x: unbalance; 3x and up: looseness)",
         "order",
         "dB re 1 channel unit",
-        &[
-            ("measured", MEAS, orders(m)),
-            ("simulated before", BEFORE, orders(b)),
-            ("simulated after", AFTER, orders(a)),
-        ],
+        &three(&orders),
     )?;
     root.present()
         .map_err(|x| anyhow!("writing {}: {x}", path.display()))?;

@@ -52,8 +52,10 @@ pub fn measure(x: &[f32], fs: f64, track: &SpeedTrack) -> ShaftOrders {
     // sums[k][j]: order k+1, j = 0 the order itself, 1.. the floor offsets
     let mut sums = vec![[(0.0f64, 0.0f64); 1 + FLOOR_OFFSETS.len()]; MAX_ORDER];
     let mut offs = [(0.0f64, 0.0f64); FLOOR_OFFSETS.len()];
-    for (i, v) in x.iter().enumerate() {
-        let th = std::f64::consts::TAU * track.angle_at(i as f64 / fs);
+    let mut angles = vec![0.0; n];
+    track.angles_at_times(0.0, 1.0 / fs, &mut angles);
+    for (i, (v, rev)) in x.iter().zip(&angles).enumerate() {
+        let th = std::f64::consts::TAU * rev;
         let y = (*v as f64 - mean) * w(i);
         let (s, c) = th.sin_cos();
         let step = (c, -s);
