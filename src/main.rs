@@ -37,6 +37,8 @@ enum Command {
     Finetune(cli::finetune::Args),
     /// Score a model on labelled recordings, whole-record.
     Evaluate(cli::evaluate::Args),
+    /// Align a model to one machine's healthy recordings (reference levels; no training).
+    Align(cli::align::Args),
     /// 2-D t-SNE/PCA picture of feature windows by class and domain.
     Embed(cli::embed::Args),
     /// Run the monitoring daemon from a config file.
@@ -68,6 +70,7 @@ fn main() -> std::process::ExitCode {
         Command::Train(a) => cli::train::run(a),
         Command::Finetune(a) => cli::finetune::run(a),
         Command::Evaluate(a) => cli::evaluate::run(a),
+        Command::Align(a) => cli::align::run(a),
         Command::Embed(a) => cli::embed::run(a),
         Command::Run(a) => cli::run::run(a),
         Command::Replay(a) => cli::replay::run(a),

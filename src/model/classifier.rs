@@ -2,6 +2,7 @@
 //! metadata. This is what training produces, what [`super::export`] writes as ONNX and what
 //! fine-tuning reads back; its `predict` is the reference the ONNX runtimes are checked against.
 
+use super::baseline::HealthyBaseline;
 use super::meta::ModelMeta;
 use super::mlp::{softmax, Mlp};
 use super::novelty::Mahalanobis;
@@ -14,6 +15,8 @@ pub struct TrainedModel {
     pub mlp: Mlp,
     pub novelty: Mahalanobis,
     pub meta: ModelMeta,
+    /// The machine's healthy baseline gate, once the model has been aligned to a machine.
+    pub baseline: Option<HealthyBaseline>,
 }
 
 /// Outputs for a batch of windows.
@@ -32,7 +35,14 @@ impl TrainedModel {
     pub fn predict(&self, x: ArrayView2<f32>) -> BatchOutput {
         let z = self.pre.apply(x);
         let (hidden, logits) = self.mlp.forward(z.view());
-        let probs = softmax(logits.view());
+        let mut probs = softmax(logits.view());
+        if let (Some(b), Some(h)) = (
+            &self.baseline,
+            self.meta.labels.iter().position(|l| l == "healthy"),
+        ) {
+            let d = b.distances(x, self.pre.floor);
+            b.gate(&mut probs, &d, h);
+        }
         let novelty = self.novelty.score(hidden.view());
         BatchOutput {
             probs,

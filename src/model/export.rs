@@ -1,9 +1,11 @@
 //! ONNX writer and reader for [`TrainedModel`] (via the `tract_onnx::pb` protobuf types):
 //! opset 13, IR version 8, input `features` `[N, n_bins]` (raw RMS bins), outputs
-//! `probabilities` `[N, classes]` and `novelty` `[N]`, all normalisation inside the graph,
+//! `probabilities` `[N, classes]` and `novelty` `[N]` (an aligned model adds the healthy-
+//! baseline gate and a third output `baseline_distance` `[N]`), all normalisation inside the graph,
 //! metadata in `metadata_props`. The reader only understands graphs this writer made
 //! (fine-tuning reads a shipped model back to retrain its output layer).
 
+use super::baseline::{HealthyBaseline, GATE_EPS, TOP};
 use super::classifier::TrainedModel;
 use super::meta::ModelMeta;
 use super::mlp::{Dense, Mlp};
@@ -25,6 +27,8 @@ pub const INPUT: &str = "features";
 /// Graph output names.
 pub const OUT_PROBS: &str = "probabilities";
 pub const OUT_NOVELTY: &str = "novelty";
+/// Third output of an aligned model: distance from the machine's healthy baseline.
+pub const OUT_BASELINE: &str = "baseline_distance";
 
 fn f32_tensor(name: &str, dims: &[usize], data: impl IntoIterator<Item = f32>) -> pb::TensorProto {
     let raw: Vec<u8> = data.into_iter().flat_map(|v| v.to_le_bytes()).collect();
@@ -182,11 +186,16 @@ pub fn to_proto(m: &TrainedModel) -> pb::ModelProto {
             vec![attr_int("transB", 1)],
         ));
         if is_out {
+            let probs = if m.baseline.is_some() {
+                "probs_network"
+            } else {
+                OUT_PROBS
+            };
             nodes.push(node(
                 "Softmax",
                 "softmax",
                 &["logits"],
-                &[OUT_PROBS],
+                &[probs],
                 vec![attr_int("axis", -1)],
             ));
         } else {
@@ -245,12 +254,21 @@ pub fn to_proto(m: &TrainedModel) -> pb::ModelProto {
         ),
         node("Sqrt", "novelty_sqrt", &["d2_min"], &[OUT_NOVELTY], vec![]),
     ]);
+    let mut outputs = vec![
+        value_info(OUT_PROBS, &[Dim::Batch, Dim::Fixed(n_cls)]),
+        value_info(OUT_NOVELTY, &[Dim::Batch]),
+    ];
+    if let Some(b) = &m.baseline {
+        let healthy = m.meta.labels.iter().position(|l| l == "healthy");
+        baseline_gate(b, healthy, n_in, n_cls, &mut init, &mut nodes);
+        outputs.push(value_info(OUT_BASELINE, &[Dim::Batch]));
+    }
     let graph = pb::GraphProto {
         name: "rigmon_classifier".into(),
         node: nodes,
         initializer: init,
         input: vec![value_info(INPUT, &[Dim::Batch, Dim::Fixed(n_in)])],
-        output: vec![value_info(OUT_PROBS, &[Dim::Batch, Dim::Fixed(n_cls)]), value_info(OUT_NOVELTY, &[Dim::Batch])],
+        output: outputs,
         doc_string: "Envelope-order-spectrum bearing classifier: raw RMS order bins in, class probabilities and a Mahalanobis novelty score out.".into(),
         ..Default::default()
     };
@@ -271,6 +289,140 @@ pub fn to_proto(m: &TrainedModel) -> pb::ModelProto {
             .collect(),
         ..Default::default()
     }
+}
+
+/// The healthy-baseline gate of an aligned model ([`HealthyBaseline`]): the distance from the
+/// machine's healthy windows on `log_ratio`, and `probabilities` = the network's, or, where
+/// the distance exceeds the threshold, the network's with the healthy class zeroed and the
+/// rest renormalised (`p + g * (closed - p)`, g = 1 beyond the threshold).
+fn baseline_gate(
+    b: &HealthyBaseline,
+    healthy: Option<usize>,
+    n_in: usize,
+    n_cls: usize,
+    init: &mut Vec<pb::TensorProto>,
+    nodes: &mut Vec<pb::NodeProto>,
+) {
+    let keep = (0..n_cls).map(|j| if Some(j) == healthy { 0.0 } else { 1.0 });
+    let eps = (0..n_cls).map(|j| if Some(j) == healthy { 0.0 } else { GATE_EPS });
+    init.extend([
+        f32_tensor("baseline_ref", &[n_in], b.reference.iter().copied()),
+        f32_tensor("baseline_inv_spread", &[], [b.inv_spread]),
+        f32_tensor("baseline_threshold", &[], [b.threshold]),
+        f32_tensor("gate_keep", &[n_cls], keep),
+        f32_tensor("gate_eps", &[n_cls], eps),
+        i64_tensor("gate_axes", &[1]),
+        i64_tensor("baseline_k", &[TOP.min(n_in) as i64]),
+    ]);
+    let cast_float = attr_int("to", pb::tensor_proto::DataType::Float as i64);
+    nodes.extend([
+        node(
+            "Sub",
+            "baseline_dev",
+            &["log_ratio", "baseline_ref"],
+            &["b_dev"],
+            vec![],
+        ),
+        node(
+            "Mul",
+            "baseline_scale",
+            &["b_dev", "baseline_inv_spread"],
+            &["b_scaled"],
+            vec![],
+        ),
+        node(
+            "Mul",
+            "baseline_square",
+            &["b_scaled", "b_scaled"],
+            &["b_sq"],
+            vec![],
+        ),
+        node(
+            "TopK",
+            "baseline_largest",
+            &["b_sq", "baseline_k"],
+            &["b_top", "b_top_index"],
+            vec![attr_int("axis", 1)],
+        ),
+        node(
+            "ReduceMean",
+            "baseline_mean_square",
+            &["b_top"],
+            &["b_ms"],
+            vec![attr_ints("axes", &[1]), attr_int("keepdims", 1)],
+        ),
+        node("Sqrt", "baseline_rms", &["b_ms"], &["b_dist"], vec![]),
+        node(
+            "Squeeze",
+            "baseline_flat",
+            &["b_dist", "gate_axes"],
+            &[OUT_BASELINE],
+            vec![],
+        ),
+        node(
+            "Greater",
+            "baseline_far",
+            &["b_dist", "baseline_threshold"],
+            &["b_far"],
+            vec![],
+        ),
+        node(
+            "Cast",
+            "baseline_gate",
+            &["b_far"],
+            &["g"],
+            vec![cast_float],
+        ),
+        node(
+            "Mul",
+            "gate_drop_healthy",
+            &["probs_network", "gate_keep"],
+            &["p_kept"],
+            vec![],
+        ),
+        node(
+            "Add",
+            "gate_floor",
+            &["p_kept", "gate_eps"],
+            &["p_closed_raw"],
+            vec![],
+        ),
+        node(
+            "ReduceSum",
+            "gate_total",
+            &["p_closed_raw", "gate_axes"],
+            &["p_closed_sum"],
+            vec![attr_int("keepdims", 1)],
+        ),
+        node(
+            "Div",
+            "gate_renormalise",
+            &["p_closed_raw", "p_closed_sum"],
+            &["p_closed"],
+            vec![],
+        ),
+        node(
+            "Sub",
+            "gate_change",
+            &["p_closed", "probs_network"],
+            &["p_change"],
+            vec![],
+        ),
+        node(
+            "Mul",
+            "gate_apply",
+            &["p_change", "g"],
+            &["p_gated_change"],
+            vec![],
+        ),
+        node(
+            "Add",
+            "gate_out",
+            &["probs_network", "p_gated_change"],
+            &[OUT_PROBS],
+            vec![],
+        ),
+    ]);
 }
 
 /// Serialise to ONNX bytes.
@@ -377,11 +529,21 @@ pub fn from_bytes(bytes: &[u8], what: &str) -> Result<TrainedModel> {
         )?,
         threshold: meta.novelty_threshold,
     };
+    let baseline = if inits.contains_key("baseline_ref") {
+        Some(HealthyBaseline {
+            reference: Array1::from(get("baseline_ref", &[n_in])?),
+            inv_spread: get("baseline_inv_spread", &[])?[0],
+            threshold: get("baseline_threshold", &[])?[0],
+        })
+    } else {
+        None
+    };
     Ok(TrainedModel {
         pre,
         mlp: Mlp { layers },
         novelty,
         meta,
+        baseline,
     })
 }
 

@@ -35,6 +35,33 @@ pub struct ModelMeta {
     pub training: String,
     /// Fine-tuning summary (JSON text), empty when the model was never fine-tuned.
     pub finetune: String,
+    /// Per-feature mean log ratio (`ln(x / mean(x) + floor)`) of the simulated healthy
+    /// training windows: the reference a healthy-only alignment moves a machine onto. Empty
+    /// in models trained before it was stored.
+    pub healthy_reference: Vec<f32>,
+    /// The standardisation offsets as trained, kept once a model has been aligned.
+    pub trained_mean: Vec<f32>,
+    /// Alignment summary (JSON text), empty when the model was never aligned.
+    pub alignment: String,
+}
+
+/// Floats as a comma-separated list that reads back bit for bit.
+fn floats_to_text(v: &[f32]) -> String {
+    v.iter()
+        .map(|x| format!("{x:?}"))
+        .collect::<Vec<_>>()
+        .join(",")
+}
+
+fn floats_from_text(s: &str, key: &str, what: &str) -> Result<Vec<f32>> {
+    s.split(',')
+        .filter(|t| !t.trim().is_empty())
+        .map(|t| {
+            t.trim().parse::<f32>().with_context(|| {
+                format!("{what}: metadata {key} holds {t:?}, not a number; the file is damaged (re-export or retrain it)")
+            })
+        })
+        .collect()
 }
 
 impl ModelMeta {
@@ -59,6 +86,18 @@ impl ModelMeta {
         ];
         if !self.finetune.is_empty() {
             v.push(("finetune".into(), self.finetune.clone()));
+        }
+        if !self.healthy_reference.is_empty() {
+            v.push((
+                "healthy_reference".into(),
+                floats_to_text(&self.healthy_reference),
+            ));
+        }
+        if !self.trained_mean.is_empty() {
+            v.push(("trained_mean".into(), floats_to_text(&self.trained_mean)));
+        }
+        if !self.alignment.is_empty() {
+            v.push(("alignment".into(), self.alignment.clone()));
         }
         v
     }
@@ -101,6 +140,15 @@ impl ModelMeta {
             normalization: get("normalization")?.clone(),
             training: props.get("training").cloned().unwrap_or_default(),
             finetune: props.get("finetune").cloned().unwrap_or_default(),
+            healthy_reference: match props.get("healthy_reference") {
+                Some(s) => floats_from_text(s, "healthy_reference", what)?,
+                None => Vec::new(),
+            },
+            trained_mean: match props.get("trained_mean") {
+                Some(s) => floats_from_text(s, "trained_mean", what)?,
+                None => Vec::new(),
+            },
+            alignment: props.get("alignment").cloned().unwrap_or_default(),
         })
     }
 }

@@ -25,6 +25,10 @@ pub struct RandomRanges {
     pub contact_angle_deg: Option<[f64; 2]>,
     pub radial_load_n: Option<[f64; 2]>,
     pub radial_clearance_mm: Option<[f64; 2]>,
+    /// Axial preload, N: with a contact angle > 0 it loads every ball, so an outer-race
+    /// defect away from the radial load zone still makes impacts (as on real rigs whose
+    /// bearings carry a wave spring or an axial load).
+    pub preload_n: Option<[f64; 2]>,
     pub unbalance_scale: Option<[f64; 2]>,
     pub noise_rms_m_s2: Option<[f64; 2]>,
     pub resonance_hz: Option<[f64; 2]>,
@@ -52,6 +56,7 @@ impl RandomRanges {
             contact_angle_deg,
             radial_load_n,
             radial_clearance_mm,
+            preload_n,
             unbalance_scale,
             noise_rms_m_s2,
             resonance_hz,
@@ -349,7 +354,8 @@ impl Plan {
                     unbalance_scale,
                     noise_rms_m_s2,
                     resonance_hz,
-                    resonance_damping
+                    resonance_damping,
+                    preload_n
                 );
                 let rpm = draw(&mut rng, ranges.rpm).or(c.rpm);
                 let fluct = draw(&mut rng, ranges.speed_fluctuation);

@@ -71,6 +71,8 @@ pub struct Overrides {
     pub contact_angle_deg: Option<f64>,
     pub radial_load_n: Option<f64>,
     pub radial_clearance_mm: Option<f64>,
+    /// Axial preload, N (loads every ball when the contact angle is > 0).
+    pub preload_n: Option<f64>,
     /// Scales every disc's unbalance.
     pub unbalance_scale: Option<f64>,
     pub noise_rms_m_s2: Option<f64>,
@@ -118,6 +120,9 @@ impl Overrides {
         }
         if let Some(v) = self.radial_clearance_mm {
             b.radial_clearance_mm = v;
+        }
+        if let Some(v) = self.preload_n {
+            b.preload_n = v;
         }
         if let Some(k) = self.unbalance_scale {
             for disc in &mut s.rotor.discs {

@@ -53,6 +53,19 @@ pub fn to_windows(recs: &[RecordingFeatures], idx: &[usize], labels: &[String]) 
     Windows { x, y, rec }
 }
 
+/// Mean log ratio of the healthy training windows (empty when the model has no healthy class).
+fn healthy_reference(tr: &Windows, labels: &[String], floor: f32) -> Vec<f32> {
+    let Some(h) = labels.iter().position(|l| l == "healthy") else {
+        return Vec::new();
+    };
+    let rows: Vec<usize> = (0..tr.y.len()).filter(|&i| tr.y[i] == h).collect();
+    if rows.is_empty() {
+        return Vec::new();
+    }
+    let x = tr.x.select(Axis(0), &rows);
+    crate::model::align::log_mean(x.view(), floor).to_vec()
+}
+
 /// Score a model on recordings (in memory): per-window argmax and novelty, whole-record vote.
 pub fn score_records(
     model: &TrainedModel,
@@ -170,12 +183,16 @@ pub fn fit(
         normalization: NORMALIZATION_NAME.to_string(),
         training: String::new(),
         finetune: String::new(),
+        healthy_reference: healthy_reference(&tr, labels, t.pre.floor),
+        trained_mean: Vec::new(),
+        alignment: String::new(),
     };
     let mut model = TrainedModel {
         pre: t.pre,
         mlp: t.mlp,
         novelty,
         meta,
+        baseline: None,
     };
     let eval_idx = if val_idx.is_empty() {
         &train_idx

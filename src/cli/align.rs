@@ -1,0 +1,63 @@
+//! `rigmon align`: move a simulation-trained model onto one machine with that machine's
+//! healthy recordings only (the reference levels of [`crate::model::align`]); nothing is
+//! trained, the network and its labels stay.
+
+use crate::config::RigConfig;
+use crate::model::align::align_to_healthy;
+use crate::model::{export, OnnxClassifier};
+use crate::train::dataset::{manifest_path, read_manifest};
+use crate::train::featurise::featurise_all;
+use anyhow::{bail, Result};
+use indicatif::ProgressBar;
+use ndarray::{concatenate, Axis};
+use std::path::PathBuf;
+
+/// Arguments of `rigmon align`.
+#[derive(clap::Args, Debug)]
+pub struct Args {
+    /// Model to align (written by `rigmon train`).
+    #[arg(long)]
+    pub model: PathBuf,
+    /// Rig file of the machine.
+    #[arg(long)]
+    pub rig: PathBuf,
+    /// labels.csv (`path,label`) of the machine's recordings; only rows labelled `healthy`
+    /// are used.
+    #[arg(long)]
+    pub healthy: PathBuf,
+    /// Output model file.
+    #[arg(short = 'o', long)]
+    pub output: PathBuf,
+}
+
+pub fn run(args: Args) -> Result<()> {
+    let rig = RigConfig::load(&args.rig)?;
+    OnnxClassifier::load(&args.model)?.check_rig(&rig)?;
+    let base = export::read(&args.model)?;
+    let csv = manifest_path(&args.healthy);
+    let entries: Vec<_> = read_manifest(&csv)?
+        .into_iter()
+        .filter(|e| e.label == "healthy")
+        .collect();
+    if entries.is_empty() {
+        bail!(
+            "{}: no row is labelled `healthy`; alignment needs recordings of the machine in good condition",
+            csv.display()
+        );
+    }
+    let recs = featurise_all(&entries, &rig, &ProgressBar::hidden())?;
+    let views: Vec<_> = recs.iter().map(|r| r.windows.view()).collect();
+    let windows = concatenate(Axis(0), &views)?;
+    let names: Vec<String> = recs.iter().map(|r| r.path_text.clone()).collect();
+    let aligned = align_to_healthy(&base, windows.view(), &names)?;
+    export::write(&aligned, &args.output)?;
+    println!(
+        "aligned {} to {} healthy window(s) of {} recording(s): {}",
+        args.model.display(),
+        windows.nrows(),
+        names.len(),
+        aligned.meta.alignment
+    );
+    println!("wrote {}", args.output.display());
+    Ok(())
+}
