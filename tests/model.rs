@@ -452,3 +452,116 @@ fn evaluate_and_finetune_on_real_cwru_records() {
         &used
     );
 }
+
+/// Windows of a "real machine" unlike the simulation: every spectrum carries lines in the
+/// BPFO bins (machine lines that happen to sit there, as CWRU's healthy fan-end record has a
+/// line at the fan-end BPFI) and a steeper floor the training data
+/// never had; `new_fault` adds a line family at order 13.3 that no training class has.
+fn machine_windows(label: &str, n: usize, new_fault: bool, seed: u64) -> Array2<f32> {
+    let mut rng = rand::rngs::StdRng::seed_from_u64(seed);
+    let mut data = Vec::new();
+    for _ in 0..n {
+        let mut v = spectrum(label, 0.0, &mut rng);
+        let mean = v.iter().sum::<f32>() / v.len() as f32;
+        for (k, x) in v.iter_mut().enumerate() {
+            *x *= (-(k as f32) / 60.0).exp();
+        }
+        let bpfo = rig().bearing.fault_orders().bpfo;
+        for h in 1..=3 {
+            v[(h as f64 * bpfo / 0.5).floor() as usize] += 8.0 * mean;
+        }
+        if new_fault {
+            for h in 1..=3 {
+                v[(13.3 * h as f32 / 0.5) as usize] += 5.0 * mean / h as f32;
+            }
+        }
+        data.extend(v);
+    }
+    Array2::from_shape_vec((n, 100), data).unwrap()
+}
+
+#[test]
+fn aligned_model_keeps_its_classes_gates_the_unknown_and_runs_alike_everywhere() {
+    use rigmon::model::align::align_to_healthy;
+    let (model, _, _) = trained(3);
+    assert_eq!(model.meta.healthy_reference.len(), 100);
+    let healthy = machine_windows("healthy", 12, false, 1);
+    let aligned = align_to_healthy(&model, healthy.view(), &["machine-healthy".into()]).unwrap();
+    let b = aligned
+        .baseline
+        .as_ref()
+        .expect("alignment fits the baseline");
+
+    let class_of = |m: &TrainedModel, x: &Array2<f32>| {
+        let out = m.predict(x.view());
+        TrainedModel::argmax(out.probs.view())
+    };
+    // Held-out windows of the same machine (other seeds than the alignment's).
+    let h = machine_windows("healthy", 10, false, 2);
+    let or = machine_windows("outer_race", 10, false, 3);
+    let ir = machine_windows("inner_race", 10, false, 4);
+    let new = machine_windows("healthy", 10, true, 5);
+    let count = |v: &[usize], c: usize| v.iter().filter(|&&k| k == c).count();
+    let (h_a, or_a, ir_a, new_a) = (
+        class_of(&aligned, &h),
+        class_of(&aligned, &or),
+        class_of(&aligned, &ir),
+        class_of(&aligned, &new),
+    );
+    // Zero-shot, the machine's own line makes healthy windows look faulty and the new fault
+    // passes as healthy: the two failures alignment is for.
+    let (h_0, new_0) = (class_of(&model, &h), class_of(&model, &new));
+    eprintln!("zero-shot: healthy {h_0:?} new {new_0:?}");
+    assert!(count(&h_0, 0) <= 5, "zero-shot healthy windows: {h_0:?}");
+    assert!(count(&h_a, 0) >= 9, "aligned healthy windows: {h_a:?}");
+    assert!(count(&or_a, 1) >= 9, "aligned outer-race windows: {or_a:?}");
+    assert!(count(&ir_a, 2) >= 9, "aligned inner-race windows: {ir_a:?}");
+    // A fault the network never saw is never called healthy once aligned.
+    assert_eq!(count(&new_a, 0), 0, "unknown fault windows: {new_a:?}");
+    let d_h = b.distances(h.view(), aligned.pre.floor);
+    let d_new = b.distances(new.view(), aligned.pre.floor);
+    assert!(
+        d_h.iter().all(|&d| d <= b.threshold),
+        "{d_h} vs {}",
+        b.threshold
+    );
+    assert!(
+        d_new.iter().all(|&d| d > b.threshold),
+        "{d_new} vs {}",
+        b.threshold
+    );
+
+    // The file: tract and onnxruntime give the in-memory model's gated outputs.
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("aligned.onnx");
+    export::write(&aligned, &path).unwrap();
+    let x = ndarray::concatenate(ndarray::Axis(0), &[h.view(), or.view(), new.view()]).unwrap();
+    let want = aligned.predict(x.view());
+    let clf = OnnxClassifier::load(&path).unwrap();
+    for (i, row) in x.rows().into_iter().enumerate() {
+        let p = clf.predict(&row.to_vec()).unwrap();
+        for (a, w) in p.probs.iter().zip(want.probs.row(i)) {
+            assert!((a - w).abs() <= 1e-5, "row {i}: tract {a} vs in-memory {w}");
+        }
+    }
+    let rows = |a: &Array2<f32>| a.rows().into_iter().map(|r| r.to_vec()).collect::<Vec<_>>();
+    let cases = serde_json::json!({
+        "inputs": rows(&x),
+        "probabilities": rows(&want.probs),
+        "novelty": want.novelty.to_vec(),
+        "baseline_distance": b.distances(x.view(), aligned.pre.floor).to_vec(),
+    });
+    let cases_path = dir.path().join("cases.json");
+    std::fs::write(&cases_path, cases.to_string()).unwrap();
+    let out = python_check(&path, Some(&cases_path));
+    assert!(out.contains("max_baseline_rel_diff"), "{out}");
+
+    // Read back: the same model, metadata included; aligning again from the file is stable.
+    let back = export::read(&path).unwrap();
+    assert_eq!(back.pre, aligned.pre);
+    assert_eq!(back.baseline, aligned.baseline);
+    assert_eq!(back.meta.healthy_reference, model.meta.healthy_reference);
+    assert_eq!(back.meta.trained_mean, model.pre.mean.to_vec());
+    let again = align_to_healthy(&back, healthy.view(), &["machine-healthy".into()]).unwrap();
+    assert_eq!(again.pre, aligned.pre);
+}

@@ -5,7 +5,8 @@ usage: check_onnx.py MODEL.onnx [CASES.json]
 
 - onnx.checker.check_model(full_check=True) must pass (schema + shape inference);
 - IR version 8, default-domain opset >= 13;
-- input `features` [N, n_features]; outputs `probabilities` and `novelty`;
+- input `features` [N, n_features]; outputs `probabilities` and `novelty` (and
+  `baseline_distance` for a model aligned to a machine's healthy baseline);
 - metadata_props carry the rigmon keys;
 - with CASES.json ({"inputs": [[...]], "probabilities": [[...]], "novelty": [...]}) the
   onnxruntime outputs must equal the expected ones within 1e-5 (novelty: relative to
@@ -51,8 +52,10 @@ def main():
     outs = [o.name for o in sess.get_outputs()]
     if [i.name for i in ins] != ["features"] or ins[0].shape[1] != n_features:
         fail(f"inputs {[(i.name, i.shape) for i in ins]}")
-    if outs != ["probabilities", "novelty"]:
-        fail(f"outputs {outs}")
+    aligned = "alignment" in meta
+    want_outs = ["probabilities", "novelty"] + (["baseline_distance"] if aligned else [])
+    if outs != want_outs:
+        fail(f"outputs {outs}, expected {want_outs}")
     custom = sess.get_modelmeta().custom_metadata_map
     if custom.get("labels") != meta["labels"]:
         fail("onnxruntime does not see the metadata")
@@ -63,7 +66,8 @@ def main():
         with open(sys.argv[2]) as f:
             cases = json.load(f)
         x = np.asarray(cases["inputs"], dtype=np.float32)
-        probs, novelty = sess.run(["probabilities", "novelty"], {"features": x})
+        got = sess.run(want_outs, {"features": x})
+        probs, novelty = got[0], got[1]
         want_p = np.asarray(cases["probabilities"], dtype=np.float32)
         want_n = np.asarray(cases["novelty"], dtype=np.float32)
         if probs.shape != want_p.shape or novelty.shape != want_n.shape:
@@ -73,6 +77,12 @@ def main():
         report.update({"cases": int(x.shape[0]), "max_prob_diff": dp, "max_novelty_rel_diff": dn})
         if dp > 1e-5 or dn > 1e-5:
             fail(f"onnxruntime differs from rigmon: probabilities {dp:.3e}, novelty {dn:.3e} (limit 1e-5)")
+        if "baseline_distance" in cases:
+            want_d = np.asarray(cases["baseline_distance"], dtype=np.float32)
+            dd = float(np.max(np.abs(got[2] - want_d) / np.maximum(1.0, np.abs(want_d))))
+            report["max_baseline_rel_diff"] = dd
+            if dd > 1e-5:
+                fail(f"onnxruntime baseline_distance differs from rigmon by {dd:.3e} (limit 1e-5)")
     print(json.dumps(report))
 
 
