@@ -217,6 +217,44 @@ impl MatValue {
             _ => None,
         }
     }
+
+    /// A metadata number in whatever class MATLAB stored it: a real 1x1 numeric or logical
+    /// array of any class, a char array holding one finite number (`'25'`, `' 300 '`), or a
+    /// 1x1 cell holding either. `None` for anything else.
+    pub fn as_number(&self) -> Option<f64> {
+        match self {
+            MatValue::Numeric {
+                real, imag: None, ..
+            } if real.len() == 1 => Some(real[0]),
+            MatValue::Char { text, .. } => {
+                text.trim().parse::<f64>().ok().filter(|x| x.is_finite())
+            }
+            MatValue::Cell { cells, .. } if cells.len() == 1 => cells[0].as_number(),
+            _ => None,
+        }
+    }
+
+    /// A short text form for provenance notes: the text of a char array, the first numbers of
+    /// a numeric array, else the class and shape (at most ~80 characters).
+    pub fn as_text(&self) -> String {
+        let text = match self {
+            MatValue::Char { text, .. } => format!("{text:?}"),
+            MatValue::Numeric { real, .. } if !real.is_empty() && real.len() <= 8 => {
+                let v: Vec<String> = real.iter().map(|x| x.to_string()).collect();
+                format!("[{}]", v.join(" "))
+            }
+            MatValue::Cell { cells, .. } if cells.len() == 1 => {
+                format!("{{{}}}", cells[0].as_text())
+            }
+            other => other.describe(),
+        };
+        if text.chars().count() > 80 {
+            let cut: String = text.chars().take(77).collect();
+            format!("{cut}...")
+        } else {
+            text
+        }
+    }
 }
 
 /// One top-level variable.
@@ -1126,6 +1164,31 @@ mod tests {
                 }
             }
         }
+    }
+
+    #[test]
+    fn metadata_numbers_in_any_class() {
+        let mut b = MatBuilder::new(false);
+        b.var("d", &W::Double(vec![1, 1], vec![270.0]), false)
+            .var("i", &W::Int16(vec![1, 1], vec![-3]), false)
+            .var("u", &W::UInt8(vec![1, 1], vec![25]), false)
+            .var("c", &W::Char("100".into()), false)
+            .var("s", &W::Char(" 2.5e2 ".into()), false)
+            .var("t", &W::Char("270 lbs".into()), false)
+            .var("n", &W::Char("NaN".into()), false)
+            .var("v", &W::Double(vec![1, 2], vec![1.0, 2.0]), false);
+        let f = parse(&b.out).unwrap();
+        let num = |k: &str| f.get(k).unwrap().as_number();
+        assert_eq!(num("d"), Some(270.0));
+        assert_eq!(num("i"), Some(-3.0));
+        assert_eq!(num("u"), Some(25.0));
+        assert_eq!(num("c"), Some(100.0));
+        assert_eq!(num("s"), Some(250.0));
+        assert_eq!(num("t"), None);
+        assert_eq!(num("n"), None, "NaN text is not a number");
+        assert_eq!(num("v"), None, "a vector is not one number");
+        assert_eq!(f.get("t").unwrap().as_text(), "\"270 lbs\"");
+        assert_eq!(f.get("v").unwrap().as_text(), "[1 2]");
     }
 
     #[test]
