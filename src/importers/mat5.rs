@@ -786,7 +786,8 @@ impl Cursor {
                     .into_iter()
                     .map(|n| (n, Vec::with_capacity(count)))
                     .collect();
-                for _ in 0..count {
+                // A struct without fields holds nothing per element, however many there are.
+                for _ in 0..if n_fields == 0 { 0 } else { count } {
                     for field in fields.iter_mut() {
                         let v = self.sub_matrix(body, &mut at, depth)?;
                         field.1.push(v);
@@ -1164,6 +1165,22 @@ mod tests {
                 }
             }
         }
+    }
+
+    /// Found by `fuzz_mat_importer`: a struct with no fields claiming ~2^62 elements passed
+    /// the size bound (0 bytes needed) and then looped over every element.
+    #[test]
+    fn fieldless_struct_with_huge_dims_parses_without_looping() {
+        let mut b = MatBuilder::new(false);
+        b.var("bearing", &W::Struct(vec![]), false);
+        let mut bytes = b.out;
+        let dims_at = 128 + 8 + 16 + 8;
+        bytes[dims_at..dims_at + 8]
+            .copy_from_slice(&[0xff, 0xff, 0xff, 0x7f, 0xff, 0xff, 0xff, 0x7f]);
+        let f = parse(&bytes).unwrap();
+        let v = f.get("bearing").unwrap();
+        assert_eq!(v.dims(), &[0x7fff_ffff, 0x7fff_ffff]);
+        assert!(v.field_names().is_empty());
     }
 
     #[test]

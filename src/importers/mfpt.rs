@@ -73,7 +73,7 @@ pub fn from_mat(
     let p = path.display();
     let bearing = mat.get("bearing").expect("is_mfpt checked");
     if let MatValue::Struct { dims, .. } = bearing {
-        if dims.iter().product::<usize>() != 1 {
+        if dims.iter().any(|&d| d != 1) {
             bail!(
                 "{p}: wrong shape: bearing is a {} struct array; expected a single (1x1) struct",
                 bearing.describe()
