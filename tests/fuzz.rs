@@ -1438,6 +1438,22 @@ impl Mat {
         b.extend(self.el(3, &raw));
         self.el(14, &b)
     }
+    /// A 1xN char array (UTF-16 data, as MATLAB writes it).
+    fn text(&self, name: &str, s: &str) -> Vec<u8> {
+        let mut b = self.head(4, &[1, s.len() as u32], name);
+        let raw: Vec<u8> = s
+            .encode_utf16()
+            .flat_map(|x| {
+                if self.be {
+                    x.to_be_bytes()
+                } else {
+                    x.to_le_bytes()
+                }
+            })
+            .collect();
+        b.extend(self.el(4, &raw));
+        self.el(14, &b)
+    }
     fn structure(&self, name: &str, fields: &[(&str, Vec<u8>)]) -> Vec<u8> {
         let mut b = self.head(2, &[1, 1], name);
         b.extend(self.el(5, &self.u32(32)));
@@ -1505,7 +1521,33 @@ fn mat_seeds() {
             &format!("mfpt-{tag}-struct-compressed.mat"),
             &m.file(&[m.compressed(&bearing)]),
         );
+        // The public MFPT variable-load files: `load` stored as text ('25', '100', '300').
+        let vload = m.structure(
+            "bearing",
+            &[
+                ("sr", m.double("", &[48_828.0])),
+                ("gs", m.double("", &signal(n, 4.0))),
+                ("load", m.text("", "25")),
+                ("rate", m.double("", &[25.0])),
+            ],
+        );
+        write_seed(
+            "mat",
+            &format!("mfpt-{tag}-vload-text-load.mat"),
+            &m.file(&[m.compressed(&vload)]),
+        );
     }
+    // A CWRU fan-end record (282) with its RPM stored as text.
+    let m = Mat { be: false };
+    write_seed(
+        "mat",
+        "cwru-fe-text-rpm.mat",
+        &m.file(&[
+            m.double("X282_DE_time", &signal(n, 5.0)),
+            m.double("X282_FE_time", &signal(n, 6.0)),
+            m.text("X282RPM", "1798"),
+        ]),
+    );
 }
 
 fn wav_seeds() {
@@ -1564,10 +1606,20 @@ fn csv_seeds() {
     write_seed("csv", "with-time.csv", with_time.as_bytes());
     write_seed("csv", "semicolon.csv", plain.as_bytes());
     write_seed("csv", "tabs.csv", tabs.as_bytes());
+    let mut extra = String::from("vertical,temperature_c,axial\n");
+    for i in 0..n {
+        extra.push_str(&format!(
+            "{:.4},{},{:.4}\n",
+            v[i],
+            if i % 7 == 0 { "n/a" } else { "41.5" },
+            a[i]
+        ));
+    }
+    write_seed("csv", "extra-column.csv", extra.as_bytes());
 }
 
 fn rig_seeds() {
-    for f in ["lut-rig.toml", "cwru-de.toml"] {
+    for f in ["lut-rig.toml", "cwru-de.toml", "cwru-fe.toml"] {
         write_seed(
             "rig",
             f,

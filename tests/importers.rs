@@ -276,18 +276,35 @@ fn cwru_sample_rate_precedence_and_unknown_records() {
         &ImportOptions {
             sample_rate: Some(12_000.0),
             rpm: Some(1750.0),
+            ..Default::default()
         },
     )
     .unwrap();
     assert_eq!((r.sample_rate, r.rpm), (12_000.0, Some(1750.0)));
-    // A rig rate that contradicts the catalogue is a mismatch.
+    // A rig rate is only the default: the catalogue's rate wins and the note says so.
     let rig12 = RigConfig::parse(&rig_text("cwru-de.toml").replacen(
         "[[channels]]",
         "[acquisition]\nsample_rate_hz = 12000.0\n\n[[channels]]",
         1,
     ))
     .unwrap();
-    let e = err_of(importers::load(&p97, &rig12, &no_opts()));
+    let r = importers::load(&p97, &rig12, &no_opts()).unwrap();
+    assert_eq!(r.sample_rate, 48_000.0);
+    assert!(
+        r.provenance
+            .notes
+            .iter()
+            .any(|n| n.contains("CWRU catalogue (record 97)") && n.contains("default")),
+        "{:?}",
+        r.provenance.notes
+    );
+    // A rate declared beside the file (a manifest column) that contradicts the catalogue is a
+    // mismatch naming both numbers; one that agrees is fine.
+    let declared = |fs: f64| ImportOptions {
+        declared_sample_rate: Some((fs, "labels.csv line 2, column sample_rate_hz".into())),
+        ..Default::default()
+    };
+    let e = err_of(importers::load(&p97, &rig12, &declared(12_000.0)));
     assert_mentions(
         &e,
         &[
@@ -295,8 +312,15 @@ fn cwru_sample_rate_precedence_and_unknown_records() {
             "sample-rate mismatch",
             "48000",
             "12000",
-            "--sample-rate",
+            "CWRU catalogue",
+            "labels.csv line 2",
         ],
+    );
+    assert_eq!(
+        importers::load(&p97, &rig12, &declared(48_000.0))
+            .unwrap()
+            .sample_rate,
+        48_000.0
     );
     // A record not in the catalogue, no rig rate: ask for --sample-rate.
     let p999 = write(dir.path(), "b.mat", &mk("999"));
@@ -307,6 +331,13 @@ fn cwru_sample_rate_precedence_and_unknown_records() {
             .unwrap()
             .sample_rate,
         12_000.0
+    );
+    // ...or a manifest row's rate.
+    assert_eq!(
+        importers::load(&p999, &rig("cwru-de.toml"), &declared(48_000.0))
+            .unwrap()
+            .sample_rate,
+        48_000.0
     );
     // Integer-typed storage of a double array is decoded.
     let pi = write(
@@ -353,23 +384,162 @@ fn mfpt_struct_compressed_big_endian_round_trips() {
         "the signal goes on the rig's classifier channel"
     );
     assert_eq!(rec.channels[0].samples, as_f32(&gs));
-    // The rig says 10 kHz, the file 48828 Hz.
-    let e = err_of(importers::load(&path, &rig("lut-rig.toml"), &no_opts()));
-    assert_mentions(
-        &e,
-        &[
-            "baseline_1.mat",
-            "sample-rate mismatch",
-            "48828",
-            "10000",
-            "bearing.sr",
-        ],
-    );
+    // The rig says 10 kHz, the file 48828 Hz: the file's own rate wins (the rig's is a default).
+    let r = importers::load(&path, &rig("lut-rig.toml"), &no_opts()).unwrap();
+    assert_eq!(r.sample_rate, 48828.0);
+    assert!(r
+        .provenance
+        .notes
+        .iter()
+        .any(|n| n.contains("bearing.sr") && n.contains("10000")));
     // Missing field.
     let nogs = m.structure("bearing", &[("sr", m.double("", 1, 1, &[48828.0]))]);
     let p2 = write(dir.path(), "nogs.mat", &m.file(&[nogs]));
     let e = err_of(importers::load(&p2, &rig("cwru-de.toml"), &no_opts()));
     assert_mentions(&e, &["nogs.mat", "missing variable", "gs"]);
+}
+
+/// The public MFPT set's variable-load files store `bearing.load` as text ('25', '100', '300')
+/// next to numeric sr/rate: they import, with the load read from the text. Side data that still
+/// cannot be read (load "heavy", rate as a 1x2 vector, rate 0) is a warning kept as text in the
+/// provenance; the required fields stay strict.
+#[test]
+fn mfpt_variable_load_files_with_text_load_import() {
+    let dir = tempfile::tempdir().unwrap();
+    let gs = signal(2000, 7.0);
+    for be in [false, true] {
+        let m = Mat { be };
+        for (name, load, want) in [
+            ("InnerRaceFault_vload_1.mat", "25", "25"),
+            ("InnerRaceFault_vload_4.mat", "100", "100"),
+            ("OuterRaceFault_vload_7.mat", "300", "300"),
+        ] {
+            let bearing = m.structure(
+                "bearing",
+                &[
+                    ("sr", m.double("", 1, 1, &[48828.0])),
+                    ("gs", m.double("", 2000, 1, &gs)),
+                    ("load", m.text("", load)),
+                    ("rate", m.double("", 1, 1, &[25.0])),
+                ],
+            );
+            let p = write(dir.path(), name, &m.file(&[m.compressed(&bearing)]));
+            let rec = importers::load(&p, &rig("cwru-de.toml"), &no_opts())
+                .unwrap_or_else(|e| panic!("{name} (be={be}): {e:#}"));
+            assert_eq!(rec.sample_rate, 48828.0);
+            assert_eq!(rec.rpm, Some(1500.0));
+            assert_eq!(rec.metadata.get("load").map(String::as_str), Some(want));
+            assert_eq!(rec.channels[0].samples, as_f32(&gs));
+            assert!(
+                !rec.provenance
+                    .notes
+                    .iter()
+                    .any(|n| n.starts_with(importers::WARNING)),
+                "{:?}",
+                rec.provenance.notes
+            );
+        }
+    }
+    // Unreadable side data: warnings, the signal is kept.
+    let m = Mat { be: false };
+    let bearing = m.structure(
+        "bearing",
+        &[
+            ("sr", m.double("", 1, 1, &[97656.0])),
+            ("gs", m.double("", 2000, 1, &gs)),
+            ("load", m.text("", "heavy")),
+            ("rate", m.double("", 1, 2, &[25.0, 26.0])),
+        ],
+    );
+    let p = write(dir.path(), "odd.mat", &m.file(&[bearing]));
+    let rec = importers::load(&p, &rig("cwru-de.toml"), &no_opts()).unwrap();
+    assert_eq!((rec.sample_rate, rec.rpm, rec.len()), (97656.0, None, 2000));
+    assert!(!rec.metadata.contains_key("load"));
+    let warnings: Vec<&String> = rec
+        .provenance
+        .notes
+        .iter()
+        .filter(|n| n.starts_with(importers::WARNING))
+        .collect();
+    assert_eq!(warnings.len(), 2, "{warnings:?}");
+    assert_mentions(warnings[0], &["bearing.rate", "1x2 double", "[25 26]"]);
+    assert_mentions(warnings[1], &["bearing.load", "1x5 char", "\"heavy\""]);
+    let bearing = m.structure(
+        "bearing",
+        &[
+            ("sr", m.double("", 1, 1, &[48828.0])),
+            ("gs", m.double("", 2000, 1, &gs)),
+            ("rate", m.double("", 1, 1, &[0.0])),
+        ],
+    );
+    let p = write(dir.path(), "stopped.mat", &m.file(&[bearing]));
+    let rec = importers::load(&p, &rig("cwru-de.toml"), &no_opts()).unwrap();
+    assert_eq!(rec.rpm, None);
+    assert!(rec
+        .provenance
+        .notes
+        .iter()
+        .any(|n| n.starts_with(importers::WARNING) && n.contains("bearing.rate = 0")));
+    // The sample rate stays strict: sr as text is refused, naming the field.
+    let bearing = m.structure(
+        "bearing",
+        &[
+            ("sr", m.text("", "48828")),
+            ("gs", m.double("", 2000, 1, &gs)),
+        ],
+    );
+    let p = write(dir.path(), "srtext.mat", &m.file(&[bearing]));
+    assert_mentions(
+        &err_of(importers::load(&p, &rig("cwru-de.toml"), &no_opts())),
+        &["srtext.mat", "bearing.sr", "1x5 char", "single number"],
+    );
+}
+
+/// CWRU `X<nnn>RPM` is side data: stored as text it is read, unreadable it is a warning.
+#[test]
+fn cwru_rpm_in_any_class_or_a_warning() {
+    let dir = tempfile::tempdir().unwrap();
+    let m = Mat { be: false };
+    let de = signal(600, 2.0);
+    let p = write(
+        dir.path(),
+        "t.mat",
+        &m.file(&[
+            m.double("X282_DE_time", 600, 1, &de),
+            m.double("X282_FE_time", 600, 1, &de),
+            m.text("X282RPM", "1798"),
+        ]),
+    );
+    let r = importers::load(&p, &rig("cwru-fe.toml"), &no_opts()).unwrap();
+    assert_eq!((r.sample_rate, r.rpm), (12_000.0, Some(1798.0)));
+    assert_eq!(
+        r.label(),
+        Some("ball"),
+        "282: fan-end ball fault, seen from FE"
+    );
+    let p = write(
+        dir.path(),
+        "u.mat",
+        &m.file(&[
+            m.double("X282_DE_time", 600, 1, &de),
+            m.double("X282_FE_time", 600, 1, &de),
+            m.text("X282RPM", "n/a"),
+        ]),
+    );
+    let r = importers::load(&p, &rig("cwru-fe.toml"), &no_opts()).unwrap();
+    assert_eq!(r.rpm, None);
+    assert!(r
+        .provenance
+        .notes
+        .iter()
+        .any(|n| n.starts_with(importers::WARNING)
+            && n.contains("X282RPM")
+            && n.contains("\"n/a\"")));
+    // Seen from the drive-end rig, the fan-end fault leaves the monitored bearing healthy.
+    let r = importers::load(&p, &rig("cwru-de.toml"), &no_opts()).unwrap();
+    assert_eq!(r.label(), Some("healthy"));
+    assert_eq!(r.metadata["cwru_fault"], "ball");
+    assert_eq!(r.metadata["cwru_fault_bearing"], "FE");
 }
 
 // ------------------------------------------------------------- WAV and CSV
@@ -468,7 +638,23 @@ fn wav_errors_name_the_problem() {
     };
     let p = dir.path().join("slow.wav");
     write_wav(&p, spec, &frames(100));
-    let e = err_of(importers::load(&p, &rig, &no_opts()));
+    // The header fixes the rate; the rig's 10 kHz is only a default.
+    assert_eq!(
+        importers::load(&p, &rig, &no_opts()).unwrap().sample_rate,
+        8000.0
+    );
+    // A manifest row that says otherwise is a real conflict: both numbers, both places.
+    let e = err_of(importers::load(
+        &p,
+        &rig,
+        &ImportOptions {
+            declared_sample_rate: Some((
+                10_000.0,
+                "labels.csv line 7, column sample_rate_hz".into(),
+            )),
+            ..Default::default()
+        },
+    ));
     assert_mentions(
         &e,
         &[
@@ -477,7 +663,7 @@ fn wav_errors_name_the_problem() {
             "8000",
             "10000",
             "WAV header",
-            "--sample-rate",
+            "labels.csv line 7",
         ],
     );
     assert_eq!(
@@ -486,13 +672,34 @@ fn wav_errors_name_the_problem() {
             &rig,
             &ImportOptions {
                 sample_rate: Some(8000.0),
-                rpm: None
+                ..Default::default()
             }
         )
         .unwrap()
         .sample_rate,
         8000.0
     );
+    // Side chunks (LIST/INFO before the data) are skipped.
+    let bytes = std::fs::read(&p).unwrap();
+    let data_at = bytes.windows(4).position(|w| w == b"data").unwrap();
+    let mut info = b"INFOICMT".to_vec();
+    let text = b"rig 7, bearing 3\0";
+    info.extend_from_slice(&(text.len() as u32).to_le_bytes());
+    info.extend_from_slice(text);
+    if info.len() % 2 == 1 {
+        info.push(0);
+    }
+    let mut list = b"LIST".to_vec();
+    list.extend_from_slice(&(info.len() as u32).to_le_bytes());
+    list.extend_from_slice(&info);
+    let mut with_list = bytes[..data_at].to_vec();
+    with_list.extend_from_slice(&list);
+    with_list.extend_from_slice(&bytes[data_at..]);
+    let riff_len = (with_list.len() - 8) as u32;
+    with_list[4..8].copy_from_slice(&riff_len.to_le_bytes());
+    let pl = write(dir.path(), "list.wav", &with_list);
+    let r = importers::load(&pl, &rig, &no_opts()).unwrap();
+    assert_eq!((r.sample_rate, r.len()), (8000.0, 100));
     // Wrong channel count.
     let p3 = dir.path().join("three.wav");
     write_wav(
@@ -622,10 +829,20 @@ fn csv_errors_name_line_column_channel_and_sample() {
         &err_of(importers::load(&p, &rig, &no_opts())),
         &["text.csv", "line 3", "\"abc\" is not a number"],
     );
-    let p = write(dir.path(), "cols.csv", b"vertical,bogus\n1,2\n");
+    // A column naming no rig channel is side data: skipped (values unread) with a warning.
+    let p = write(dir.path(), "cols.csv", b"vertical,bogus\n1,n/a\n2,\n");
+    let r = importers::load(&p, &rig, &no_opts()).unwrap();
+    assert_eq!(r.channel("vertical").unwrap().samples, vec![1.0, 2.0]);
+    let w: Vec<&String> = r
+        .provenance
+        .notes
+        .iter()
+        .filter(|n| n.starts_with(importers::WARNING))
+        .collect();
+    assert_eq!(w.len(), 1, "{:?}", r.provenance.notes);
     assert_mentions(
-        &err_of(importers::load(&p, &rig, &no_opts())),
-        &["cols.csv", "\"bogus\"", "names no rig channel", "vertical"],
+        w[0],
+        &["line 1", "2 \"bogus\"", "name no rig channel", "vertical"],
     );
     let p = write(dir.path(), "cut.csv", b"vertical,axial\n1,2\n3,4\n5");
     assert_mentions(
@@ -646,9 +863,31 @@ fn csv_errors_name_line_column_channel_and_sample() {
         "rate.csv",
         b"time,vertical\n0,1\n0.001,2\n0.002,3\n",
     );
+    assert_eq!(
+        importers::load(&p, &rig, &no_opts()).unwrap().sample_rate,
+        1000.0,
+        "the time column fixes the rate; the rig's is a default"
+    );
     assert_mentions(
-        &err_of(importers::load(&p, &rig, &no_opts())),
-        &["rate.csv", "sample-rate mismatch", "time column", "1000"],
+        &err_of(importers::load(
+            &p,
+            &rig,
+            &ImportOptions {
+                declared_sample_rate: Some((
+                    10_000.0,
+                    "labels.csv line 3, column sample_rate_hz".into(),
+                )),
+                ..Default::default()
+            },
+        )),
+        &[
+            "rate.csv",
+            "sample-rate mismatch",
+            "time column",
+            "1000",
+            "10000",
+            "labels.csv line 3",
+        ],
     );
     let p = write(dir.path(), "noclass.csv", b"axial\n1\n2\n");
     assert_mentions(

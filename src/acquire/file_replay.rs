@@ -147,6 +147,7 @@ impl FileSourceConfig {
         let opts = ImportOptions {
             sample_rate: self.sample_rate_hz,
             rpm: self.rpm,
+            ..Default::default()
         };
         let rec = importers::load(&self.path, rig, &opts)
             .with_context(|| format!("file source: cannot replay {}", self.path.display()))?;

@@ -38,23 +38,24 @@ pub struct Measured {
 /// Load measured recordings: one `labels.csv` (or a folder holding one) or recording files.
 /// Each is cut to at most `max_seconds`.
 pub fn load(rig: &RigConfig, inputs: &[PathBuf], max_seconds: f64) -> Result<Vec<Measured>> {
-    let mut files: Vec<(PathBuf, Option<String>)> = Vec::new();
+    let mut files: Vec<(PathBuf, Option<String>, ImportOptions)> = Vec::new();
     for p in inputs {
         let is_manifest = p.is_dir() || p.extension().is_some_and(|e| e == "csv") && is_manifest(p);
         if is_manifest {
             for e in read_manifest(&manifest_path(p))? {
-                files.push((e.path, Some(e.label)));
+                let opts = e.import_options();
+                files.push((e.path, Some(e.label), opts));
             }
         } else {
-            files.push((p.clone(), None));
+            files.push((p.clone(), None, ImportOptions::default()));
         }
     }
     if files.is_empty() {
         bail!("no measured recordings given; pass --measured <labels.csv> or recording files");
     }
     let mut out = Vec::new();
-    for (path, label) in files {
-        let mut rec = importers::load(&path, rig, &ImportOptions::default())
+    for (path, label, opts) in files {
+        let mut rec = importers::load(&path, rig, &opts)
             .with_context(|| format!("loading measured recording {}", path.display()))?;
         let label = label
             .or_else(|| rec.metadata.get("label").cloned())

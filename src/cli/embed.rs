@@ -56,6 +56,7 @@ pub fn run(args: Args) -> Result<()> {
                 path_text: p.display().to_string(),
                 label,
                 line: 0,
+                sample_rate: None,
             });
         }
     }

@@ -102,6 +102,7 @@ fn serial(a: SerialArgs) -> Result<()> {
         &ImportOptions {
             sample_rate: a.sample_rate,
             rpm: None,
+            ..Default::default()
         },
     )?;
     let frame_samples = ((rec.sample_rate * a.frame_ms / 1000.0).round() as usize).max(1);

@@ -55,6 +55,7 @@ fn features(args: Args) -> Result<()> {
     let opts = ImportOptions {
         sample_rate: args.sample_rate,
         rpm: args.rpm,
+        ..Default::default()
     };
     let rec = importers::load(&args.recording, &rig, &opts)?;
     let windows = match args.rpm {

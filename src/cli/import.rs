@@ -31,6 +31,7 @@ pub fn run(args: Args) -> Result<()> {
     let opts = ImportOptions {
         sample_rate: args.sample_rate,
         rpm: args.rpm,
+        ..Default::default()
     };
     let rec = importers::load(&args.file, &rig, &opts)?;
     mcap_layout::write_recording(&args.output, &rec)

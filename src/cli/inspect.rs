@@ -59,6 +59,7 @@ fn inspect(args: Args) -> Result<()> {
     let opts = ImportOptions {
         sample_rate: args.sample_rate,
         rpm: args.rpm,
+        ..Default::default()
     };
     let rec = importers::load(&args.recording, &rig, &opts)?;
     let want = match &args.channel {

@@ -4,9 +4,10 @@
 //! column (`time`, `t`, `time_s`, `t_s`, `seconds`; in seconds) gives the sample rate, which must
 //! be uniform. Without one the rig's (or `--sample-rate`'s) rate is used. The delimiter is `,`,
 //! `;` or tab (taken from the header). Lines starting with `#` and blank lines are skipped.
-//! Values are multiplied by the channel's `sensitivity`.
+//! Values are multiplied by the channel's `sensitivity`. Columns that name no rig channel are
+//! side data: skipped with a warning in the provenance (their values are not read).
 
-use super::{check_classifier_channel, resolve_sample_rate, ImportOptions};
+use super::{check_classifier_channel, resolve_sample_rate, ImportOptions, WARNING};
 use crate::config::{ChannelKind, RigConfig};
 use crate::recording::{Channel, Provenance, Recording, Tacho};
 use anyhow::{bail, Context, Result};
@@ -44,6 +45,7 @@ pub fn load(path: &Path, rig: &RigConfig, opts: &ImportOptions) -> Result<Record
     // Map columns.
     let mut time_col = None;
     let mut map: Vec<Option<usize>> = Vec::with_capacity(names.len()); // column -> rig channel index
+    let mut skipped: Vec<usize> = Vec::new(); // columns naming no rig channel
     for (c, name) in names.iter().enumerate() {
         if TIME_COLUMNS.iter().any(|t| t.eq_ignore_ascii_case(name)) {
             if let Some(tc) = time_col {
@@ -57,20 +59,24 @@ pub fn load(path: &Path, rig: &RigConfig, opts: &ImportOptions) -> Result<Record
             map.push(None);
             continue;
         }
-        match rig.channels.iter().position(|ch| ch.name.eq_ignore_ascii_case(name)) {
+        match rig
+            .channels
+            .iter()
+            .position(|ch| ch.name.eq_ignore_ascii_case(name))
+        {
             Some(k) => {
                 if map.contains(&Some(k)) {
-                    bail!("{p}: line {}: column {name:?} appears twice", header_idx + 1);
+                    bail!(
+                        "{p}: line {}: column {name:?} appears twice",
+                        header_idx + 1
+                    );
                 }
                 map.push(Some(k));
             }
-            None => bail!(
-                "{p}: line {}: column {} {name:?} names no rig channel; the rig's channels are {:?} (plus an optional time column: {:?})",
-                header_idx + 1,
-                c + 1,
-                rig.channel_names(),
-                TIME_COLUMNS
-            ),
+            None => {
+                skipped.push(c);
+                map.push(None);
+            }
         }
     }
     if map.iter().all(Option::is_none) {
@@ -79,6 +85,21 @@ pub fn load(path: &Path, rig: &RigConfig, opts: &ImportOptions) -> Result<Record
             header_idx + 1,
             rig.channel_names()
         );
+    }
+    let mut notes = Vec::new();
+    if !skipped.is_empty() {
+        let list: Vec<String> = skipped
+            .iter()
+            .map(|&c| format!("{} {:?}", c + 1, names[c]))
+            .collect();
+        notes.push(format!(
+            "{WARNING}line {}: column(s) {} name no rig channel (the rig's channels are {:?}, plus an optional \
+             time column {:?}); skipped",
+            header_idx + 1,
+            list.join(", "),
+            rig.channel_names(),
+            TIME_COLUMNS
+        ));
     }
     // Parse rows.
     let mut cols: Vec<Vec<f64>> = vec![Vec::new(); names.len()];
@@ -92,6 +113,11 @@ pub fn load(path: &Path, rig: &RigConfig, opts: &ImportOptions) -> Result<Record
                     names.len()
                 );
             }
+            n += 1;
+            if skipped.contains(&c) {
+                cols[c].push(0.0); // side data: not read
+                continue;
+            }
             let f = field.trim().trim_matches('"');
             let v: f64 = f.parse().map_err(|_| {
                 anyhow::anyhow!(
@@ -102,7 +128,6 @@ pub fn load(path: &Path, rig: &RigConfig, opts: &ImportOptions) -> Result<Record
                 )
             })?;
             cols[c].push(v);
-            n += 1;
         }
         if n < names.len() {
             bail!(
@@ -150,7 +175,7 @@ pub fn load(path: &Path, rig: &RigConfig, opts: &ImportOptions) -> Result<Record
     // Build channels in rig order.
     let mut channels = Vec::new();
     let mut tacho = None;
-    let mut notes = vec![note];
+    notes.push(note);
     for (k, cfg) in rig.channels.iter().enumerate() {
         let Some(c) = map.iter().position(|m| *m == Some(k)) else {
             notes.push(format!("no column for rig channel {}", cfg.name));

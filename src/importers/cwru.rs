@@ -2,12 +2,14 @@
 //! `X<nnn>_FE_time`, `X<nnn>_BA_time` (vectors in g) and `X<nnn>RPM`.
 //!
 //! Channels DE/FE/BA are matched to the rig's channels by name (case-insensitive). The sample
-//! rate is not stored: it comes from `--sample-rate`, else the rig file, else CWRU's own
-//! catalogue by file number ([`catalogue`]; the number is taken from the variable names, so a
-//! renamed file still works).
+//! rate is not stored: it comes from CWRU's own catalogue by record number ([`catalogue`]: the
+//! normal baselines, drive end at 12 and 48 kHz, fan end at 12 kHz; the number is taken from the
+//! variable names, so a renamed file still works), by the one rule of
+//! [`resolve_sample_rate`](super::resolve_sample_rate). The speed `X<nnn>RPM` is side data:
+//! read in any MATLAB class, a warning when it cannot be.
 
 use super::mat5::{MatFile, MatValue};
-use super::{check_classifier_channel, resolve_sample_rate, ImportOptions};
+use super::{check_classifier_channel, resolve_sample_rate, ImportOptions, WARNING};
 use crate::config::RigConfig;
 use crate::recording::{Channel, Provenance, Recording};
 use anyhow::{bail, Result};
@@ -17,58 +19,153 @@ use std::path::Path;
 /// Sensor positions CWRU records.
 pub const POSITIONS: [&str; 3] = ["DE", "FE", "BA"];
 
-/// What CWRU's catalogue says about a drive-end file number.
+/// Motor loads of the CWRU tables (hp, the column index of [`Row::records`]) and the approximate
+/// speed CWRU publishes for each.
+pub const LOADS_HP_RPM: [(u8, f64); 4] = [(0, 1797.0), (1, 1772.0), (2, 1750.0), (3, 1730.0)];
+
+/// What CWRU's catalogue says about one record number.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct CatalogueEntry {
+    pub record: u32,
     pub sample_rate: f64,
-    /// `healthy`, `inner_race`, `outer_race` or `ball`.
+    /// `healthy`, `inner_race`, `outer_race` or `ball` (of the faulty bearing).
     pub label: &'static str,
+    /// Sensor position at the bearing that carries the seeded fault: `DE` (SKF 6205) or `FE`
+    /// (SKF 6203); `None` for the normal baselines.
+    pub faulty_bearing: Option<&'static str>,
+    /// Fault diameter, inches (0 for the normal baselines).
+    pub fault_size_in: f64,
+    /// Outer-race fault position relative to the load zone (3, 6 or 12 o'clock).
+    pub outer_race_clock: Option<u8>,
+    /// Motor load, hp.
+    pub load_hp: u8,
+    /// CWRU's approximate motor speed for that load, rpm (files store their own `X<nnn>RPM`).
+    pub nominal_rpm: f64,
 }
 
-// (first, last, rate, label) ranges from CWRU's catalogue (see ../shared/data/README.md).
-const CATALOGUE: &[(u32, u32, f64, &str)] = &[
-    // Normal baselines, 48 kHz.
-    (97, 100, 48_000.0, "healthy"),
-    // 12 kHz drive-end faults.
-    (105, 108, 12_000.0, "inner_race"),
-    (169, 172, 12_000.0, "inner_race"),
-    (209, 212, 12_000.0, "inner_race"),
-    (3001, 3004, 12_000.0, "inner_race"),
-    (118, 121, 12_000.0, "ball"),
-    (185, 188, 12_000.0, "ball"),
-    (222, 225, 12_000.0, "ball"),
-    (3005, 3008, 12_000.0, "ball"),
-    (130, 133, 12_000.0, "outer_race"),
-    (197, 200, 12_000.0, "outer_race"),
-    (234, 237, 12_000.0, "outer_race"),
-    (144, 147, 12_000.0, "outer_race"),
-    (246, 249, 12_000.0, "outer_race"),
-    (156, 156, 12_000.0, "outer_race"),
-    (158, 160, 12_000.0, "outer_race"),
-    (258, 261, 12_000.0, "outer_race"),
-    // 48 kHz drive-end faults.
-    (109, 112, 48_000.0, "inner_race"),
-    (174, 177, 48_000.0, "inner_race"),
-    (213, 215, 48_000.0, "inner_race"),
-    (217, 217, 48_000.0, "inner_race"),
-    (122, 125, 48_000.0, "ball"),
-    (189, 192, 48_000.0, "ball"),
-    (226, 229, 48_000.0, "ball"),
-    (135, 138, 48_000.0, "outer_race"),
-    (201, 204, 48_000.0, "outer_race"),
-    (238, 241, 48_000.0, "outer_race"),
-    (148, 151, 48_000.0, "outer_race"),
-    (250, 253, 48_000.0, "outer_race"),
-    (161, 164, 48_000.0, "outer_race"),
-    (262, 265, 48_000.0, "outer_race"),
+/// One row of a CWRU table: a condition and its record numbers at 0, 1, 2 and 3 hp (0 = no
+/// record at that load).
+struct Row {
+    rate: f64,
+    end: Option<&'static str>,
+    label: &'static str,
+    mils: u16,
+    clock: u8,
+    records: [u32; 4],
+}
+
+const fn row(
+    rate: f64,
+    end: Option<&'static str>,
+    label: &'static str,
+    mils: u16,
+    clock: u8,
+    records: [u32; 4],
+) -> Row {
+    Row {
+        rate,
+        end,
+        label,
+        mils,
+        clock,
+        records,
+    }
+}
+
+const K12: f64 = 12_000.0;
+const K48: f64 = 48_000.0;
+const DE: Option<&str> = Some("DE");
+const FE: Option<&str> = Some("FE");
+const IR: &str = "inner_race";
+const B: &str = "ball";
+const OR: &str = "outer_race";
+
+/// The CWRU Bearing Data Center's tables (pages "Normal Baseline Data", "12k Drive End Bearing
+/// Fault Data", "48k Drive End Bearing Fault Data", "12k Fan End Bearing Fault Data"), by record
+/// number. Transcribed from two independent public copies of those tables, which agree on every
+/// number, rate and condition: the `metadata.txt` of the Litchiware/cwru loader (record URL per
+/// table, load and fault) and the `metainfo.csv` of yanncalec/dpmhm (rate, load, location,
+/// fault, size per record); the record numbers of the 23 fan-end and 7 drive-end files in
+/// ../shared/data were checked against their `X<nnn>` variable names. One correction: dpmhm lists
+/// the normal baselines at 12 kHz, but record 97 is sampled at 48 kHz (its envelope shows the
+/// shaft line at 1796/60 Hz only at 48 kHz; see ../shared/data/README.md), as CWRU's normal
+/// page says.
+const TABLE: &[Row] = &[
+    // Normal baselines (both bearings healthy), 48 kHz.
+    row(K48, None, "healthy", 0, 0, [97, 98, 99, 100]),
+    // 12 kHz, fault on the drive-end bearing.
+    row(K12, DE, IR, 7, 0, [105, 106, 107, 108]),
+    row(K12, DE, IR, 14, 0, [169, 170, 171, 172]),
+    row(K12, DE, IR, 21, 0, [209, 210, 211, 212]),
+    row(K12, DE, IR, 28, 0, [3001, 3002, 3003, 3004]),
+    row(K12, DE, B, 7, 0, [118, 119, 120, 121]),
+    row(K12, DE, B, 14, 0, [185, 186, 187, 188]),
+    row(K12, DE, B, 21, 0, [222, 223, 224, 225]),
+    row(K12, DE, B, 28, 0, [3005, 3006, 3007, 3008]),
+    row(K12, DE, OR, 7, 6, [130, 131, 132, 133]),
+    row(K12, DE, OR, 14, 6, [197, 198, 199, 200]),
+    row(K12, DE, OR, 21, 6, [234, 235, 236, 237]),
+    row(K12, DE, OR, 7, 3, [144, 145, 146, 147]),
+    row(K12, DE, OR, 21, 3, [246, 247, 248, 249]),
+    row(K12, DE, OR, 7, 12, [156, 158, 159, 160]),
+    row(K12, DE, OR, 21, 12, [258, 259, 260, 261]),
+    // 48 kHz, fault on the drive-end bearing.
+    row(K48, DE, IR, 7, 0, [109, 110, 111, 112]),
+    row(K48, DE, IR, 14, 0, [174, 175, 176, 177]),
+    row(K48, DE, IR, 21, 0, [213, 214, 215, 217]),
+    row(K48, DE, B, 7, 0, [122, 123, 124, 125]),
+    row(K48, DE, B, 14, 0, [189, 190, 191, 192]),
+    row(K48, DE, B, 21, 0, [226, 227, 228, 229]),
+    row(K48, DE, OR, 7, 6, [135, 136, 137, 138]),
+    row(K48, DE, OR, 14, 6, [201, 202, 203, 204]),
+    row(K48, DE, OR, 21, 6, [238, 239, 240, 241]),
+    row(K48, DE, OR, 7, 3, [148, 149, 150, 151]),
+    row(K48, DE, OR, 21, 3, [250, 251, 252, 253]),
+    row(K48, DE, OR, 7, 12, [161, 162, 163, 164]),
+    row(K48, DE, OR, 21, 12, [262, 263, 264, 265]),
+    // 12 kHz, fault on the fan-end bearing.
+    row(K12, FE, IR, 7, 0, [278, 279, 280, 281]),
+    row(K12, FE, IR, 14, 0, [274, 275, 276, 277]),
+    row(K12, FE, IR, 21, 0, [270, 271, 272, 273]),
+    row(K12, FE, B, 7, 0, [282, 283, 284, 285]),
+    row(K12, FE, B, 14, 0, [286, 287, 288, 289]),
+    row(K12, FE, B, 21, 0, [290, 291, 292, 293]),
+    row(K12, FE, OR, 7, 6, [294, 295, 296, 297]),
+    row(K12, FE, OR, 14, 6, [313, 0, 0, 0]),
+    row(K12, FE, OR, 21, 6, [315, 0, 0, 0]),
+    row(K12, FE, OR, 7, 3, [298, 299, 300, 301]),
+    row(K12, FE, OR, 14, 3, [310, 309, 311, 312]),
+    row(K12, FE, OR, 21, 3, [0, 316, 317, 318]),
+    row(K12, FE, OR, 7, 12, [302, 305, 306, 307]),
 ];
 
-/// CWRU's catalogue entry for a file number (drive-end and normal sets only).
+/// CWRU's catalogue entry for a record number (normal, drive-end 12k/48k, fan-end 12k).
 pub fn catalogue(number: u32) -> Option<CatalogueEntry> {
-    CATALOGUE
+    TABLE.iter().find_map(|r| {
+        let k = r.records.iter().position(|&n| n == number && n != 0)?;
+        let (load_hp, nominal_rpm) = LOADS_HP_RPM[k];
+        Some(CatalogueEntry {
+            record: number,
+            sample_rate: r.rate,
+            label: r.label,
+            faulty_bearing: r.end,
+            fault_size_in: r.mils as f64 / 1000.0,
+            outer_race_clock: (r.clock != 0).then_some(r.clock),
+            load_hp,
+            nominal_rpm,
+        })
+    })
+}
+
+/// Every record number in the catalogue, ascending.
+pub fn catalogue_records() -> Vec<u32> {
+    let mut v: Vec<u32> = TABLE
         .iter()
-        .find(|(a, b, _, _)| (*a..=*b).contains(&number))
-        .map(|&(_, _, sample_rate, label)| CatalogueEntry { sample_rate, label })
+        .flat_map(|r| r.records)
+        .filter(|&n| n != 0)
+        .collect();
+    v.sort_unstable();
+    v
 }
 
 /// A CWRU variable name split up: `X105_DE_time` -> (105, Some("DE")), `X105RPM` -> (105, None).
@@ -209,20 +306,38 @@ pub fn from_mat(
         );
     }
 
-    // Speed.
+    // Speed (side data: never fatal).
     let rpm_var = format!("X{number:03}RPM");
     let rpm = match (opts.rpm, mat.get(&rpm_var)) {
         (Some(r), _) => {
             notes.push(format!("rpm {r} from --rpm"));
             Some(r)
         }
-        (None, Some(v)) => match v.as_scalar() {
-            Some(r) if r.is_finite() && r > 0.0 => Some(r),
-            Some(r) => bail!("{p}: {rpm_var} = {r} is not a valid speed; pass --rpm R"),
-            None => bail!(
-                "{p}: wrong shape: {rpm_var} is {}, expected a single number (1x1)",
-                v.describe()
-            ),
+        (None, Some(v)) => match v.as_number() {
+            Some(r) if r.is_finite() && r > 0.0 => {
+                if !matches!(v, MatValue::Numeric { .. }) {
+                    notes.push(format!(
+                        "{rpm_var} read as {r} from {} {}",
+                        v.describe(),
+                        v.as_text()
+                    ));
+                }
+                Some(r)
+            }
+            Some(r) => {
+                notes.push(format!(
+                    "{WARNING}{rpm_var} = {r} is not a valid speed: speed unknown (pass --rpm R)"
+                ));
+                None
+            }
+            None => {
+                notes.push(format!(
+                    "{WARNING}{rpm_var} is {} holding {}, not one number; kept here as text, speed unknown (pass --rpm R)",
+                    v.describe(),
+                    v.as_text()
+                ));
+                None
+            }
         },
         (None, None) => {
             notes.push(format!(
@@ -231,15 +346,29 @@ pub fn from_mat(
             None
         }
     };
+    let ignored: Vec<String> = mat
+        .vars
+        .iter()
+        .filter(|v| !matches!(parse_var_name(&v.name), Some((n, _)) if n == number))
+        .map(|v| format!("{} ({})", v.name, v.value.describe()))
+        .collect();
+    if !ignored.is_empty() {
+        notes.push(format!("other variables not read: {}", ignored.join(", ")));
+    }
 
     // Sample rate.
     let entry = catalogue(number);
-    let file_rate = entry.map(|e| (e.sample_rate, format!("CWRU catalogue (file {number})")));
+    let file_rate = entry.map(|e| (e.sample_rate, format!("CWRU catalogue (record {number})")));
     let (sample_rate, note) = resolve_sample_rate(path, file_rate, rig, opts).map_err(|e| {
-        if entry.is_none() && opts.sample_rate.is_none() && rig.acquisition.sample_rate_hz.is_none() {
+        if entry.is_none()
+            && opts.sample_rate.is_none()
+            && opts.declared_sample_rate.is_none()
+            && rig.acquisition.sample_rate_hz.is_none()
+        {
             anyhow::anyhow!(
-                "{p}: the sample rate is unknown: CWRU files do not store it and record {number} is not in rigmon's \
-                 copy of the CWRU catalogue; pass --sample-rate HZ (12000 or 48000 for CWRU)"
+                "{p}: the sample rate is unknown: CWRU files do not store it and record {number} is not in \
+                 CWRU's published tables (normal 97-100, drive end 105-265 and 3001-3008, fan end 270-318); \
+                 pass --sample-rate HZ (12000 or 48000 for CWRU)"
             )
         } else {
             e
@@ -250,7 +379,36 @@ pub fn from_mat(
     let mut metadata = BTreeMap::new();
     metadata.insert("cwru_record".to_string(), number.to_string());
     if let Some(e) = entry {
-        metadata.insert("label".to_string(), e.label.to_string());
+        metadata.insert("cwru_load_hp".into(), e.load_hp.to_string());
+        let monitored = rig.classifier_channel().and_then(|c| {
+            POSITIONS
+                .iter()
+                .copied()
+                .find(|p| p.eq_ignore_ascii_case(&c.name))
+        });
+        let label = match (e.faulty_bearing, monitored) {
+            (Some(end), Some(m)) if end != m => {
+                notes.push(format!(
+                    "record {number}: the {} fault is on the {end} bearing; this rig's classifier \
+                     watches {m}, whose bearing is healthy: labelled healthy",
+                    e.label
+                ));
+                "healthy"
+            }
+            _ => e.label,
+        };
+        metadata.insert("label".to_string(), label.to_string());
+        if let Some(end) = e.faulty_bearing {
+            metadata.insert("cwru_fault".into(), e.label.to_string());
+            metadata.insert("cwru_fault_bearing".into(), end.to_string());
+            metadata.insert(
+                "cwru_fault_size_in".into(),
+                format!("{:.3}", e.fault_size_in),
+            );
+        }
+        if let Some(c) = e.outer_race_clock {
+            metadata.insert("cwru_outer_race_clock".into(), c.to_string());
+        }
     }
     let rec = Recording {
         sample_rate,
@@ -308,12 +466,51 @@ mod tests {
         assert_eq!(catalogue(105).unwrap().sample_rate, 12_000.0);
         assert_eq!(catalogue(130).unwrap().label, "outer_race");
         assert_eq!(catalogue(217).unwrap().sample_rate, 48_000.0);
+        assert_eq!(catalogue(217).unwrap().load_hp, 3);
         assert_eq!(catalogue(216), None);
-        // Ranges never overlap.
-        for (i, a) in CATALOGUE.iter().enumerate() {
-            for b in &CATALOGUE[i + 1..] {
-                assert!(a.1 < b.0 || b.1 < a.0, "{a:?} overlaps {b:?}");
-            }
+        assert_eq!(catalogue(157), None);
+        let fe = catalogue(310).unwrap();
+        assert_eq!(
+            (fe.sample_rate, fe.label, fe.faulty_bearing, fe.load_hp),
+            (12_000.0, "outer_race", Some("FE"), 0)
+        );
+        assert_eq!((fe.fault_size_in, fe.outer_race_clock), (0.014, Some(3)));
+        assert_eq!(catalogue(309).unwrap().load_hp, 1);
+        assert_eq!(catalogue(316).unwrap().nominal_rpm, 1772.0);
+        assert_eq!(catalogue(279).unwrap().label, "inner_race");
+        assert_eq!(catalogue(0), None);
+        // Every number once; the published set of record numbers (161 records).
+        let all = catalogue_records();
+        let mut dedup = all.clone();
+        dedup.dedup();
+        assert_eq!(all, dedup, "a record number appears twice");
+        let mut expected: Vec<u32> = (97..=100).collect();
+        for (a, b) in [
+            (105, 112),
+            (118, 125),
+            (130, 133),
+            (135, 138),
+            (144, 151),
+            (161, 164),
+            (169, 172),
+            (174, 177),
+            (185, 192),
+            (197, 204),
+            (209, 215),
+            (222, 229),
+            (234, 241),
+            (246, 253),
+            (258, 265),
+            (270, 302),
+            (305, 307),
+            (309, 313),
+            (315, 318),
+            (3001, 3008),
+        ] {
+            expected.extend(a..=b);
         }
+        expected.extend([156, 158, 159, 160, 217]);
+        expected.sort_unstable();
+        assert_eq!(all, expected);
     }
 }

@@ -217,6 +217,44 @@ impl MatValue {
             _ => None,
         }
     }
+
+    /// A metadata number in whatever class MATLAB stored it: a real 1x1 numeric or logical
+    /// array of any class, a char array holding one finite number (`'25'`, `' 300 '`), or a
+    /// 1x1 cell holding either. `None` for anything else.
+    pub fn as_number(&self) -> Option<f64> {
+        match self {
+            MatValue::Numeric {
+                real, imag: None, ..
+            } if real.len() == 1 => Some(real[0]),
+            MatValue::Char { text, .. } => {
+                text.trim().parse::<f64>().ok().filter(|x| x.is_finite())
+            }
+            MatValue::Cell { cells, .. } if cells.len() == 1 => cells[0].as_number(),
+            _ => None,
+        }
+    }
+
+    /// A short text form for provenance notes: the text of a char array, the first numbers of
+    /// a numeric array, else the class and shape (at most ~80 characters).
+    pub fn as_text(&self) -> String {
+        let text = match self {
+            MatValue::Char { text, .. } => format!("{text:?}"),
+            MatValue::Numeric { real, .. } if !real.is_empty() && real.len() <= 8 => {
+                let v: Vec<String> = real.iter().map(|x| x.to_string()).collect();
+                format!("[{}]", v.join(" "))
+            }
+            MatValue::Cell { cells, .. } if cells.len() == 1 => {
+                format!("{{{}}}", cells[0].as_text())
+            }
+            other => other.describe(),
+        };
+        if text.chars().count() > 80 {
+            let cut: String = text.chars().take(77).collect();
+            format!("{cut}...")
+        } else {
+            text
+        }
+    }
 }
 
 /// One top-level variable.
@@ -748,7 +786,8 @@ impl Cursor {
                     .into_iter()
                     .map(|n| (n, Vec::with_capacity(count)))
                     .collect();
-                for _ in 0..count {
+                // A struct without fields holds nothing per element, however many there are.
+                for _ in 0..if n_fields == 0 { 0 } else { count } {
                     for field in fields.iter_mut() {
                         let v = self.sub_matrix(body, &mut at, depth)?;
                         field.1.push(v);
@@ -1126,6 +1165,47 @@ mod tests {
                 }
             }
         }
+    }
+
+    /// Found by `fuzz_mat_importer`: a struct with no fields claiming ~2^62 elements passed
+    /// the size bound (0 bytes needed) and then looped over every element.
+    #[test]
+    fn fieldless_struct_with_huge_dims_parses_without_looping() {
+        let mut b = MatBuilder::new(false);
+        b.var("bearing", &W::Struct(vec![]), false);
+        let mut bytes = b.out;
+        let dims_at = 128 + 8 + 16 + 8;
+        bytes[dims_at..dims_at + 8]
+            .copy_from_slice(&[0xff, 0xff, 0xff, 0x7f, 0xff, 0xff, 0xff, 0x7f]);
+        let f = parse(&bytes).unwrap();
+        let v = f.get("bearing").unwrap();
+        assert_eq!(v.dims(), &[0x7fff_ffff, 0x7fff_ffff]);
+        assert!(v.field_names().is_empty());
+    }
+
+    #[test]
+    fn metadata_numbers_in_any_class() {
+        let mut b = MatBuilder::new(false);
+        b.var("d", &W::Double(vec![1, 1], vec![270.0]), false)
+            .var("i", &W::Int16(vec![1, 1], vec![-3]), false)
+            .var("u", &W::UInt8(vec![1, 1], vec![25]), false)
+            .var("c", &W::Char("100".into()), false)
+            .var("s", &W::Char(" 2.5e2 ".into()), false)
+            .var("t", &W::Char("270 lbs".into()), false)
+            .var("n", &W::Char("NaN".into()), false)
+            .var("v", &W::Double(vec![1, 2], vec![1.0, 2.0]), false);
+        let f = parse(&b.out).unwrap();
+        let num = |k: &str| f.get(k).unwrap().as_number();
+        assert_eq!(num("d"), Some(270.0));
+        assert_eq!(num("i"), Some(-3.0));
+        assert_eq!(num("u"), Some(25.0));
+        assert_eq!(num("c"), Some(100.0));
+        assert_eq!(num("s"), Some(250.0));
+        assert_eq!(num("t"), None);
+        assert_eq!(num("n"), None, "NaN text is not a number");
+        assert_eq!(num("v"), None, "a vector is not one number");
+        assert_eq!(f.get("t").unwrap().as_text(), "\"270 lbs\"");
+        assert_eq!(f.get("v").unwrap().as_text(), "[1 2]");
     }
 
     #[test]

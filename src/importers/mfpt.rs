@@ -2,10 +2,13 @@
 //! vector in g), `sr` (sample rate, Hz), `rate` (shaft rate, Hz) and `load`.
 //!
 //! The one signal becomes the rig's classifier channel (name, axis, unit and sensitivity from
-//! the rig file).
+//! the rig file). `gs` and `sr` are required and checked strictly; `rate` and `load` are side
+//! data, read in whatever class they come in (the public variable-load files store `load` as
+//! text, '25', '100', '300'); one that cannot be read is a warning in the provenance, never an
+//! error.
 
 use super::mat5::{MatFile, MatValue};
-use super::{cwru::vector, resolve_sample_rate, ImportOptions};
+use super::{cwru::vector, resolve_sample_rate, ImportOptions, WARNING};
 use crate::config::RigConfig;
 use crate::recording::{Channel, Provenance, Recording};
 use anyhow::{bail, Result};
@@ -31,6 +34,35 @@ fn scalar(path: &Path, bearing: &MatValue, field: &str) -> Result<Option<f64>> {
     }
 }
 
+/// The struct fields rigmon reads.
+const KNOWN_FIELDS: [&str; 4] = ["gs", "sr", "rate", "load"];
+
+/// A side-data field as a number in any MATLAB class; a field that is present but cannot be
+/// read becomes a warning note (with its text) and `None`.
+fn side_number(bearing: &MatValue, field: &str, notes: &mut Vec<String>) -> Option<f64> {
+    let v = bearing.field(field)?;
+    match v.as_number() {
+        Some(x) => {
+            if !matches!(v, MatValue::Numeric { .. }) {
+                notes.push(format!(
+                    "bearing.{field} read as {x} from {} {}",
+                    v.describe(),
+                    v.as_text()
+                ));
+            }
+            Some(x)
+        }
+        None => {
+            notes.push(format!(
+                "{WARNING}bearing.{field} is {} holding {}, not one number; kept here as text, not used",
+                v.describe(),
+                v.as_text()
+            ));
+            None
+        }
+    }
+}
+
 /// Build a [`Recording`] from a parsed MFPT MAT file.
 pub fn from_mat(
     path: &Path,
@@ -41,7 +73,7 @@ pub fn from_mat(
     let p = path.display();
     let bearing = mat.get("bearing").expect("is_mfpt checked");
     if let MatValue::Struct { dims, .. } = bearing {
-        if dims.iter().product::<usize>() != 1 {
+        if dims.iter().any(|&d| d != 1) {
             bail!(
                 "{p}: wrong shape: bearing is a {} struct array; expected a single (1x1) struct",
                 bearing.describe()
@@ -64,7 +96,7 @@ pub fn from_mat(
         opts,
     )?;
     notes.push(note);
-    let rate = scalar(path, bearing, "rate")?;
+    let rate = side_number(bearing, "rate", &mut notes);
     let rpm = match (opts.rpm, rate) {
         (Some(r), _) => {
             notes.push(format!("rpm {r} from --rpm"));
@@ -72,10 +104,15 @@ pub fn from_mat(
         }
         (None, Some(hz)) if hz.is_finite() && hz > 0.0 => Some(hz * 60.0),
         (None, Some(hz)) => {
-            bail!("{p}: bearing.rate = {hz} is not a valid shaft rate (Hz); pass --rpm R")
+            notes.push(format!(
+                "{WARNING}bearing.rate = {hz} is not a valid shaft rate (Hz): speed unknown (pass --rpm R)"
+            ));
+            None
         }
         (None, None) => {
-            notes.push("no bearing.rate in the file: speed unknown (pass --rpm R)".to_string());
+            if bearing.field("rate").is_none() {
+                notes.push("no bearing.rate in the file: speed unknown (pass --rpm R)".to_string());
+            }
             None
         }
     };
@@ -84,8 +121,27 @@ pub fn from_mat(
     };
     notes.push(format!("bearing.gs mapped to rig channel {}", cfg.name));
     let mut metadata = BTreeMap::new();
-    if let Some(load) = scalar(path, bearing, "load")? {
+    if let Some(load) = side_number(bearing, "load", &mut notes) {
         metadata.insert("load".to_string(), load.to_string());
+    }
+    let others: Vec<String> = bearing
+        .field_names()
+        .into_iter()
+        .filter(|n| !KNOWN_FIELDS.contains(n))
+        .map(|n| {
+            format!(
+                "{n} ({})",
+                bearing
+                    .field(n)
+                    .map_or_else(String::new, MatValue::describe)
+            )
+        })
+        .collect();
+    if !others.is_empty() {
+        notes.push(format!(
+            "other fields of bearing not read: {}",
+            others.join(", ")
+        ));
     }
     let k = cfg.sensitivity;
     Ok(Recording {

@@ -4,7 +4,9 @@
 //! [`load`] picks the format by content (magic bytes) and then by extension. Every importer
 //! maps the file's channels onto the rig file's channels, applies sensitivities, settles the
 //! sample rate by one rule ([`resolve_sample_rate`]) and refuses non-finite samples, naming the
-//! file, the channel and the sample index.
+//! file, the channel and the sample index. Required data (the samples, whatever fixes the
+//! sample rate) is checked strictly; side data (speed, load, extra columns...) that cannot be
+//! read becomes a provenance note starting with [`WARNING`], never an error.
 
 pub mod csv;
 pub mod cwru;
@@ -20,11 +22,18 @@ use std::path::Path;
 /// Options a user may give on the command line to override what a file or rig says.
 #[derive(Debug, Clone, Default)]
 pub struct ImportOptions {
-    /// Sample rate override, Hz.
+    /// Sample rate override, Hz (`--sample-rate`): wins over everything.
     pub sample_rate: Option<f64>,
     /// Speed override, rpm.
     pub rpm: Option<f64>,
+    /// A sample rate declared beside the file (a manifest's `sample_rate_hz` column) and where
+    /// it was declared ("labels.csv line 4"): wins over the rig file's default, but a file that
+    /// carries a different rate is a mismatch error naming both.
+    pub declared_sample_rate: Option<(f64, String)>,
 }
+
+/// Prefix of provenance notes about side data an importer could not read (kept as text).
+pub const WARNING: &str = "warning: ";
 
 /// Metadata key holding the rig id a recording was imported with.
 pub const META_RIG_ID: &str = "rig_id";
@@ -140,6 +149,11 @@ pub fn load(path: &Path, rig: &RigConfig, opts: &ImportOptions) -> Result<Record
         bail!("{}: the recording holds no samples", path.display());
     }
     check_finite(path, &rec)?;
+    for note in rec.provenance.notes.iter() {
+        if let Some(w) = note.strip_prefix(WARNING) {
+            tracing::warn!("{}: {w}", path.display());
+        }
+    }
     stamp_rig(&mut rec.metadata, rig);
     Ok(rec)
 }
@@ -159,6 +173,11 @@ fn check_options(opts: &ImportOptions) -> Result<()> {
             bail!("--sample-rate {fs}: must be a positive number of Hz");
         }
     }
+    if let Some((fs, place)) = &opts.declared_sample_rate {
+        if !(fs.is_finite() && *fs > 0.0) {
+            bail!("{place}: sample rate {fs}: must be a positive number of Hz");
+        }
+    }
     if let Some(rpm) = opts.rpm {
         if !(rpm.is_finite() && rpm > 0.0) {
             bail!("--rpm {rpm}: must be a positive number");
@@ -167,11 +186,23 @@ fn check_options(opts: &ImportOptions) -> Result<()> {
     Ok(())
 }
 
-/// Settle the sample rate by one rule for every importer:
-/// `--sample-rate` wins; otherwise the rate the file implies (`file_rate`, with `what` saying
-/// where it comes from: "WAV header", "time column", "CWRU catalogue"...) and the rig's
-/// `acquisition.sample_rate_hz` must agree (0.1 %) when both exist; else whichever exists;
-/// else an error saying to pass `--sample-rate`. Returns the rate and a provenance note.
+/// Two rates differ when they are more than 0.1 % apart.
+fn rates_differ(a: f64, b: f64) -> bool {
+    (a - b).abs() > 1e-3 * a.abs().max(b.abs())
+}
+
+/// Settle the sample rate by one rule for every importer, strongest first:
+/// 1. `--sample-rate` wins (noting what it overrides);
+/// 2. a rate declared beside the file (`opts.declared_sample_rate`, a manifest column) must agree
+///    (0.1 %) with the rate the file fixes, if any: a conflict is a `sample-rate mismatch` error
+///    naming both numbers;
+/// 3. the rate the file fixes (`file_rate`, with `what` saying where it comes from: "WAV
+///    header", "time column", "CWRU catalogue (record 97)"...);
+/// 4. the rig's `acquisition.sample_rate_hz`, the default for files that carry no rate (a file
+///    that fixes another rate uses its own and says so at debug level and in the note);
+/// 5. else an error saying to pass `--sample-rate`.
+///
+/// Returns the rate and a provenance note.
 pub fn resolve_sample_rate(
     path: &Path,
     file_rate: Option<(f64, String)>,
@@ -180,43 +211,53 @@ pub fn resolve_sample_rate(
 ) -> Result<(f64, String)> {
     if let Some(fs) = opts.sample_rate {
         let note = match &file_rate {
-            Some((f, what)) if (f - fs).abs() > 1e-3 * fs => {
+            Some((f, what)) if rates_differ(*f, fs) => {
                 format!("sample rate {fs} Hz from --sample-rate (overrides {f} Hz from the {what})")
             }
             _ => format!("sample rate {fs} Hz from --sample-rate"),
         };
         return Ok((fs, note));
     }
+    if let Some((f, what)) = &file_rate {
+        if !(f.is_finite() && *f > 0.0) {
+            bail!(
+                "{}: the {what} gives an invalid sample rate ({f} Hz); pass --sample-rate HZ",
+                path.display()
+            );
+        }
+    }
+    if let Some((d, place)) = &opts.declared_sample_rate {
+        return match &file_rate {
+            Some((f, what)) if rates_differ(*f, *d) => bail!(
+                "{}: sample-rate mismatch: the {what} says {f} Hz but {place} says {d} Hz; \
+                 correct (or empty) that sample_rate_hz entry, or pass --sample-rate HZ to say which is right",
+                path.display()
+            ),
+            Some((_, what)) => Ok((
+                *d,
+                format!("sample rate {d} Hz from {place} (agrees with the {what})"),
+            )),
+            None => Ok((*d, format!("sample rate {d} Hz from {place}"))),
+        };
+    }
     let rig_rate = rig.acquisition.sample_rate_hz;
     match (file_rate, rig_rate) {
         (Some((f, what)), Some(g)) => {
-            if !(f.is_finite() && f > 0.0) {
-                bail!(
-                    "{}: the {what} gives an invalid sample rate ({f} Hz); pass --sample-rate HZ",
-                    path.display()
+            if rates_differ(f, g) {
+                let note = format!(
+                    "sample rate {f} Hz from the {what} (the rig file's acquisition.sample_rate_hz = {g} Hz \
+                     is the default for files that carry no rate)"
                 );
+                tracing::debug!("{}: {note}", path.display());
+                Ok((f, note))
+            } else {
+                Ok((
+                    f,
+                    format!("sample rate {f} Hz from the {what} (agrees with the rig file)"),
+                ))
             }
-            if (f - g).abs() > 1e-3 * g {
-                bail!(
-                    "{}: sample-rate mismatch: the {what} says {f} Hz but the rig file says acquisition.sample_rate_hz = {g} Hz; \
-                     pass --sample-rate HZ to say which is right, or fix the rig file",
-                    path.display()
-                );
-            }
-            Ok((
-                f,
-                format!("sample rate {f} Hz from the {what} (agrees with the rig file)"),
-            ))
         }
-        (Some((f, what)), None) => {
-            if !(f.is_finite() && f > 0.0) {
-                bail!(
-                    "{}: the {what} gives an invalid sample rate ({f} Hz); pass --sample-rate HZ",
-                    path.display()
-                );
-            }
-            Ok((f, format!("sample rate {f} Hz from the {what}")))
-        }
+        (Some((f, what)), None) => Ok((f, format!("sample rate {f} Hz from the {what}"))),
         (None, Some(g)) => Ok((g, format!("sample rate {g} Hz from the rig file"))),
         (None, None) => bail!(
             "{}: the sample rate is unknown: the file does not store it and the rig file has no \

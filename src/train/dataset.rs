@@ -1,7 +1,9 @@
 //! Labelled recordings for training and evaluation: the `labels.csv` manifest (`path,label`,
-//! relative paths relative to the CSV), a recording reduced to its classifier feature windows
+//! relative paths relative to the CSV, an optional `sample_rate_hz` column for files that do
+//! not carry their rate), a recording reduced to its classifier feature windows
 //! ([`RecordingFeatures`], made by [`super::featurise`]), and the training-data hash.
 
+use crate::importers::ImportOptions;
 use crate::model::ALL_LABELS;
 use anyhow::{bail, Context, Result};
 use ndarray::Array2;
@@ -18,6 +20,20 @@ pub struct ManifestEntry {
     pub label: String,
     /// 1-based line in the CSV.
     pub line: usize,
+    /// The row's `sample_rate_hz` (when the column exists and the cell is not empty) and where
+    /// it was written ("labels.csv line 4, column sample_rate_hz").
+    pub sample_rate: Option<(f64, String)>,
+}
+
+impl ManifestEntry {
+    /// How to import this row's file: its declared sample rate, if any (the importers' one rule
+    /// then settles it against the file and the rig file).
+    pub fn import_options(&self) -> ImportOptions {
+        ImportOptions {
+            declared_sample_rate: self.sample_rate.clone(),
+            ..Default::default()
+        }
+    }
 }
 
 /// `--data` may name a dataset folder (holding `labels.csv`) or the CSV itself.
@@ -29,7 +45,8 @@ pub fn manifest_path(data: &Path) -> PathBuf {
     }
 }
 
-/// Read a manifest. The header must have `path` and `label` columns (others are ignored).
+/// Read a manifest. The header must have `path` and `label` columns; an optional
+/// `sample_rate_hz` column gives a row's rate (empty cell: none); other columns are ignored.
 pub fn read_manifest(csv: &Path) -> Result<Vec<ManifestEntry>> {
     let text = std::fs::read_to_string(csv).with_context(|| {
         format!("cannot read manifest {} (expected a CSV with header `path,label`, or a dataset folder holding labels.csv)", csv.display())
@@ -64,6 +81,12 @@ pub fn parse_manifest(text: &str, csv: &Path) -> Result<Vec<ManifestEntry>> {
             })
     };
     let (ip, il) = (find("path")?, find("label")?);
+    let ir = cols
+        .iter()
+        .position(|c| c.eq_ignore_ascii_case("sample_rate_hz"));
+    let csv_name = csv
+        .file_name()
+        .map_or_else(|| csv.display().to_string(), |n| n.to_string_lossy().into());
     let mut out = Vec::new();
     for (i, line) in lines {
         let fields: Vec<&str> = line.split(',').map(str::trim).collect();
@@ -87,6 +110,22 @@ pub fn parse_manifest(text: &str, csv: &Path) -> Result<Vec<ManifestEntry>> {
                 ALL_LABELS.join(", ")
             );
         }
+        let sample_rate = match ir.map(|k| fields[k].trim_matches('"')) {
+            None | Some("") => None,
+            Some(text) => match text.parse::<f64>() {
+                Ok(fs) if fs.is_finite() && fs > 0.0 => Some((
+                    fs,
+                    format!("{csv_name} line {}, column sample_rate_hz", i + 1),
+                )),
+                _ => bail!(
+                    "{}:{}: sample_rate_hz {:?} is not a positive number of Hz (leave the cell empty \
+                     when the file carries its rate or the rig file's acquisition.sample_rate_hz applies)",
+                    csv.display(),
+                    i + 1,
+                    text
+                ),
+            },
+        };
         let pb = Path::new(p);
         let path = if pb.is_absolute() {
             pb.to_path_buf()
@@ -98,6 +137,7 @@ pub fn parse_manifest(text: &str, csv: &Path) -> Result<Vec<ManifestEntry>> {
             path_text: p.to_string(),
             label: label.to_string(),
             line: i + 1,
+            sample_rate,
         });
     }
     if out.is_empty() {
@@ -148,5 +188,35 @@ mod tests {
         assert!(e.contains("labels.csv:2") && e.contains("broken"), "{e}");
         let e = parse_manifest("file,label\n", csv).unwrap_err().to_string();
         assert!(e.contains("no `path` column"), "{e}");
+    }
+
+    #[test]
+    fn manifest_sample_rate_column_is_optional_per_row() {
+        let csv = Path::new("/data/set/labels.csv");
+        let m = parse_manifest(
+            "path,label,sample_rate_hz\na.csv,healthy,12000\nb.mat,ball,\n",
+            csv,
+        )
+        .unwrap();
+        assert_eq!(
+            m[0].sample_rate,
+            Some((
+                12000.0,
+                "labels.csv line 2, column sample_rate_hz".to_string()
+            ))
+        );
+        assert_eq!(
+            m[0].import_options().declared_sample_rate.map(|d| d.0),
+            Some(12000.0)
+        );
+        assert_eq!(m[1].sample_rate, None);
+        let e = parse_manifest("path,label,sample_rate_hz\na.csv,healthy,12k\n", csv)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("labels.csv:2") && e.contains("\"12k\""), "{e}");
+        let e = parse_manifest("path,label,sample_rate_hz\na.csv,healthy,-5\n", csv)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("positive"), "{e}");
     }
 }

@@ -4,7 +4,7 @@
 
 use super::dataset::{ManifestEntry, RecordingFeatures};
 use crate::config::RigConfig;
-use crate::importers::{self, ImportOptions};
+use crate::importers;
 use anyhow::{bail, Context, Result};
 use ndarray::Array2;
 use rayon::prelude::*;
@@ -33,7 +33,7 @@ pub fn featurise(entry: &ManifestEntry, rig: &RigConfig) -> Result<RecordingFeat
     })?;
     let sha256 = crate::model::onnx::sha256_hex(&bytes);
     drop(bytes);
-    let rec = importers::load(&entry.path, rig, &ImportOptions::default()).with_context(|| {
+    let rec = importers::load(&entry.path, rig, &entry.import_options()).with_context(|| {
         format!(
             "manifest line {}: loading {}",
             entry.line,
