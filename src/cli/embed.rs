@@ -57,6 +57,7 @@ pub fn run(args: Args) -> Result<()> {
                 label,
                 line: 0,
                 sample_rate: None,
+                span: None,
             });
         }
     }

@@ -1,6 +1,6 @@
 //! Labelled recordings for training and evaluation: the `labels.csv` manifest (`path,label`,
 //! relative paths relative to the CSV, an optional `sample_rate_hz` column for files that do
-//! not carry their rate), a recording reduced to its classifier feature windows
+//! not carry their rate, optional `start_s`/`end_s` columns to use part of a recording), a recording reduced to its classifier feature windows
 //! ([`RecordingFeatures`], made by [`super::featurise`]), and the training-data hash.
 
 use crate::importers::ImportOptions;
@@ -23,6 +23,10 @@ pub struct ManifestEntry {
     /// The row's `sample_rate_hz` (when the column exists and the cell is not empty) and where
     /// it was written ("labels.csv line 4, column sample_rate_hz").
     pub sample_rate: Option<(f64, String)>,
+    /// The row's `start_s`/`end_s` (either may be empty): only feature windows wholly inside
+    /// this stretch of the recording are used, so one file can be cut into parts (adapt on
+    /// one half of a healthy record, score the other).
+    pub span: Option<(f64, f64)>,
 }
 
 impl ManifestEntry {
@@ -84,6 +88,10 @@ pub fn parse_manifest(text: &str, csv: &Path) -> Result<Vec<ManifestEntry>> {
     let ir = cols
         .iter()
         .position(|c| c.eq_ignore_ascii_case("sample_rate_hz"));
+    let (i_start, i_end) = (
+        cols.iter().position(|c| c.eq_ignore_ascii_case("start_s")),
+        cols.iter().position(|c| c.eq_ignore_ascii_case("end_s")),
+    );
     let csv_name = csv
         .file_name()
         .map_or_else(|| csv.display().to_string(), |n| n.to_string_lossy().into());
@@ -126,6 +134,34 @@ pub fn parse_manifest(text: &str, csv: &Path) -> Result<Vec<ManifestEntry>> {
                 ),
             },
         };
+        let seconds = |col: Option<usize>, name: &str| -> Result<Option<f64>> {
+            match col.map(|k| fields[k].trim_matches('"')) {
+                None | Some("") => Ok(None),
+                Some(text) => match text.parse::<f64>() {
+                    Ok(t) if t.is_finite() && t >= 0.0 => Ok(Some(t)),
+                    _ => bail!(
+                        "{}:{}: {name} {:?} is not a time in seconds >= 0 (leave it empty for the whole recording)",
+                        csv.display(),
+                        i + 1,
+                        text
+                    ),
+                },
+            }
+        };
+        let span = match (seconds(i_start, "start_s")?, seconds(i_end, "end_s")?) {
+            (None, None) => None,
+            (a, b) => {
+                let (a, b) = (a.unwrap_or(0.0), b.unwrap_or(f64::INFINITY));
+                if b <= a {
+                    bail!(
+                        "{}:{}: end_s {b} is not after start_s {a}",
+                        csv.display(),
+                        i + 1
+                    );
+                }
+                Some((a, b))
+            }
+        };
         let pb = Path::new(p);
         let path = if pb.is_absolute() {
             pb.to_path_buf()
@@ -138,6 +174,7 @@ pub fn parse_manifest(text: &str, csv: &Path) -> Result<Vec<ManifestEntry>> {
             label: label.to_string(),
             line: i + 1,
             sample_rate,
+            span,
         });
     }
     if out.is_empty() {
@@ -218,5 +255,25 @@ mod tests {
             .unwrap_err()
             .to_string();
         assert!(e.contains("positive"), "{e}");
+    }
+
+    #[test]
+    fn manifest_spans_cut_a_recording_and_bad_spans_name_their_line() {
+        let csv = Path::new("/data/labels.csv");
+        let m = parse_manifest(
+            "path,label,start_s,end_s\na.mat,healthy,0,2.5\na.mat,healthy,2.5,\nb.mat,ball,,\n",
+            csv,
+        )
+        .unwrap();
+        assert_eq!(m[0].span, Some((0.0, 2.5)));
+        assert_eq!(m[1].span, Some((2.5, f64::INFINITY)));
+        assert_eq!(m[2].span, None);
+        let e = parse_manifest("path,label,start_s,end_s\na.mat,healthy,3,1\n", csv).unwrap_err();
+        assert!(
+            e.to_string().contains(":2: end_s 1 is not after start_s 3"),
+            "{e}"
+        );
+        let e = parse_manifest("path,label,start_s\na.mat,healthy,soon\n", csv).unwrap_err();
+        assert!(e.to_string().contains("start_s \"soon\""), "{e}");
     }
 }

@@ -46,7 +46,11 @@ pub fn featurise(entry: &ManifestEntry, rig: &RigConfig) -> Result<RecordingFeat
     let mut data = Vec::with_capacity(wins.len() * n);
     let mut rpm = 0.0;
     let mut kept = 0usize;
-    for w in &wins {
+    let (from, to) = entry.span.unwrap_or((0.0, f64::INFINITY));
+    for w in wins
+        .iter()
+        .filter(|w| w.t_start >= from - 1e-9 && w.t_end <= to + 1e-9)
+    {
         let f = w.classifier_features(rig);
         if f.len() != n || f.iter().any(|v| !v.is_finite()) {
             continue;
@@ -56,11 +60,18 @@ pub fn featurise(entry: &ManifestEntry, rig: &RigConfig) -> Result<RecordingFeat
         kept += 1;
     }
     if kept == 0 {
+        if let Some((a, b)) = entry.span {
+            bail!("{}: no whole feature window between start_s {a} and end_s {b} (manifest line {}; {} windows in the recording, {} s each): widen the span", entry.path.display(), entry.line, wins.len(), rig.features.window_s);
+        }
         bail!("{}: no usable feature window ({} windows computed; the recording may be shorter than one window or carry NaN)", entry.path.display(), wins.len());
     }
     Ok(RecordingFeatures {
         path: entry.path.clone(),
-        path_text: entry.path_text.clone(),
+        path_text: match entry.span {
+            None => entry.path_text.clone(),
+            Some((a, b)) if b.is_finite() => format!("{} [{a}-{b} s]", entry.path_text),
+            Some((a, _)) => format!("{} [{a} s-]", entry.path_text),
+        },
         label: entry.label.clone(),
         sha256,
         simulated: is_simulated(&rec),
