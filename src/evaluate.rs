@@ -1,6 +1,8 @@
 //! Whole-record scoring of a classifier on labelled recordings: per-window accuracy,
 //! whole-record accuracy (majority vote of the windows), balanced accuracy (mean recall over
-//! the classes present), confusion matrices and the unknown (novelty) rate. Pure arithmetic on
+//! the classes present), confusion matrices, the unknown (novelty) rate and the alarm counts
+//! (missed alarms: a faulty record called healthy; false alarms: a healthy record called
+//! faulty). Pure arithmetic on
 //! per-window predictions, so training, fine-tuning and `rigmon evaluate` share it.
 
 use serde::Serialize;
@@ -97,6 +99,14 @@ pub struct Evaluation {
     pub window_balanced_accuracy: f64,
     /// Fraction of windows flagged unknown by the novelty score.
     pub unknown_rate: f64,
+    /// Faulty records (any label but `healthy`) called healthy. Calling a fault another
+    /// fault is wrong but still an alarm, so it is not counted here.
+    pub missed_alarms: usize,
+    /// Healthy records called anything but healthy.
+    pub false_alarms: usize,
+    /// The same per window.
+    pub window_missed_alarms: usize,
+    pub window_false_alarms: usize,
     /// Whole-record confusion matrix.
     pub confusion: Confusion,
     /// Per-window confusion matrix.
@@ -112,6 +122,23 @@ pub fn majority(predicted: &[usize], n_classes: usize) -> (usize, Vec<usize>) {
     }
     let best = (0..n_classes).fold(0, |b, c| if votes[c] > votes[b] { c } else { b });
     (best, votes)
+}
+
+/// (missed, false) alarms from a confusion matrix: faulty called healthy, healthy called
+/// faulty. Both 0 when there is no `healthy` class.
+pub fn alarms(cm: &Confusion) -> (usize, usize) {
+    let Some(h) = cm.labels.iter().position(|l| l == "healthy") else {
+        return (0, 0);
+    };
+    let missed = (0..cm.labels.len())
+        .filter(|&t| t != h)
+        .map(|t| cm.matrix[t][h])
+        .sum();
+    let false_ = (0..cm.labels.len())
+        .filter(|&p| p != h)
+        .map(|p| cm.matrix[h][p])
+        .sum();
+    (missed, false_)
 }
 
 /// Score per-window outcomes of labelled recordings.
@@ -143,6 +170,8 @@ pub fn score(labels: &[String], outcomes: &[RecordOutcome]) -> Evaluation {
             rpm: o.rpm,
         });
     }
+    let (missed_alarms, false_alarms) = alarms(&rec_cm);
+    let (window_missed_alarms, window_false_alarms) = alarms(&win_cm);
     Evaluation {
         labels: labels.to_vec(),
         n_records: outcomes.len(),
@@ -156,6 +185,10 @@ pub fn score(labels: &[String], outcomes: &[RecordOutcome]) -> Evaluation {
         } else {
             n_unknown as f64 / n_windows as f64
         },
+        missed_alarms,
+        false_alarms,
+        window_missed_alarms,
+        window_false_alarms,
         confusion: rec_cm,
         window_confusion: win_cm,
         records,
@@ -181,6 +214,10 @@ pub fn summary(e: &Evaluation) -> String {
         pct(e.window_accuracy),
         pct(e.window_balanced_accuracy),
         pct(e.unknown_rate)
+    );
+    s += &format!(
+        "missed alarms (faulty record called healthy): {}   false alarms (healthy record called faulty): {}   (windows: {} / {})\n",
+        e.missed_alarms, e.false_alarms, e.window_missed_alarms, e.window_false_alarms
     );
     for (title, cm) in [
         ("whole-record confusion", &e.confusion),
@@ -238,6 +275,30 @@ mod tests {
             vec![vec![1, 0, 0], vec![0, 1, 1], vec![0, 0, 1]]
         );
         assert_eq!(e.records[2].predicted, "inner_race");
+        // outer called inner is an alarm, not a miss; one healthy window called outer
+        assert_eq!((e.missed_alarms, e.false_alarms), (0, 0));
+        assert_eq!((e.window_missed_alarms, e.window_false_alarms), (0, 1));
+    }
+
+    #[test]
+    fn missed_and_false_alarms_are_counted_per_record() {
+        let o = |label, predicted: Vec<usize>| RecordOutcome {
+            path: "x".into(),
+            label,
+            unknown: vec![false; predicted.len()],
+            predicted,
+            rpm: 0.0,
+        };
+        let outcomes = vec![
+            o(0, vec![2, 2, 0]), // healthy called inner: false alarm
+            o(1, vec![0, 0, 1]), // outer called healthy: missed
+            o(2, vec![0, 0]),    // inner called healthy: missed
+            o(2, vec![1, 1]),    // inner called outer: an alarm all the same
+        ];
+        let e = score(&labels(), &outcomes);
+        assert_eq!((e.missed_alarms, e.false_alarms), (2, 1));
+        assert_eq!((e.window_missed_alarms, e.window_false_alarms), (4, 2));
+        assert!(summary(&e).contains("missed alarms (faulty record called healthy): 2"));
     }
 
     #[test]

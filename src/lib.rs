@@ -3,10 +3,12 @@
 //! Data flows one way: [`acquire`] (sources) -> [`dsp`] (features) -> [`model`] (inference)
 //! -> [`health`] (state machine) -> [`publish`], [`record`] (sinks). [`sim`] and [`train`]
 //! sit beside the stream and produce models; [`calibrate`] fits the simulator to measured
-//! recordings (residual views, effect catalog, held-out acceptance, calibrated rig file).
+//! recordings (residual views, effect catalog, held-out acceptance, calibrated rig file);
+//! [`adapt`] chains calibration, simulation and training for one measured machine.
 //! Lower modules never import higher ones.
 
 pub mod acquire;
+pub mod adapt;
 pub mod bearing;
 pub mod bench;
 pub mod calibrate;

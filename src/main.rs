@@ -31,6 +31,8 @@ enum Command {
     Dataset(cli::dataset::Args),
     /// Fit the simulator to measured recordings (effects, error before/after, report).
     Calibrate(cli::calibrate::Args),
+    /// Calibrate, simulate and train for one machine from its measured recordings; report.
+    Adapt(cli::adapt::Args),
     /// Train the classifier on a simulated dataset and export ONNX.
     Train(cli::train::Args),
     /// Retrain the output layer on a fraction of labelled measured recordings.
@@ -67,6 +69,7 @@ fn main() -> std::process::ExitCode {
         Command::Simulate(a) => cli::simulate::run(a),
         Command::Dataset(a) => cli::dataset::run(a),
         Command::Calibrate(a) => cli::calibrate::run(a),
+        Command::Adapt(a) => cli::adapt::run(a),
         Command::Train(a) => cli::train::run(a),
         Command::Finetune(a) => cli::finetune::run(a),
         Command::Evaluate(a) => cli::evaluate::run(a),

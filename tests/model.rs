@@ -564,4 +564,122 @@ fn aligned_model_keeps_its_classes_gates_the_unknown_and_runs_alike_everywhere()
     assert_eq!(back.meta.trained_mean, model.pre.mean.to_vec());
     let again = align_to_healthy(&back, healthy.view(), &["machine-healthy".into()]).unwrap();
     assert_eq!(again.pre, aligned.pre);
+/// Alarm counts recomputed from the per-record list of an evaluation.
+fn alarms_of(v: &serde_json::Value) -> (u64, u64) {
+    let recs = v["records"].as_array().unwrap();
+    let missed = recs
+        .iter()
+        .filter(|r| r["label"] != "healthy" && r["predicted"] == "healthy")
+        .count() as u64;
+    let false_ = recs
+        .iter()
+        .filter(|r| r["label"] == "healthy" && r["predicted"] != "healthy")
+        .count() as u64;
+    (missed, false_)
+}
+
+/// `rigmon evaluate --baseline rule`: the rule scored on the same real CWRU records as the
+/// model, in the same run, with missed and false alarms; and the rule alone, which also
+/// scores the ball records (it has no ball class: they can only be alarms or misses).
+#[test]
+fn rule_baseline_beside_the_model_on_real_cwru_records() {
+    shared_data();
+    let csv = manifest_dir().join("models/cwru-real.csv");
+    let model = manifest_dir().join("models/cwru-de.onnx");
+    let rig = manifest_dir().join("config/cwru-de.toml");
+    let (csv, model, rig) = (
+        csv.to_str().unwrap(),
+        model.to_str().unwrap(),
+        rig.to_str().unwrap(),
+    );
+    let v: serde_json::Value = serde_json::from_str(&rigmon(&[
+        "evaluate",
+        "--model",
+        model,
+        "--rig",
+        rig,
+        "--manifest",
+        csv,
+        "--baseline",
+        "rule",
+        "--json",
+    ]))
+    .unwrap();
+    let b = &v["baseline"];
+    assert_eq!(b["name"], "rule");
+    assert_eq!(b["n_records"], v["n_records"]);
+    let paths = |e: &serde_json::Value| -> Vec<String> {
+        e["records"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|r| r["path"].as_str().unwrap().to_string())
+            .collect()
+    };
+    assert_eq!(
+        paths(b),
+        paths(&v),
+        "the rule must score the model's records"
+    );
+    for e in [&v, b] {
+        let (m, f) = alarms_of(e);
+        assert_eq!(e["missed_alarms"], m);
+        assert_eq!(e["false_alarms"], f);
+    }
+    let rule_of = |name: &str| -> String {
+        b["records"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .find(|r| r["path"].as_str().unwrap().contains(name))
+            .unwrap()["predicted"]
+            .as_str()
+            .unwrap()
+            .to_string()
+    };
+    // the healthy record and the two 0.021 in faults are plain in the envelope spectrum
+    assert_eq!(rule_of("97_Normal"), "healthy");
+    assert_eq!(rule_of("209_0"), "inner_race");
+    assert_eq!(rule_of("234_0"), "outer_race");
+
+    let text = rigmon(&[
+        "evaluate",
+        "--model",
+        model,
+        "--rig",
+        rig,
+        "--manifest",
+        csv,
+        "--baseline",
+        "rule",
+    ]);
+    assert!(text.contains("rule baseline on the same records"), "{text}");
+    assert!(text.contains("missed alarms"), "{text}");
+
+    let alone: serde_json::Value = serde_json::from_str(&rigmon(&[
+        "evaluate",
+        "--baseline",
+        "rule",
+        "--rig",
+        rig,
+        "--manifest",
+        csv,
+        "--json",
+    ]))
+    .unwrap();
+    assert_eq!(alone["model"]["kind"], "rule");
+    assert_eq!(alone["n_records"], 7);
+    for r in alone["records"].as_array().unwrap() {
+        if r["label"] == "ball" {
+            assert_ne!(r["predicted"], "ball", "the rule has no ball class");
+        }
+    }
+    let (m, f) = alarms_of(&alone);
+    assert_eq!(
+        (
+            alone["missed_alarms"].as_u64(),
+            alone["false_alarms"].as_u64()
+        ),
+        (Some(m), Some(f))
+    );
 }

@@ -1,134 +1,226 @@
 //! `rigmon evaluate`: run a model file (through tract, as the daemon does) on labelled
-//! recordings and score it whole-record; recordings the model was fine-tuned on are excluded.
+//! recordings and score it whole-record, with `--baseline rule` the rule baseline on the same
+//! records in the same run (or the rule alone without `--model`); recordings the model was
+//! fine-tuned on are excluded.
 
 use crate::config::RigConfig;
-use crate::evaluate::{score, summary, RecordOutcome};
+use crate::evaluate::{score, summary, Evaluation};
+use crate::model::rule::{EnvelopeRule, RuleSettings};
 use crate::model::OnnxClassifier;
 use crate::train::dataset::{manifest_path, read_manifest};
 use crate::train::featurise::featurise_all;
-use anyhow::Result;
+use crate::train::score::{model_outcomes, rule_labels, rule_outcomes, ModelOutcomes};
+use anyhow::{bail, Result};
 use indicatif::ProgressBar;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 /// Arguments of `rigmon evaluate`.
 #[derive(clap::Args, Debug)]
 pub struct Args {
-    /// Model file (.onnx).
+    /// Model file (.onnx). Leave it out to score `--baseline rule` alone.
     #[arg(long)]
-    pub model: PathBuf,
+    pub model: Option<PathBuf>,
     /// Rig file of the recordings.
     #[arg(long)]
     pub rig: PathBuf,
     /// labels.csv (`path,label`; relative paths are relative to the CSV) or a dataset folder.
     #[arg(long)]
     pub manifest: PathBuf,
+    /// Also score a baseline on the same records: `rule` = the envelope-order rule (a window
+    /// is faulty when the 0.5-order band at BPFO, BPFI or twice either stands 3x above the
+    /// median band of its envelope order spectrum; majority of windows per record; no
+    /// training).
+    #[arg(long, value_enum)]
+    pub baseline: Option<Baseline>,
     /// Print one JSON object instead of text.
     #[arg(long)]
     pub json: bool,
     /// Draw the whole-record and per-window confusion matrices to this PNG (the per-window one
-    /// goes next to it as `<name>.windows.png`).
+    /// goes next to it as `<name>.windows.png`, the rule's as `<name>.rule.png`).
     #[arg(long)]
     pub png: Option<PathBuf>,
 }
 
-/// Hashes of the recordings a model was fine-tuned on (from its metadata).
-fn finetune_hashes(meta: &crate::model::ModelMeta) -> Vec<String> {
-    serde_json::from_str::<serde_json::Value>(&meta.finetune)
-        .ok()
-        .and_then(|v| v.get("finetune_sha256").cloned())
-        .and_then(|v| serde_json::from_value::<Vec<String>>(v).ok())
-        .unwrap_or_default()
+/// `--baseline`.
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq)]
+pub enum Baseline {
+    Rule,
+}
+
+/// Both confusion matrices of `ev` to `png` and `<png>.windows.png`.
+fn draw(png: &Path, ev: &Evaluation, name: &str) -> Result<()> {
+    crate::plots::confusion::draw(
+        png,
+        &ev.confusion,
+        &format!(
+            "{name}: whole records (balanced acc. {:.1} %)",
+            100.0 * ev.balanced_accuracy
+        ),
+    )?;
+    crate::plots::confusion::draw(
+        &png.with_extension("windows.png"),
+        &ev.window_confusion,
+        &format!("{name}: windows (acc. {:.1} %)", 100.0 * ev.window_accuracy),
+    )
 }
 
 pub fn run(args: Args) -> Result<()> {
+    if args.model.is_none() && args.baseline.is_none() {
+        bail!("nothing to score: give --model <file.onnx>, --baseline rule, or both");
+    }
     let rig = RigConfig::load(&args.rig)?;
-    let clf = OnnxClassifier::load(&args.model)?;
-    clf.check_rig(&rig)?;
-    let meta = clf.meta().clone();
     let entries = read_manifest(&manifest_path(&args.manifest))?;
-    let recs = featurise_all(&entries, &rig, &ProgressBar::hidden())?;
-    let used = finetune_hashes(&meta);
-    let (mut outcomes, mut excluded, mut skipped) = (Vec::new(), Vec::new(), Vec::new());
-    for r in &recs {
-        if used.contains(&r.sha256) {
-            excluded.push(r.path_text.clone());
-            continue;
-        }
-        let Some(label) = meta.labels.iter().position(|l| l == &r.label) else {
-            skipped.push(r.path_text.clone());
-            continue;
-        };
-        let (mut predicted, mut unknown) = (Vec::new(), Vec::new());
-        for row in r.windows.rows() {
-            let p = clf.predict(&row.to_vec())?;
-            predicted.push(p.class);
-            unknown.push(p.unknown);
-        }
-        outcomes.push(RecordOutcome {
-            path: r.path_text.clone(),
-            label,
-            predicted,
-            unknown,
-            rpm: r.rpm,
-        });
+    let mut scored = None;
+    if let Some(path) = &args.model {
+        let clf = OnnxClassifier::load(path)?;
+        clf.check_rig(&rig)?;
+        let recs = featurise_all(&entries, &rig, &ProgressBar::hidden())?;
+        let mo = model_outcomes(&clf, &recs)?;
+        let ev = score(&clf.meta().labels, &mo.outcomes);
+        scored = Some((path.clone(), clf, mo, ev));
     }
-    let ev = score(&meta.labels, &outcomes);
+    let settings = RuleSettings::default();
+    let rule_ev = match args.baseline {
+        None => None,
+        Some(Baseline::Rule) => {
+            // the same records the model is scored on, with the model's classes
+            let (labels, kept) = match &scored {
+                Some((_, clf, mo, _)) => {
+                    let paths: Vec<&str> = mo.outcomes.iter().map(|o| o.path.as_str()).collect();
+                    let kept: Vec<_> = entries
+                        .iter()
+                        .filter(|e| paths.contains(&e.path_text.as_str()))
+                        .cloned()
+                        .collect();
+                    (clf.meta().labels.clone(), kept)
+                }
+                None => (rule_labels(&entries), entries.clone()),
+            };
+            let rule = EnvelopeRule::for_rig(&rig, settings);
+            let outcomes = rule_outcomes(&rule, &kept, &rig, &labels, &ProgressBar::hidden())?;
+            Some(score(&labels, &outcomes))
+        }
+    };
     if let Some(png) = &args.png {
-        let name = args
-            .model
-            .file_name()
-            .map(|s| s.to_string_lossy().to_string())
-            .unwrap_or_default();
-        crate::plots::confusion::draw(
-            png,
-            &ev.confusion,
-            &format!(
-                "{name}: whole records (balanced acc. {:.1} %)",
-                100.0 * ev.balanced_accuracy
-            ),
-        )?;
-        let wpng = png.with_extension("windows.png");
-        crate::plots::confusion::draw(
-            &wpng,
-            &ev.window_confusion,
-            &format!("{name}: windows (acc. {:.1} %)", 100.0 * ev.window_accuracy),
-        )?;
+        match (&scored, &rule_ev) {
+            (Some((path, ..)), r) => {
+                let name = path
+                    .file_name()
+                    .map(|s| s.to_string_lossy().to_string())
+                    .unwrap_or_default();
+                draw(png, &scored.as_ref().expect("model").3, &name)?;
+                if let Some(r) = r {
+                    draw(&png.with_extension("rule.png"), r, "rule baseline")?;
+                }
+            }
+            (None, Some(r)) => draw(png, r, "rule baseline")?,
+            (None, None) => {}
+        }
     }
-    let split = serde_json::json!({
-        "model_trained_on_data_hash": meta.data_hash,
-        "model_calibration_id": meta.calibration_id,
-        "excluded_finetune_records": excluded,
-        "skipped_unknown_label_records": skipped,
-    });
+    let rule_json = |ev: &Evaluation| -> Result<serde_json::Value> {
+        let mut v = serde_json::to_value(ev)?;
+        v["name"] = "rule".into();
+        v["settings"] = serde_json::to_value(settings)?;
+        Ok(v)
+    };
     if args.json {
-        let mut v = serde_json::to_value(&ev)?;
-        v["model"] = serde_json::json!({"path": args.model, "sha256": meta.sha256, "labels": meta.labels, "rig_id": meta.rig_id});
-        v["split"] = split;
+        let v = match &scored {
+            Some((path, clf, mo, ev)) => {
+                let meta = clf.meta();
+                let mut v = serde_json::to_value(ev)?;
+                v["model"] = serde_json::json!({"path": path, "sha256": meta.sha256, "labels": meta.labels, "rig_id": meta.rig_id});
+                v["split"] = split_json(meta, mo);
+                if let Some(r) = &rule_ev {
+                    v["baseline"] = rule_json(r)?;
+                }
+                v
+            }
+            None => {
+                let r = rule_ev.as_ref().expect("checked above");
+                let mut v = serde_json::to_value(r)?;
+                v["model"] = serde_json::json!({"kind": "rule", "settings": settings});
+                v
+            }
+        };
         println!("{v}");
         return Ok(());
     }
-    println!(
-        "model {} (rig {}, trained on data {}, calibration {})",
-        args.model.display(),
-        meta.rig_id,
-        &meta.data_hash[..meta.data_hash.len().min(12)],
-        meta.calibration_id
-    );
-    if !excluded.is_empty() {
-        println!(
-            "excluded (the model was fine-tuned on them): {}",
-            excluded.join(", ")
-        );
+    match &scored {
+        Some((path, clf, mo, ev)) => {
+            let meta = clf.meta();
+            println!(
+                "model {} (rig {}, trained on data {}, calibration {})",
+                path.display(),
+                meta.rig_id,
+                &meta.data_hash[..meta.data_hash.len().min(12)],
+                meta.calibration_id
+            );
+            if !mo.excluded.is_empty() {
+                println!(
+                    "excluded (the model was fine-tuned on them): {}",
+                    mo.excluded.join(", ")
+                );
+            }
+            if !mo.skipped.is_empty() {
+                println!(
+                    "skipped (label not among the model's classes): {}",
+                    mo.skipped.join(", ")
+                );
+            }
+            print_records(ev, rule_ev.as_ref());
+            print!("{}", summary(ev));
+            if let Some(r) = &rule_ev {
+                println!("rule baseline on the same records:");
+                print!("{}", summary(r));
+                println!(
+                    "model vs rule: balanced (records) {:.1} % vs {:.1} %   missed alarms {} vs {}   false alarms {} vs {}",
+                    100.0 * ev.balanced_accuracy,
+                    100.0 * r.balanced_accuracy,
+                    ev.missed_alarms,
+                    r.missed_alarms,
+                    ev.false_alarms,
+                    r.false_alarms
+                );
+            }
+        }
+        None => {
+            let r = rule_ev.as_ref().expect("checked above");
+            println!(
+                "rule baseline (a {}-order band at BPFO, 2xBPFO, BPFI or 2xBPFI >= {}x the median band; no ball class)",
+                settings.band_width_order,
+                settings.threshold
+            );
+            print_records(r, None);
+            print!("{}", summary(r));
+        }
     }
-    if !skipped.is_empty() {
+    Ok(())
+}
+
+fn split_json(meta: &crate::model::ModelMeta, mo: &ModelOutcomes) -> serde_json::Value {
+    serde_json::json!({
+        "model_trained_on_data_hash": meta.data_hash,
+        "model_calibration_id": meta.calibration_id,
+        "excluded_finetune_records": mo.excluded,
+        "skipped_unknown_label_records": mo.skipped,
+    })
+}
+
+/// One line per record; with a rule evaluation of the same records, its verdict beside.
+fn print_records(ev: &Evaluation, rule: Option<&Evaluation>) {
+    for (i, r) in ev.records.iter().enumerate() {
+        let beside = rule
+            .and_then(|e| e.records.get(i).filter(|x| x.path == r.path))
+            .map(|x| {
+                format!(
+                    "  rule -> {:<11} {}",
+                    x.predicted,
+                    if x.correct { "ok" } else { "WRONG" }
+                )
+            })
+            .unwrap_or_default();
         println!(
-            "skipped (label not among the model's classes): {}",
-            skipped.join(", ")
-        );
-    }
-    for r in &ev.records {
-        println!(
-            "  {:<60} {:>11} -> {:<11} {} windows {:>4}  window acc {:>5.1} %  unknown {:>5.1} %",
+            "  {:<60} {:>11} -> {:<11} {} windows {:>4}  window acc {:>5.1} %  unknown {:>5.1} %{beside}",
             r.path,
             r.label,
             r.predicted,
@@ -138,6 +230,4 @@ pub fn run(args: Args) -> Result<()> {
             100.0 * r.unknown_rate
         );
     }
-    print!("{}", summary(&ev));
-    Ok(())
 }

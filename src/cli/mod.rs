@@ -1,6 +1,7 @@
 //! One module per subcommand: its clap arguments (`Args`) and `run`, wiring the library
 //! modules together. `main.rs` only parses and dispatches.
 
+pub mod adapt;
 pub mod align;
 pub mod bench;
 pub mod calibrate;

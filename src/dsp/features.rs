@@ -153,14 +153,12 @@ impl FeaturePipeline {
         if self.angle.len() < count {
             self.angle.resize(count + count / 4, 0.0);
         }
-        let spr = self.tracker.samples_per_rev();
+        let (n_bins, bin_width) = (self.n_bins, self.bin_width);
         let mut features = BTreeMap::new();
         for (name, x) in channels {
-            self.envelope.process(x, &mut self.env);
-            self.tracker.resample(&self.env, &mut self.angle[..count]);
-            let (step, lines) = self.fft.power(&self.angle[..count], spr);
-            let mut out = vec![0.0f32; self.n_bins];
-            band_rms(lines, step, self.bin_width, &mut out);
+            let mut out = vec![0.0f32; n_bins];
+            let (step, lines) = self.channel_power(x, count);
+            band_rms(lines, step, bin_width, &mut out);
             features.insert(name.to_string(), out);
         }
         Ok(FeatureWindow {
@@ -171,6 +169,39 @@ impl FeaturePipeline {
             quality,
             features,
         })
+    }
+
+    /// The envelope order power spectrum of one channel over the window starting at
+    /// `t_start`: the lines the RMS bins of [`process_window`](Self::process_window) are
+    /// summed from (order step between lines, one-sided power per line). Also returns the
+    /// revolutions in the window (the spectrum's resolution is 1 / revolutions orders).
+    pub fn envelope_order_power(
+        &mut self,
+        t_start: f64,
+        x: &[f32],
+        speed: &SpeedTrack,
+    ) -> Result<(f64, f64, &[f32])> {
+        if x.len() != self.len {
+            bail!(
+                "the window at t = {t_start:.3} s has {} samples, the pipeline expects {}",
+                x.len(),
+                self.len
+            );
+        }
+        let info = self.tracker.prepare(t_start, speed)?;
+        if self.angle.len() < info.count {
+            self.angle.resize(info.count + info.count / 4, 0.0);
+        }
+        let (step, lines) = self.channel_power(x, info.count);
+        Ok((step, info.revolutions, lines))
+    }
+
+    /// Envelope, order tracking (prepared for `count` angle samples) and power spectrum.
+    fn channel_power(&mut self, x: &[f32], count: usize) -> (f64, &[f32]) {
+        let spr = self.tracker.samples_per_rev();
+        self.envelope.process(x, &mut self.env);
+        self.tracker.resample(&self.env, &mut self.angle[..count]);
+        self.fft.power(&self.angle[..count], spr)
     }
 }
 

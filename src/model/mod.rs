@@ -13,6 +13,7 @@ pub mod mlp;
 pub mod novelty;
 pub mod onnx;
 pub mod preprocess;
+pub mod rule;
 
 pub use meta::ModelMeta;
 pub use onnx::{OnnxClassifier, Prediction};

@@ -1,0 +1,148 @@
+//! The dataset plan `rigmon adapt` derives from a rig file and the measured recordings of
+//! that machine: the speed range the recordings span (+-3 %), defect sizes scaled to the
+//! bearing's balls, outer-race defects all around the race, inner-race defects at any angle,
+//! slip, contact angle, unbalance, noise, resonance and speed-fluctuation ranges wide enough
+//! to cover an unknown machine. Where calibration fitted a parameter, `rigmon dataset
+//! --calibrated spread` semantics move these ranges onto the fitted value (see
+//! [`crate::sim::dataset::CalibratedDraws::Spread`]). Classes: healthy, outer race, inner race,
+//! plus ball when the measured labels hold a ball record.
+
+use crate::config::RigConfig;
+use crate::sim::plan::{Plan, PlanCase, RandomRanges};
+use anyhow::{bail, Result};
+use serde::Serialize;
+
+/// What the measured recordings say about the operating range.
+#[derive(Debug, Clone, Serialize)]
+pub struct MeasuredRange {
+    pub rpm_min: f64,
+    pub rpm_max: f64,
+    /// Sample rates seen, Hz (reported; the simulation keeps the rig file's rate).
+    pub sample_rates_hz: Vec<f64>,
+    pub labels: Vec<String>,
+}
+
+impl MeasuredRange {
+    /// From (rpm, sample rate, label) per recording.
+    pub fn of(items: &[(f64, f64, String)]) -> Result<MeasuredRange> {
+        if items.is_empty() {
+            bail!("no measured recording to derive a dataset plan from");
+        }
+        let rpm_min = items.iter().map(|i| i.0).fold(f64::INFINITY, f64::min);
+        let rpm_max = items.iter().map(|i| i.0).fold(0.0, f64::max);
+        if !(rpm_min.is_finite() && rpm_min > 0.0) {
+            bail!("a measured recording has no usable speed ({rpm_min} rpm)");
+        }
+        let mut sample_rates_hz: Vec<f64> = items.iter().map(|i| i.1).collect();
+        sample_rates_hz.sort_by(f64::total_cmp);
+        sample_rates_hz.dedup();
+        let mut labels: Vec<String> = items.iter().map(|i| i.2.clone()).collect();
+        labels.sort();
+        labels.dedup();
+        Ok(MeasuredRange {
+            rpm_min,
+            rpm_max,
+            sample_rates_hz,
+            labels,
+        })
+    }
+}
+
+/// Derive the plan: `recordings` per class of `seconds` each.
+pub fn derive(
+    rig: &RigConfig,
+    range: &MeasuredRange,
+    recordings: usize,
+    seconds: f64,
+) -> Result<Plan> {
+    let sim = crate::sim::rig_simulation(rig)?;
+    let fs = sim
+        .sample_rate_hz
+        .or(rig.acquisition.sample_rate_hz)
+        .unwrap_or(10_000.0);
+    let d = rig.bearing.ball_diameter_mm;
+    let top_hz = (0.4 * fs).min(5000.0);
+    let random = RandomRanges {
+        rpm: Some([0.97 * range.rpm_min, 1.03 * range.rpm_max]),
+        // EDM-like pits from 2 % to 10 % of the ball diameter (0.16-0.79 mm for 7.94 mm balls)
+        defect_width_mm: Some([0.02 * d, 0.10 * d]),
+        defect_depth_mm: Some([0.05, 0.3]),
+        inner_race_position_deg: Some([0.0, 360.0]),
+        slip: Some([0.0, 0.01]),
+        slip_jitter: Some([0.005, 0.02]),
+        contact_angle_deg: Some([0.0, 10.0]),
+        unbalance_scale: Some([0.3, 3.0]),
+        noise_rms_m_s2: Some([0.1, 1.0]),
+        resonance_hz: Some([(0.5 * top_hz).min(2000.0), top_hz]),
+        resonance_damping: Some([0.02, 0.08]),
+        speed_fluctuation: Some([0.0, 0.005]),
+        speed_fluctuation_period_s: Some([0.5, 3.0]),
+        ..RandomRanges::default()
+    };
+    let mut classes = vec!["healthy", "outer_race", "inner_race"];
+    if range.labels.iter().any(|l| l == "ball") {
+        classes.push("ball");
+    }
+    let cases = classes
+        .into_iter()
+        .map(|c| PlanCase {
+            name: None,
+            faults: c.to_string(),
+            rpm: None,
+            profile: None,
+            recordings,
+            seconds: None,
+            overrides: Default::default(),
+            random: if c == "outer_race" {
+                // all around the race: load zone (0) to opposite (+-180)
+                RandomRanges {
+                    outer_race_position_deg: Some([-180.0, 180.0]),
+                    ..RandomRanges::default()
+                }
+            } else {
+                RandomRanges::default()
+            },
+        })
+        .collect();
+    let plan = Plan {
+        name: format!("adapt-{}", rig.machine.id),
+        description: format!(
+            "derived by rigmon adapt from rig {:?} and measured recordings at {:.0}-{:.0} rpm",
+            rig.machine.id, range.rpm_min, range.rpm_max
+        ),
+        seed: 18,
+        seconds,
+        random,
+        cases,
+    };
+    plan.validate()?;
+    Ok(plan)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn plan_covers_the_measured_speeds_and_every_class() {
+        let rig = RigConfig::load(
+            &std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("config/cwru-de.toml"),
+        )
+        .unwrap();
+        let r = MeasuredRange::of(&[
+            (1796.0, 48_000.0, "healthy".into()),
+            (1772.0, 12_000.0, "inner_race".into()),
+        ])
+        .unwrap();
+        let p = derive(&rig, &r, 10, 2.0).unwrap();
+        let [lo, hi] = p.random.rpm.unwrap();
+        assert!(lo < 1772.0 && hi > 1796.0 && lo > 1700.0 && hi < 1900.0);
+        assert_eq!(p.cases.len(), 3);
+        assert_eq!(p.totals(), (30, 60.0));
+        // text form parses back as a plan
+        let text = toml::to_string(&p).unwrap();
+        assert_eq!(Plan::parse(&text).unwrap(), p);
+        let r = MeasuredRange::of(&[(1796.0, 48_000.0, "ball".into())]).unwrap();
+        assert_eq!(derive(&rig, &r, 10, 2.0).unwrap().cases.len(), 4);
+    }
+}

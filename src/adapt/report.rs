@@ -1,0 +1,194 @@
+//! The `rigmon adapt` report folder: `report.json` (everything in [`AdaptOutcome`]),
+//! `report.md` (calibration error before/after, simulated validation per seed, every
+//! labelled recording's diagnosis before/after/rule, timings) and confusion-matrix PNGs
+//! (`confusion_{before,after,rule}.png`, with a `holdout_` prefix for the held-out set).
+
+use super::{AdaptOutcome, SetScores};
+use crate::evaluate::Evaluation;
+use anyhow::{Context, Result};
+use std::fmt::Write;
+use std::path::Path;
+
+/// Write report.json, report.md and the PNGs into `dir`.
+pub fn write(dir: &Path, o: &AdaptOutcome) -> Result<()> {
+    let json = dir.join("report.json");
+    std::fs::write(&json, serde_json::to_string_pretty(o)?)
+        .with_context(|| format!("cannot write {}", json.display()))?;
+    std::fs::write(dir.join("report.md"), markdown(o))?;
+    draw_set(dir, "", &o.measured_scores)?;
+    if let Some(h) = &o.holdout_scores {
+        draw_set(dir, "holdout_", h)?;
+    }
+    Ok(())
+}
+
+fn draw_set(dir: &Path, prefix: &str, s: &SetScores) -> Result<()> {
+    for (name, ev) in [
+        ("before", &s.before),
+        ("after", &s.after),
+        ("rule", &s.rule),
+    ] {
+        crate::plots::confusion::draw(
+            &dir.join(format!("{prefix}confusion_{name}.png")),
+            &ev.confusion,
+            &format!(
+                "{prefix}{name}: whole records (balanced acc. {:.1} %)",
+                100.0 * ev.balanced_accuracy
+            ),
+        )?;
+    }
+    Ok(())
+}
+
+fn pct(v: f64) -> String {
+    if v.is_nan() {
+        "n/a".into()
+    } else {
+        format!("{:.1} %", 100.0 * v)
+    }
+}
+
+fn line(name: &str, e: &Evaluation) -> String {
+    format!(
+        "| {name} | {}/{} | {} | {} | {} | {} |\n",
+        e.confusion
+            .matrix
+            .iter()
+            .enumerate()
+            .map(|(i, r)| r[i])
+            .sum::<usize>(),
+        e.n_records,
+        pct(e.balanced_accuracy),
+        pct(e.window_accuracy),
+        e.missed_alarms,
+        e.false_alarms
+    )
+}
+
+fn set_md(title: &str, s: &SetScores) -> String {
+    let mut m = format!("## {title}\n\n`{}`\n\n", s.manifest);
+    m += "| classifier | records right | balanced (records) | windows | missed alarms | false alarms |\n|---|---|---|---|---|---|\n";
+    m += &line("before (zero-shot)", &s.before);
+    m += &line("after (adapted)", &s.after);
+    m += &line("rule baseline", &s.rule);
+    m += "\n| recording | label | before | after | rule |\n|---|---|---|---|---|\n";
+    for (i, a) in s.after.records.iter().enumerate() {
+        let find = |e: &Evaluation| {
+            e.records
+                .get(i)
+                .filter(|r| r.path == a.path)
+                .or_else(|| e.records.iter().find(|r| r.path == a.path))
+                .map(|r| {
+                    format!(
+                        "{} ({:.0} % of windows)",
+                        r.predicted,
+                        100.0 * r.votes.iter().copied().max().unwrap_or(0) as f64
+                            / r.windows.max(1) as f64
+                    )
+                })
+                .unwrap_or_else(|| "-".into())
+        };
+        let _ = writeln!(
+            m,
+            "| {} | {} | {} | {} | {} |",
+            a.path,
+            a.label,
+            find(&s.before),
+            find(&s.after),
+            find(&s.rule)
+        );
+    }
+    m + "\n"
+}
+
+/// The Markdown report.
+pub fn markdown(o: &AdaptOutcome) -> String {
+    let mut m = format!(
+        "# rigmon adapt: {}\n\nRig file `{}`, measured recordings `{}` ({} to {:.0} rpm, sample rates {:?} Hz, labels {:?}). \
+Measured data calibrated the simulator and is scored below; it did not train the classifier.\n\n",
+        o.rig_id,
+        o.rig,
+        o.measured,
+        format_args!("{:.0}", o.measured_range.rpm_min),
+        o.measured_range.rpm_max,
+        o.measured_range.sample_rates_hz,
+        o.measured_range.labels
+    );
+    let c = &o.calibration;
+    let _ = write!(
+        m,
+        "## Calibration\n\nid `{}`: error {:.3} before -> {:.3} after; effects accepted: {}; unexplained residuals: {}. \
+Calibrated rig file: `rig.toml`; full report: `calibration/report.md`.\n\n",
+        c["id"].as_str().unwrap_or(""),
+        c["error_before"].as_f64().unwrap_or(f64::NAN),
+        c["error_after"].as_f64().unwrap_or(f64::NAN),
+        c["effects"]
+            .as_array()
+            .map(|a| {
+                if a.is_empty() {
+                    "none".to_string()
+                } else {
+                    a.iter()
+                        .map(|e| format!("{} {}", e["name"].as_str().unwrap_or(""), e["params"]))
+                        .collect::<Vec<_>>()
+                        .join("; ")
+                }
+            })
+            .unwrap_or_default(),
+        c["unexplained"]
+    );
+    let _ = write!(
+        m,
+        "## Simulation and training\n\nPlan: {} (`plan.toml`), {} recordings, {:.0} s of signal, classes {}. {}.\n\n| seed | simulated validation, balanced (records) | records | windows | epochs (best) |\n|---|---|---|---|---|\n",
+        o.plan_source,
+        o.dataset_recordings,
+        o.dataset_seconds,
+        o.labels.join(", "),
+        o.selection
+    );
+    for s in &o.seeds {
+        let _ = writeln!(
+            m,
+            "| {}{} | {} | {} | {} | {} ({}) |",
+            s.seed,
+            if s.seed == o.chosen_seed {
+                " (kept)"
+            } else {
+                ""
+            },
+            pct(s.validation_balanced_accuracy),
+            pct(s.validation_record_accuracy),
+            pct(s.validation_window_accuracy),
+            s.epochs_run,
+            s.best_epoch
+        );
+    }
+    let v: Vec<f64> = o
+        .seeds
+        .iter()
+        .map(|s| s.validation_balanced_accuracy)
+        .collect();
+    let _ = write!(
+        m,
+        "\nMean {} , worst {} over {} seeds. Model: `model.onnx` (sha256 {}). Zero-shot model compared with: {}.\n\n",
+        pct(v.iter().sum::<f64>() / v.len().max(1) as f64),
+        pct(v.iter().copied().fold(f64::INFINITY, f64::min)),
+        v.len(),
+        o.model_sha256,
+        o.before_model
+    );
+    m += &set_md(
+        "Measured recordings (these also calibrated the simulator)",
+        &o.measured_scores,
+    );
+    if let Some(h) = &o.holdout_scores {
+        m += &set_md("Held-out recordings (never used to calibrate)", h);
+    }
+    m += "Missed alarm: a faulty record called healthy. False alarm: a healthy record called faulty. \
+The rule has no ball class; a ball record it calls a race fault is an alarm, not a miss.\n\n## Time\n\n";
+    for (k, t) in &o.timings_s {
+        let _ = writeln!(m, "- {k}: {t:.1} s");
+    }
+    let _ = writeln!(m, "- total: {:.1} s", o.total_s);
+    m
+}

@@ -1,0 +1,326 @@
+//! The rule baseline (issue 18): a ten-line envelope-order rule with no training, scored next
+//! to every classifier. Per window (the rig's feature windows, 1 s by default) it takes the
+//! classifier channel's envelope order spectrum — the same lines the feature bins are summed
+//! from ([`FeaturePipeline::envelope_order_power`]) — and compares the RMS of the band
+//! centred at BPFO, 2xBPFO, BPFI and 2xBPFI with the median RMS of all bands of the same width
+//! (0.5 order, the thesis' bin width) from 0 to `features.max_order`. A window is faulty when
+//! one of those bands stands [`RuleSettings::threshold`] (3x) or more above that median; it is `outer_race` or `inner_race` by whichever race's band stands
+//! highest relative to the median (an exact tie goes to `outer_race`). The rule has no ball
+//! class: a ball fault it sees is called a race fault (an alarm, not a miss). A recording
+//! takes the majority of its windows through the same scoring code as the ONNX classifier.
+
+use crate::bearing::FaultOrders;
+use crate::config::RigConfig;
+use crate::dsp::{FeaturePipeline, SpeedTrack};
+use crate::recording::Recording;
+use anyhow::{bail, Context, Result};
+use serde::Serialize;
+
+/// Classes the rule can name, in this order.
+pub const RULE_LABELS: [&str; 3] = ["healthy", "outer_race", "inner_race"];
+
+/// The rule's two numbers.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct RuleSettings {
+    /// A fault band counts when its RMS is at least this many times the median band RMS of
+    /// the envelope order spectrum.
+    pub threshold: f64,
+    /// Width of every band, orders. A fault band is centred on its kinematic order, so
+    /// +-0.25 order covers slip and speed error (+-7 % at BPFO 3.58, +-2.3 % at 2xBPFI 10.8);
+    /// the median is over the bands (k w, (k+1) w] tiling 0..max_order.
+    pub band_width_order: f64,
+}
+
+impl Default for RuleSettings {
+    fn default() -> Self {
+        RuleSettings {
+            threshold: 3.0,
+            band_width_order: 0.5,
+        }
+    }
+}
+
+/// The rule's verdict on one window.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct RuleVerdict {
+    /// Index into [`RULE_LABELS`].
+    pub class: usize,
+    /// Band RMS / median band RMS at BPFO, 2xBPFO, BPFI, 2xBPFI.
+    pub ratios: [f64; 4],
+    /// Mean shaft speed of the window, rpm.
+    pub rpm: f64,
+}
+
+impl RuleVerdict {
+    pub fn label(&self) -> &'static str {
+        RULE_LABELS[self.class]
+    }
+}
+
+/// The rule for one bearing.
+#[derive(Debug, Clone)]
+pub struct EnvelopeRule {
+    orders: FaultOrders,
+    settings: RuleSettings,
+    /// Highest order of the spectrum the median is taken over.
+    max_order: f64,
+}
+
+impl EnvelopeRule {
+    /// The rule at the rig file's bearing geometry.
+    pub fn for_rig(rig: &RigConfig, settings: RuleSettings) -> Self {
+        EnvelopeRule {
+            orders: rig.bearing.fault_orders(),
+            settings,
+            max_order: rig.features.max_order,
+        }
+    }
+
+    /// The rule at given fault orders, the median taken up to `max_order`.
+    pub fn new(orders: FaultOrders, settings: RuleSettings, max_order: f64) -> Self {
+        EnvelopeRule {
+            orders,
+            settings,
+            max_order,
+        }
+    }
+
+    /// Judge one envelope order spectrum given as power lines `order_step` apart (line 0 at
+    /// order 0).
+    pub fn judge(&self, order_step: f64, power: &[f32]) -> RuleVerdict {
+        let w = self.settings.band_width_order;
+        let n_bands = ((self.max_order / w).round() as usize).max(1);
+        let mut bands = vec![0.0f32; n_bands];
+        crate::dsp::features::band_rms(power, order_step, w, &mut bands);
+        let mid = n_bands / 2;
+        let median = *bands.select_nth_unstable_by(mid, f32::total_cmp).1 as f64;
+        // RMS of the lines in (centre - w/2, centre + w/2]
+        let band_at = |centre: f64| {
+            let lo = (((centre - 0.5 * w) / order_step + 1e-9).floor() as usize) + 1;
+            let hi = (((centre + 0.5 * w) / order_step + 1e-9).floor() as usize)
+                .min(power.len().saturating_sub(1));
+            (lo..=hi)
+                .map(|j| power[j].max(0.0) as f64)
+                .sum::<f64>()
+                .sqrt()
+        };
+        let o = &self.orders;
+        let targets = [o.bpfo, 2.0 * o.bpfo, o.bpfi, 2.0 * o.bpfi];
+        let mut ratios = [0.0; 4];
+        for (r, &t) in ratios.iter_mut().zip(&targets) {
+            *r = if median > 0.0 {
+                band_at(t) / median
+            } else {
+                0.0
+            };
+        }
+        let outer = ratios[0].max(ratios[1]);
+        let inner = ratios[2].max(ratios[3]);
+        let class = if outer.max(inner) < self.settings.threshold {
+            0
+        } else if outer >= inner {
+            1
+        } else {
+            2
+        };
+        RuleVerdict {
+            class,
+            ratios,
+            rpm: 0.0,
+        }
+    }
+
+    /// The rule on every full feature window (`window_s` long, `hop_s` apart) of a
+    /// recording's classifier channel, with the speed source from the rig file.
+    pub fn judge_recording(&self, rec: &Recording, rig: &RigConfig) -> Result<Vec<RuleVerdict>> {
+        let what = &rec.provenance.source_path;
+        let ch = rig
+            .classifier_channel()
+            .context("the rig file has no classifier channel (features.classifier_axis)")?;
+        let x = &rec
+            .channel(&ch.name)
+            .with_context(|| {
+                format!(
+                    "{what}: no channel {:?} (the rig's classifier channel) in the recording",
+                    ch.name
+                )
+            })?
+            .samples;
+        let speed =
+            SpeedTrack::for_recording(rec, rig).with_context(|| format!("speed for {what}"))?;
+        let mut pipe = FeaturePipeline::new(rig, rec.sample_rate)?;
+        let n = pipe.window_len();
+        let hop = ((rig.features.hop_s * rec.sample_rate).round() as usize).max(1);
+        if x.len() < n {
+            bail!(
+                "{what}: {:.3} s of signal is shorter than one window ({} s)",
+                rec.duration_s(),
+                rig.features.window_s
+            );
+        }
+        let mut out = Vec::with_capacity((x.len() - n) / hop + 1);
+        let mut start = 0;
+        while start + n <= x.len() {
+            let t = start as f64 / rec.sample_rate;
+            let (step, _, lines) = pipe
+                .envelope_order_power(t, &x[start..start + n], &speed)
+                .with_context(|| format!("{what}: window at t = {t:.3} s"))?;
+            let mut v = self.judge(step, lines);
+            v.rpm = speed.mean_rpm(t, t + n as f64 / rec.sample_rate);
+            out.push(v);
+            start += hop;
+        }
+        Ok(out)
+    }
+}
+
+/// Map the rule's classes onto a classifier's label list (so both are scored alike).
+pub fn class_map(labels: &[String]) -> Result<[usize; 3]> {
+    let mut map = [0; 3];
+    for (m, name) in map.iter_mut().zip(RULE_LABELS) {
+        *m = labels.iter().position(|l| l == name).with_context(|| {
+            format!("the rule names {name:?}, which is not among the scored classes {labels:?}")
+        })?;
+    }
+    Ok(map)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::dsp::synthetic::Synthetic;
+
+    fn orders() -> FaultOrders {
+        crate::bearing::BearingGeometry {
+            balls: 9,
+            ball_diameter_mm: 7.94,
+            pitch_diameter_mm: 39.04,
+            contact_angle_deg: 0.0,
+        }
+        .fault_orders()
+    }
+
+    fn rig() -> RigConfig {
+        let text = std::fs::read_to_string(
+            std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("config/cwru-de.toml"),
+        )
+        .unwrap();
+        RigConfig::parse(&text).unwrap()
+    }
+
+    /// Windows of a synthetic impact train at `order` (none when 0), `scale` times the
+    /// generator's impacts, under white noise of standard deviation `noise`; 1800 rpm, 12 kHz.
+    fn verdicts(order: f64, scale: f32, noise: f64) -> Vec<RuleVerdict> {
+        let syn = |fault_order: f64, noise: f64| {
+            Synthetic {
+                sample_rate: 12_000.0,
+                seconds: 4.0,
+                f_start: 30.0,
+                f_end: 30.0,
+                fault_order,
+                resonance_hz: 3000.0,
+                damping: 0.05,
+                noise,
+                seed: 3,
+                ..Synthetic::default()
+            }
+            .generate()
+            .vibration
+        };
+        // an order of 1e-3 puts the first impact beyond the 120 revolutions: noise only
+        let floor = syn(1e-3, noise);
+        let x: Vec<f32> = if order > 0.0 {
+            syn(order, 0.0)
+                .iter()
+                .zip(&floor)
+                .map(|(i, n)| scale * i + n)
+                .collect()
+        } else {
+            floor
+        };
+        let rig = rig();
+        let mut pipe = FeaturePipeline::new(&rig, 12_000.0).unwrap();
+        let speed = SpeedTrack::fixed(1800.0).unwrap();
+        let rule = EnvelopeRule::new(orders(), RuleSettings::default(), 50.0);
+        let n = pipe.window_len();
+        (0..7)
+            .map(|k| {
+                let s = k * n / 2;
+                let (step, _, p) = pipe
+                    .envelope_order_power(s as f64 / 12_000.0, &x[s..s + n], &speed)
+                    .unwrap();
+                rule.judge(step, p)
+            })
+            .collect()
+    }
+
+    #[test]
+    fn noise_alone_is_healthy() {
+        for v in verdicts(0.0, 1.0, 0.5) {
+            assert_eq!(v.label(), "healthy", "{v:?}");
+            assert!(v.ratios.iter().all(|&r| r < 3.0), "{v:?}");
+        }
+    }
+
+    #[test]
+    fn impacts_at_bpfo_are_outer_race_and_at_bpfi_inner_race() {
+        let o = orders();
+        for v in verdicts(o.bpfo, 1.0, 0.05) {
+            assert_eq!(v.label(), "outer_race", "{v:?}");
+        }
+        for v in verdicts(o.bpfi, 1.0, 0.05) {
+            assert_eq!(v.label(), "inner_race", "{v:?}");
+        }
+    }
+
+    #[test]
+    fn impacts_off_the_fault_orders_do_not_fire() {
+        // a strong train at order 4.4 (between BPFO 3.58 and BPFI 5.42; 2x = 8.8, off both
+        // 7.17 and 10.83) is no race fault by the rule
+        for v in verdicts(4.4, 1.0, 0.05) {
+            assert_eq!(v.label(), "healthy", "{v:?}");
+        }
+    }
+
+    #[test]
+    fn impacts_buried_in_noise_are_missed() {
+        // the same BPFO train 200x weaker under the same noise: below 3x the median
+        let o = orders();
+        let n_healthy = verdicts(o.bpfo, 0.005, 0.5)
+            .iter()
+            .filter(|v| v.class == 0)
+            .count();
+        assert_eq!(n_healthy, 7);
+    }
+
+    #[test]
+    fn the_threshold_decides_between_two_lines() {
+        let rule = EnvelopeRule::new(orders(), RuleSettings::default(), 50.0);
+        // flat floor: power 1 per line, 50 lines per 0.5-order band -> band RMS sqrt(50)
+        let step = 0.01;
+        let mut p = vec![1.0f32; 5001];
+        let at = |o: f64| (o / step).round() as usize;
+        p[at(orders().bpfo)] = 380.0; // band RMS sqrt(429 / 50) = 2.93x: not enough
+        let v = rule.judge(step, &p);
+        assert_eq!(v.class, 0, "{v:?}");
+        p[at(2.0 * orders().bpfi)] = 420.0; // sqrt(469 / 50) = 3.06x at 2xBPFI: inner race
+        let v = rule.judge(step, &p);
+        assert_eq!(v.label(), "inner_race");
+        assert!(
+            (v.ratios[3] - (469.0f64 / 50.0).sqrt()).abs() < 1e-3,
+            "{v:?}"
+        );
+        p[at(orders().bpfo)] = 420.0; // the same at BPFO: a tie goes to the outer race
+        assert_eq!(rule.judge(step, &p).label(), "outer_race");
+    }
+
+    #[test]
+    fn rule_classes_map_onto_a_model_label_list() {
+        let l: Vec<String> = ["healthy", "outer_race", "inner_race", "ball"]
+            .iter()
+            .map(|s| s.to_string())
+            .collect();
+        assert_eq!(class_map(&l).unwrap(), [0, 1, 2]);
+        assert!(class_map(&l[..2]).is_err());
+    }
+}
