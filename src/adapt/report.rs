@@ -50,7 +50,7 @@ fn pct(v: f64) -> String {
 
 fn line(name: &str, e: &Evaluation) -> String {
     format!(
-        "| {name} | {}/{} | {} | {} | {} | {} |\n",
+        "| {name} | {}/{} | {} | {} | {} | {} | {} |\n",
         e.confusion
             .matrix
             .iter()
@@ -61,13 +61,14 @@ fn line(name: &str, e: &Evaluation) -> String {
         pct(e.balanced_accuracy),
         pct(e.window_accuracy),
         e.missed_alarms,
-        e.false_alarms
+        e.false_alarms,
+        pct(e.unknown_rate)
     )
 }
 
 fn set_md(title: &str, s: &SetScores) -> String {
     let mut m = format!("## {title}\n\n`{}`\n\n", s.manifest);
-    m += "| classifier | records right | balanced (records) | windows | missed alarms | false alarms |\n|---|---|---|---|---|---|\n";
+    m += "| classifier | records right | balanced (records) | windows | missed alarms | false alarms | unknown (windows) |\n|---|---|---|---|---|---|---|\n";
     m += &line("before (zero-shot)", &s.before);
     m += &line("after (adapted)", &s.after);
     m += &line("rule baseline", &s.rule);
@@ -170,7 +171,7 @@ Calibrated rig file: `rig.toml`; full report: `calibration/report.md`.\n\n",
         .collect();
     let _ = write!(
         m,
-        "\nMean {} , worst {} over {} seeds. Model: `model.onnx` (sha256 {}). Zero-shot model compared with: {}.\n\n",
+        "\nMean {}, worst {} over {} seeds. Model: `model.onnx` (sha256 {}). Zero-shot model compared with: {}.\n\n",
         pct(v.iter().sum::<f64>() / v.len().max(1) as f64),
         pct(v.iter().copied().fold(f64::INFINITY, f64::min)),
         v.len(),

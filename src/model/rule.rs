@@ -4,9 +4,10 @@
 //! from ([`FeaturePipeline::envelope_order_power`]) — and compares the RMS of the band
 //! centred at BPFO, 2xBPFO, BPFI and 2xBPFI with the median RMS of all bands of the same width
 //! (0.5 order, the thesis' bin width) from 0 to `features.max_order`. A window is faulty when
-//! one of those bands stands [`RuleSettings::threshold`] (3x) or more above that median; it is `outer_race` or `inner_race` by whichever race's band stands
-//! highest relative to the median (an exact tie goes to `outer_race`). The rule has no ball
-//! class: a ball fault it sees is called a race fault (an alarm, not a miss). A recording
+//! one of those bands stands [`RuleSettings::threshold`] (3x) or more above that median; it
+//! is `outer_race` or `inner_race` by whichever race's band stands highest relative to the
+//! median (an exact tie goes to `outer_race`). The rule has no ball class: a ball fault it
+//! sees is called a race fault (an alarm, not a miss; unseen, it is a miss). A recording
 //! takes the majority of its windows through the same scoring code as the ONNX classifier.
 
 use crate::bearing::FaultOrders;
