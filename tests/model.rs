@@ -564,6 +564,8 @@ fn aligned_model_keeps_its_classes_gates_the_unknown_and_runs_alike_everywhere()
     assert_eq!(back.meta.trained_mean, model.pre.mean.to_vec());
     let again = align_to_healthy(&back, healthy.view(), &["machine-healthy".into()]).unwrap();
     assert_eq!(again.pre, aligned.pre);
+}
+
 /// Alarm counts recomputed from the per-record list of an evaluation.
 fn alarms_of(v: &serde_json::Value) -> (u64, u64) {
     let recs = v["records"].as_array().unwrap();
