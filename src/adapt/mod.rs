@@ -4,7 +4,8 @@
 //! simulate with the plan's ranges spread around the calibration -> train `seeds` models and
 //! keep the best on simulated validation -> score the labelled recordings before (a
 //! zero-shot model) and after, with the rule baseline beside -> write the folder
-//! ([`report`]).
+//! ([`report`]). Before it is written, the kept model is aligned to the machine's healthy
+//! recordings ([`crate::model::align`]: reference levels and the healthy-baseline gate).
 
 pub mod plan;
 pub mod report;
@@ -12,6 +13,8 @@ pub mod report;
 use crate::calibrate::{fit as cal_fit, measured, plots as cal_plots, report as cal_report};
 use crate::config::RigConfig;
 use crate::evaluate::{score, Evaluation};
+use crate::model::align::align_to_healthy;
+use crate::model::classifier::TrainedModel;
 use crate::model::rule::{EnvelopeRule, RuleSettings};
 use crate::model::{export, OnnxClassifier};
 use crate::sim::dataset::{generate, CalibratedDraws, DatasetSummary};
@@ -95,6 +98,8 @@ pub struct AdaptOutcome {
     pub selection: String,
     pub before_model: String,
     pub model_sha256: String,
+    /// The alignment to the machine's healthy recordings (none when none is labelled healthy).
+    pub alignment: Option<serde_json::Value>,
     pub measured_scores: SetScores,
     pub holdout_scores: Option<SetScores>,
     pub timings_s: Vec<(String, f64)>,
@@ -208,11 +213,7 @@ fn train_seed(
     seed: u64,
     epochs: usize,
     progress: bool,
-) -> Result<(
-    crate::model::classifier::TrainedModel,
-    FitReport,
-    Evaluation,
-)> {
+) -> Result<(TrainedModel, FitReport, Evaluation)> {
     let cfg = TrainConfig {
         seed,
         epochs,
@@ -222,6 +223,36 @@ fn train_seed(
     let r = fit(recs, rig, labels, &cfg, 0.1, |_| pb.inc(1))?;
     pb.finish_and_clear();
     Ok(r)
+}
+
+/// Align the kept model to the machine's healthy measured recordings (reference levels and
+/// the healthy-baseline gate); a model is kept as trained when none is labelled healthy.
+fn align_step(
+    model: TrainedModel,
+    entries: &[ManifestEntry],
+    rig: &RigConfig,
+    progress: bool,
+) -> Result<(TrainedModel, Option<serde_json::Value>)> {
+    let healthy: Vec<ManifestEntry> = entries
+        .iter()
+        .filter(|e| e.label == "healthy")
+        .cloned()
+        .collect();
+    if healthy.is_empty() {
+        tracing::warn!(
+            "no measured recording is labelled healthy: the model is not aligned to the machine"
+        );
+        return Ok((model, None));
+    }
+    let pb = file_bar(progress, healthy.len(), "align");
+    let recs = featurise_all(&healthy, rig, &pb)?;
+    pb.finish_and_clear();
+    let views: Vec<_> = recs.iter().map(|r| r.windows.view()).collect();
+    let windows = ndarray::concatenate(ndarray::Axis(0), &views)?;
+    let names: Vec<String> = recs.iter().map(|r| r.path_text.clone()).collect();
+    let aligned = align_to_healthy(&model, windows.view(), &names)?;
+    let info = serde_json::from_str(&aligned.meta.alignment)?;
+    Ok((aligned, Some(info)))
 }
 
 /// Score a model file and the rule on labelled recordings of the machine.
@@ -314,7 +345,7 @@ pub fn adapt(o: &AdaptOptions) -> Result<AdaptOutcome> {
     let t = Instant::now();
     let labels = class_labels(range.labels.iter().any(|l| l == "ball"));
     let mut seeds = Vec::new();
-    let mut best: Option<(f64, u64, crate::model::classifier::TrainedModel)> = None;
+    let mut best: Option<(f64, u64, TrainedModel)> = None;
     for seed in 1..=o.seeds {
         let (model, rep, ev) = train_seed(&recs, &cal_rig, &labels, seed, o.epochs, o.progress)?;
         seeds.push(SeedResult {
@@ -332,6 +363,7 @@ pub fn adapt(o: &AdaptOptions) -> Result<AdaptOutcome> {
         }
     }
     let (_, chosen_seed, model) = best.expect("at least one seed");
+    let (model, alignment) = align_step(model, &entries, &rig, o.progress)?;
     let model_path = o.out.join("model.onnx");
     export::write(&model, &model_path)?;
     let after = OnnxClassifier::load(&model_path)?;
@@ -393,6 +425,7 @@ pub fn adapt(o: &AdaptOptions) -> Result<AdaptOutcome> {
         chosen_seed,
         before_model: before_name,
         model_sha256: after.meta().sha256.clone(),
+        alignment,
         measured_scores,
         holdout_scores,
         timings_s: timings,

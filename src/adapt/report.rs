@@ -178,6 +178,19 @@ Calibrated rig file: `rig.toml`; full report: `calibration/report.md`.\n\n",
         o.model_sha256,
         o.before_model
     );
+    match &o.alignment {
+        Some(a) => {
+            let _ = write!(
+                m,
+                "Aligned to the machine's healthy recordings ({} windows of {}): reference levels moved by {:.2} (RMS, natural log) and a healthy-baseline gate at distance {:.2}; a window farther from the healthy windows is never called healthy.\n\n",
+                a["windows"],
+                a["records"].as_array().map_or(0, |r| r.len()),
+                a["shift_rms"].as_f64().unwrap_or(f64::NAN),
+                a["baseline_threshold"].as_f64().unwrap_or(f64::NAN)
+            );
+        }
+        None => m += "Not aligned: no measured recording is labelled healthy.\n\n",
+    }
     m += &set_md(
         "Measured recordings (these also calibrated the simulator)",
         &o.measured_scores,
