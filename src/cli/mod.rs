@@ -4,6 +4,7 @@
 pub mod bench;
 pub mod calibrate;
 pub mod dataset;
+pub mod devices;
 pub mod embed;
 pub mod emulate;
 pub mod evaluate;
