@@ -742,7 +742,19 @@ fn throughput_channels_and_rates_with_no_sample_lost() {
             std::thread::spawn(move || {
                 let (mut samples, mut next, mut jumps) = (0u64, None::<u64>, 0u64);
                 let mut started: Option<Instant> = None;
-                while let Ok(b) = rx.recv() {
+                // Never hang: give up 30 s after the planned end even if nothing arrives.
+                let give_up = Instant::now() + Duration::from_secs_f64(seconds + 30.0);
+                loop {
+                    let b = match rx.recv_timeout(Duration::from_millis(500)) {
+                        Ok(b) => b,
+                        Err(std::sync::mpsc::RecvTimeoutError::Timeout) => {
+                            if Instant::now() > give_up {
+                                stop.stop();
+                            }
+                            continue;
+                        }
+                        Err(_) => break,
+                    };
                     let t = *started.get_or_insert_with(Instant::now);
                     if next.is_some_and(|x| x != b.first_sample) {
                         jumps += 1;
@@ -774,6 +786,11 @@ fn throughput_channels_and_rates_with_no_sample_lost() {
             (c1 - c0) / wall * 100.0,
             (c1 - c0) / (samples as f64 * n as f64) * 1e6,
             (s1 - s0) / wall * 100.0
+        );
+        let reconnects = stats.reconnects.load(Ordering::Relaxed);
+        assert!(
+            samples > 0,
+            "{n} x {rate}: no samples (reconnects {reconnects}, bad {bad})"
         );
         assert_eq!((lost, jumps, bad), (0, 0, 0), "{n} x {rate}");
         assert!(
