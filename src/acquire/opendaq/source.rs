@@ -504,45 +504,45 @@ impl OpendaqSource {
                 return Some(p);
             }
             for &(signo, first_index, at, n) in &events {
-                let Some(k) = bound.iter().position(|b| b.signo == Some(signo)) else {
-                    continue; // a domain or another subscriber's signal
-                };
-                let vals = &values[at..at + n];
-                let desc = bound[k].desc.as_ref();
-                let dom = desc
-                    .and_then(|d| d.domain_id.as_ref())
-                    .and_then(|id| session.decoder.signo_of(id))
-                    .and_then(|s| domains.get(&s).copied())
-                    .filter(|d| d.delta > 0);
-                let Some(dom) = dom else {
-                    bad_local += 1;
-                    misfit.warn(|| format!("opendaq {}: values of {} before its time domain was described; skipped", self.endpoint, ids[k]));
-                    continue;
-                };
-                if clock.origin.is_none() {
-                    // Signals subscribed together start a little apart: the clock starts
-                    // `max_lag` samples before the first stamp seen, so the others fit.
-                    clock.origin = Some(dom.ticks - max_lag as i128 * dom.delta as i128);
-                    clock.delta = dom.delta;
+                // Domains match no channel; one signal may feed several rig channels.
+                for k in (0..bound.len()).filter(|&k| bound[k].signo == Some(signo)) {
+                    let vals = &values[at..at + n];
+                    let desc = bound[k].desc.as_ref();
+                    let dom = desc
+                        .and_then(|d| d.domain_id.as_ref())
+                        .and_then(|id| session.decoder.signo_of(id))
+                        .and_then(|s| domains.get(&s).copied())
+                        .filter(|d| d.delta > 0);
+                    let Some(dom) = dom else {
+                        bad_local += 1;
+                        misfit.warn(|| format!("opendaq {}: values of {} before its time domain was described; skipped", self.endpoint, ids[k]));
+                        continue;
+                    };
+                    if clock.origin.is_none() {
+                        // Signals subscribed together start a little apart: the clock starts
+                        // `max_lag` samples before the first stamp seen, so the others fit.
+                        clock.origin = Some(dom.ticks - max_lag as i128 * dom.delta as i128);
+                        clock.delta = dom.delta;
+                    }
+                    let origin = clock.origin.unwrap_or(0);
+                    if dom.delta != clock.delta {
+                        return Some(format!(
+                            "{} has a time step of {} ticks, the clock {}; restart rigmon",
+                            ids[k], dom.delta, clock.delta
+                        ));
+                    }
+                    let ticks =
+                        dom.ticks + (first_index as i128 - dom.index as i128) * dom.delta as i128;
+                    let rel = ticks - origin;
+                    if rel < 0 {
+                        bad_local += 1;
+                        misfit.warn(|| format!("opendaq {}: {} sent values stamped before the start of the clock; skipped", self.endpoint, ids[k]));
+                        continue;
+                    }
+                    let idx = ((rel + dom.delta as i128 / 2) / dom.delta as i128) as u64;
+                    aligner.push(k, idx, vals.iter().map(|&v| v as f32));
+                    last_data = Instant::now();
                 }
-                let origin = clock.origin.unwrap_or(0);
-                if dom.delta != clock.delta {
-                    return Some(format!(
-                        "{} has a time step of {} ticks, the clock {}; restart rigmon",
-                        ids[k], dom.delta, clock.delta
-                    ));
-                }
-                let ticks =
-                    dom.ticks + (first_index as i128 - dom.index as i128) * dom.delta as i128;
-                let rel = ticks - origin;
-                if rel < 0 {
-                    bad_local += 1;
-                    misfit.warn(|| format!("opendaq {}: {} sent values stamped before the start of the clock; skipped", self.endpoint, ids[k]));
-                    continue;
-                }
-                let idx = ((rel + dom.delta as i128 / 2) / dom.delta as i128) as u64;
-                aligner.push(k, idx, vals.iter().map(|&v| v as f32));
-                last_data = Instant::now();
             }
             // Rows every channel has: rig order, sensitivity, split into accel + tacho.
             let layout = &self.layout;
