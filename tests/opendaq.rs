@@ -307,7 +307,7 @@ fn reference_server_sine_and_tacho_arrive_on_a_gap_free_clock() {
         (hz / TACHO_HZ - 1.0) * 100.0
     );
     assert!((hz / TACHO_HZ - 1.0).abs() < 1e-3, "tacho {hz} Hz");
-    assert!(stats.connected.load(Ordering::Relaxed) == false);
+    assert!(!stats.connected.load(Ordering::Relaxed));
     drop(server);
 }
 

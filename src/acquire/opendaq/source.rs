@@ -444,10 +444,8 @@ impl OpendaqSource {
                         gone = Some(format!("the server made {id} unavailable"));
                     }
                 }
-                Event::Unsubscribed { signo } => {
-                    if bound.iter().any(|b| b.signo == Some(signo)) {
-                        gone = Some(format!("the server unsubscribed signal number {signo}"));
-                    }
+                Event::Unsubscribed { signo } if bound.iter().any(|b| b.signo == Some(signo)) => {
+                    gone = Some(format!("the server unsubscribed signal number {signo}"));
                 }
                 Event::Desync(why) => gone = Some(format!("stream out of step ({why})")),
                 _ => {}
