@@ -49,6 +49,8 @@ enum Command {
     Replay(cli::replay::Args),
     /// Print health messages from the network, one line each.
     Watch(cli::watch::Args),
+    /// List the signals of an openDAQ streaming server (DewesoftX, SIRIUS): id, rate, unit.
+    Devices(cli::devices::Args),
     /// Emulate a DAQ adapter (serial) streaming a recording.
     Emulate(cli::emulate::Args),
     /// Benchmarks with ratios against a baseline in the same run.
@@ -78,6 +80,7 @@ fn main() -> std::process::ExitCode {
         Command::Run(a) => cli::run::run(a),
         Command::Replay(a) => cli::replay::run(a),
         Command::Watch(a) => cli::watch::run(a),
+        Command::Devices(a) => cli::devices::run(a),
         Command::Emulate(a) => cli::emulate::run(a),
         Command::Bench(a) => cli::bench::run(a),
     };

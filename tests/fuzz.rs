@@ -1,6 +1,7 @@
 //! Bounded, coverage-free, structure-aware mutation fuzzing of every decoder that reads bytes
 //! from outside rigmon: the serial frame decoder, the CAN frame decoder, the MCAP reader, the
-//! MAT v5 (CWRU/MFPT), WAV and CSV importers, the rig config and the daemon config parsers.
+//! MAT v5 (CWRU/MFPT), WAV and CSV importers, the rig config and the daemon config parsers,
+//! and the openDAQ LT streaming decoder.
 //!
 //! Each target starts from its committed seed corpus (`tests/corpus/<target>/`; every seed
 //! must be accepted, so the corpus stays meaningful), then mutates for a time budget
@@ -14,6 +15,7 @@
 //! `cargo test --test fuzz -- --ignored regenerate_corpus`.
 
 use rigmon::acquire::can_protocol::{CanDecoder, CanEncoder};
+use rigmon::acquire::opendaq::protocol::{self as odp, Event as OdEvent, StreamDecoder};
 use rigmon::acquire::serial_protocol::{self as sp, FrameEncoder, SampleFormat};
 use rigmon::config::daemon::DaemonConfig;
 use rigmon::config::RigConfig;
@@ -1022,6 +1024,88 @@ fn fuzz_can_decoder() {
     fuzz(can_target());
 }
 
+/// openDAQ input format: records of `u16 len (LE)` + `len` bytes, one WebSocket binary
+/// message each (so message boundaries are fuzzed too); a short last record is fed as is.
+fn opendaq_messages(input: &[u8]) -> Vec<&[u8]> {
+    let mut v = Vec::new();
+    let mut i = 0;
+    while i < input.len() {
+        if i + 2 > input.len() {
+            v.push(&input[i..]);
+            break;
+        }
+        let n = u16::from_le_bytes([input[i], input[i + 1]]) as usize;
+        let end = (i + 2 + n).min(input.len());
+        v.push(&input[i + 2..end]);
+        i = end;
+    }
+    v
+}
+
+fn opendaq_target() -> Target {
+    Target {
+        name: "opendaq",
+        kind: Kind::Binary,
+        fixup: None,
+        run: Box::new(|input: &[u8]| {
+            let mut dec = StreamDecoder::new();
+            // Per signal number: the next table index its values must start at.
+            let mut next: BTreeMap<u32, u64> = BTreeMap::new();
+            let mut broken: Option<String> = None;
+            let mut useful = 0usize;
+            for m in opendaq_messages(input) {
+                dec.feed(m, &mut |e| match e {
+                    OdEvent::Values {
+                        signo,
+                        first_index,
+                        values,
+                    } => {
+                        useful += 1;
+                        if let Some(&want) = next.get(&signo) {
+                            if want != first_index && broken.is_none() {
+                                broken = Some(format!(
+                                    "signal {signo}: values start at index {first_index}, expected {want}"
+                                ));
+                            }
+                        }
+                        next.insert(signo, first_index.wrapping_add(values.len() as u64));
+                    }
+                    OdEvent::LinearStart { .. } => useful += 1,
+                    // A (re)description may set a new value index.
+                    OdEvent::Described { signo } | OdEvent::Subscribed { signo, .. } => {
+                        next.remove(&signo);
+                    }
+                    _ => {}
+                });
+                if dec.buffered() > input.len() {
+                    return Verdict::Broken(format!(
+                        "{} bytes buffered from a {}-byte input",
+                        dec.buffered(),
+                        input.len()
+                    ));
+                }
+            }
+            if let Some(b) = broken {
+                return Verdict::Broken(b);
+            }
+            let c = dec.counters();
+            if c.bad() > c.packets + c.desyncs {
+                return Verdict::Broken(format!("counters {c:?}"));
+            }
+            if useful > 0 {
+                Verdict::Accepted
+            } else {
+                Verdict::Rejected
+            }
+        }),
+    }
+}
+
+#[test]
+fn fuzz_opendaq_decoder() {
+    fuzz(opendaq_target());
+}
+
 #[test]
 fn fuzz_mcap_reader() {
     fuzz(mcap_target());
@@ -1223,6 +1307,124 @@ fn serial_seeds() {
         }
         write_seed("serial", file, &out);
     }
+}
+
+/// Records for [`opendaq_messages`]: each message prefixed with its u16 length.
+fn opendaq_record(out: &mut Vec<u8>, msgs: &[Vec<u8>]) {
+    for m in msgs {
+        out.extend_from_slice(&(m.len() as u16).to_le_bytes());
+        out.extend_from_slice(m);
+    }
+}
+
+fn opendaq_seeds() {
+    use serde_json::json;
+    let stream = |dtype: &str, extra: serde_json::Value| {
+        let mut m = vec![
+            odp::encode_meta(
+                0,
+                &json!({"method": "apiVersion", "params": {"version": "2.0.0"}}),
+            ),
+            odp::encode_meta(
+                0,
+                &json!({"method": "init", "params": {"streamId": "::1:5000",
+                "commandInterfaces": {"jsonrpc-http": {"httpMethod": "POST", "httpPath": "/",
+                "httpVersion": "1.1", "port": "7438"}}}}),
+            ),
+            odp::encode_meta(
+                0,
+                &json!({"method": "available", "params": {"signalIds":
+                ["/Dev/AI0Time", "/Dev/AI0"]}}),
+            ),
+            odp::encode_meta(
+                2,
+                &json!({"method": "subscribe", "params": {"signalId": "/Dev/AI0Time"}}),
+            ),
+            odp::encode_meta(
+                2,
+                &json!({"method": "signal", "params": {"definition": {
+                "dataType": "int64", "linear": {"delta": 100}, "name": "Time",
+                "resolution": {"num": 1, "denom": 1_000_000}, "rule": "linear",
+                "unit": {"displayName": "s", "quantity": "time"}}, "tableId": "/Dev/AI0Time",
+                "valueIndex": 0}}),
+            ),
+            odp::encode_meta(
+                3,
+                &json!({"method": "subscribe", "params": {"signalId": "/Dev/AI0"}}),
+            ),
+        ];
+        let mut def = json!({"dataType": dtype, "name": "AI0", "rule": "explicit",
+            "unit": {"displayName": "V", "quantity": "voltage"}});
+        if let (Some(d), Some(x)) = (def.as_object_mut(), extra.as_object()) {
+            d.extend(x.clone());
+        }
+        m.push(odp::encode_meta(
+            3,
+            &json!({"method": "signal", "params": {"definition": def,
+            "tableId": "/Dev/AI0Time", "valueIndex": 0}}),
+        ));
+        m.push(odp::encode_packet(
+            2,
+            odp::TYPE_DATA,
+            &[
+                &0u64.to_le_bytes()[..],
+                &1_795_560_063_689_945i64.to_le_bytes(),
+            ]
+            .concat(),
+        ));
+        m
+    };
+    // real64 as the reference device sends it, two packets per message and one split.
+    let mut m = stream("real64", json!({}));
+    let v: Vec<u8> = signal(40, 1.0)
+        .iter()
+        .flat_map(|x| x.to_le_bytes())
+        .collect();
+    let mut two = odp::encode_packet(3, odp::TYPE_DATA, &v[..160]);
+    two.extend(odp::encode_packet(3, odp::TYPE_DATA, &v[160..]));
+    m.push(two[..100].to_vec());
+    m.push(two[100..].to_vec());
+    m.push(odp::encode_meta(
+        0,
+        &json!({"method": "alive", "params": {"fillLevel": 3}}),
+    ));
+    let mut out = Vec::new();
+    opendaq_record(&mut out, &m);
+    write_seed("opendaq", "real64-reference.bin", &out);
+    // int16 with post-scaling, a time resync and a progress marker.
+    let mut m = stream(
+        "int16",
+        json!({"postScaling": {"scale": 0.001, "offset": 0.5}}),
+    );
+    let v: Vec<u8> = (0..300i16).flat_map(|x| (x * 37).to_le_bytes()).collect();
+    m.push(odp::encode_packet(3, odp::TYPE_DATA, &v));
+    let mut resync = 300u64.to_le_bytes().to_vec();
+    resync.extend(1_795_560_063_800_000i64.to_le_bytes());
+    resync.extend(310u64.to_le_bytes());
+    m.push(odp::encode_packet(2, odp::TYPE_DATA, &resync));
+    m.push(odp::encode_packet(3, odp::TYPE_DATA, &v[..20]));
+    m.push(odp::encode_meta(3, &json!({"method": "unsubscribe"})));
+    let mut out = Vec::new();
+    opendaq_record(&mut out, &m);
+    write_seed("opendaq", "int16-scaled-resync.bin", &out);
+    // Damage between good packets: unknown signal, bad MessagePack, a broken header.
+    let mut m = stream("real32", json!({}));
+    m.push(odp::encode_packet(77, odp::TYPE_DATA, &[1, 2, 3]));
+    m.push(odp::encode_packet(
+        0,
+        odp::TYPE_META,
+        &[2, 0, 0, 0, 0xc1, 0x00],
+    ));
+    let v: Vec<u8> = signal(16, 2.0)
+        .iter()
+        .flat_map(|x| (*x as f32).to_le_bytes())
+        .collect();
+    m.push(odp::encode_packet(3, odp::TYPE_DATA, &v));
+    m.push([0xff, 0xff, 0xff, 0xff, 0, 0, 0, 0].to_vec());
+    m.push(odp::encode_packet(3, odp::TYPE_DATA, &v[..12]));
+    let mut out = Vec::new();
+    opendaq_record(&mut out, &m);
+    write_seed("opendaq", "real32-damaged.bin", &out);
 }
 
 fn can_record(out: &mut Vec<u8>, frames: &[(u32, Vec<u8>)]) {
@@ -1646,6 +1848,16 @@ fn regenerate_corpus() {
     wav_seeds();
     csv_seeds();
     rig_seeds();
+    opendaq_seeds();
+}
+
+/// Regenerate only the openDAQ seeds:
+/// `cargo test --test fuzz -- --ignored regenerate_opendaq_corpus`.
+#[test]
+#[ignore]
+fn regenerate_opendaq_corpus() {
+    let _ = std::fs::remove_dir_all(corpus_dir("opendaq"));
+    opendaq_seeds();
 }
 
 /// The committed corpus stays small.
@@ -1653,7 +1865,7 @@ fn regenerate_corpus() {
 fn corpus_is_small() {
     let mut total = 0;
     for t in [
-        "serial", "can", "mcap", "mat", "wav", "csv", "rig", "daemon",
+        "serial", "can", "mcap", "mat", "wav", "csv", "rig", "daemon", "opendaq",
     ] {
         total += load_corpus(t).iter().map(|(_, b)| b.len()).sum::<usize>();
     }

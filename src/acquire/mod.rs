@@ -1,9 +1,9 @@
 //! Sources: where samples come from (MCAP replay, serial DAQ adapter, CAN adapter, sound
-//! card). Every source runs on its own thread, pushes [`SampleBlock`]s on the sample clock
+//! card, openDAQ streaming server). Every source runs on its own thread, pushes [`SampleBlock`]s on the sample clock
 //! into a bounded channel, and counts what went wrong in [`SourceStats`] instead of failing.
 //!
 //! [`SourceConfig`] is the `[source]` section of the daemon's configuration: a table tagged
-//! by `type` (`file`, `serial`, `can`, `audio`); [`SourceConfig::build`] checks it against
+//! by `type` (`file`, `serial`, `can`, `audio`, `opendaq`); [`SourceConfig::build`] checks it against
 //! the rig and returns a ready [`Source`], or an error that says what to fix.
 
 pub mod assembler;
@@ -13,6 +13,7 @@ pub mod can_protocol;
 pub mod emulator;
 pub mod file_replay;
 pub mod layout;
+pub mod opendaq;
 pub mod serial;
 pub mod serial_protocol;
 
@@ -145,6 +146,8 @@ pub enum SourceConfig {
     Can(can::CanSourceConfig),
     /// A sound card (needs the `audio` feature).
     Audio(audio::AudioSourceConfig),
+    /// An openDAQ LT streaming server (DewesoftX, SIRIUS with openDAQ; [`opendaq`]).
+    Opendaq(opendaq::OpendaqSourceConfig),
 }
 
 impl SourceConfig {
@@ -156,6 +159,7 @@ impl SourceConfig {
             SourceConfig::Serial(c) => c.build(rig),
             SourceConfig::Can(c) => c.build(rig),
             SourceConfig::Audio(c) => c.build(rig),
+            SourceConfig::Opendaq(c) => c.build(rig),
         }
     }
 
@@ -167,13 +171,14 @@ impl SourceConfig {
         }
     }
 
-    /// The `type` tag (`file`, `serial`, `can`, `audio`).
+    /// The `type` tag (`file`, `serial`, `can`, `audio`, `opendaq`).
     pub fn kind(&self) -> &'static str {
         match self {
             SourceConfig::File(_) => "file",
             SourceConfig::Serial(_) => "serial",
             SourceConfig::Can(_) => "can",
             SourceConfig::Audio(_) => "audio",
+            SourceConfig::Opendaq(_) => "opendaq",
         }
     }
 }

@@ -6,6 +6,7 @@ pub mod align;
 pub mod bench;
 pub mod calibrate;
 pub mod dataset;
+pub mod devices;
 pub mod embed;
 pub mod emulate;
 pub mod evaluate;
