@@ -272,7 +272,7 @@ fn score_set(
     let labels = after.meta().labels.clone();
     let kept: Vec<ManifestEntry> = entries
         .iter()
-        .filter(|e| a.outcomes.iter().any(|o| o.path == e.path_text))
+        .filter(|e| a.outcomes.iter().any(|o| o.path == e.display_name()))
         .cloned()
         .collect();
     let rule = EnvelopeRule::for_rig(rig, RuleSettings::default());

@@ -89,7 +89,7 @@ pub fn run(args: Args) -> Result<()> {
                     let paths: Vec<&str> = mo.outcomes.iter().map(|o| o.path.as_str()).collect();
                     let kept: Vec<_> = entries
                         .iter()
-                        .filter(|e| paths.contains(&e.path_text.as_str()))
+                        .filter(|e| paths.contains(&e.display_name().as_str()))
                         .cloned()
                         .collect();
                     (clf.meta().labels.clone(), kept)

@@ -50,6 +50,8 @@ pub struct RuleVerdict {
     pub ratios: [f64; 4],
     /// Mean shaft speed of the window, rpm.
     pub rpm: f64,
+    /// Window start, s since the first sample (0 for a lone spectrum).
+    pub t_start: f64,
 }
 
 impl RuleVerdict {
@@ -128,6 +130,7 @@ impl EnvelopeRule {
             class,
             ratios,
             rpm: 0.0,
+            t_start: 0.0,
         }
     }
 
@@ -168,6 +171,7 @@ impl EnvelopeRule {
                 .with_context(|| format!("{what}: window at t = {t:.3} s"))?;
             let mut v = self.judge(step, lines);
             v.rpm = speed.mean_rpm(t, t + n as f64 / rec.sample_rate);
+            v.t_start = t;
             out.push(v);
             start += hop;
         }

@@ -30,6 +30,21 @@ pub struct ManifestEntry {
 }
 
 impl ManifestEntry {
+    /// How reports name this row: the path as written, with its span when it has one.
+    pub fn display_name(&self) -> String {
+        match self.span {
+            None => self.path_text.clone(),
+            Some((a, b)) if b.is_finite() => format!("{} [{a}-{b} s]", self.path_text),
+            Some((a, _)) => format!("{} [{a} s-]", self.path_text),
+        }
+    }
+
+    /// Whether a feature window `[t_start, t_end]` (s) lies within the row's span.
+    pub fn keeps_window(&self, t_start: f64, t_end: f64) -> bool {
+        self.span
+            .is_none_or(|(a, b)| t_start >= a - 1e-9 && t_end <= b + 1e-9)
+    }
+
     /// How to import this row's file: its declared sample rate, if any (the importers' one rule
     /// then settles it against the file and the rig file).
     pub fn import_options(&self) -> ImportOptions {

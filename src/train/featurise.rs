@@ -46,10 +46,9 @@ pub fn featurise(entry: &ManifestEntry, rig: &RigConfig) -> Result<RecordingFeat
     let mut data = Vec::with_capacity(wins.len() * n);
     let mut rpm = 0.0;
     let mut kept = 0usize;
-    let (from, to) = entry.span.unwrap_or((0.0, f64::INFINITY));
     for w in wins
         .iter()
-        .filter(|w| w.t_start >= from - 1e-9 && w.t_end <= to + 1e-9)
+        .filter(|w| entry.keeps_window(w.t_start, w.t_end))
     {
         let f = w.classifier_features(rig);
         if f.len() != n || f.iter().any(|v| !v.is_finite()) {
@@ -67,11 +66,7 @@ pub fn featurise(entry: &ManifestEntry, rig: &RigConfig) -> Result<RecordingFeat
     }
     Ok(RecordingFeatures {
         path: entry.path.clone(),
-        path_text: match entry.span {
-            None => entry.path_text.clone(),
-            Some((a, b)) if b.is_finite() => format!("{} [{a}-{b} s]", entry.path_text),
-            Some((a, _)) => format!("{} [{a} s-]", entry.path_text),
-        },
+        path_text: entry.display_name(),
         label: entry.label.clone(),
         sha256,
         simulated: is_simulated(&rec),

@@ -6,10 +6,10 @@
 use super::dataset::{ManifestEntry, RecordingFeatures};
 use crate::config::RigConfig;
 use crate::evaluate::RecordOutcome;
-use crate::importers::{self, ImportOptions};
+use crate::importers;
 use crate::model::rule::{class_map, EnvelopeRule};
 use crate::model::OnnxClassifier;
-use anyhow::{Context, Result};
+use anyhow::{bail, Context, Result};
 use rayon::prelude::*;
 
 /// Per-window outcomes of a model on featurised recordings, plus what was left out.
@@ -92,15 +92,26 @@ pub fn rule_outcomes(
     scored
         .par_iter()
         .map(|e| {
-            let rec =
-                importers::load(&e.path, rig, &ImportOptions::default()).with_context(|| {
-                    format!("manifest line {}: loading {}", e.line, e.path.display())
-                })?;
-            let v = rule.judge_recording(&rec, rig)?;
+            let rec = importers::load(&e.path, rig, &e.import_options()).with_context(|| {
+                format!("manifest line {}: loading {}", e.line, e.path.display())
+            })?;
+            let window_s = rig.features.window_s;
+            let v: Vec<_> = rule
+                .judge_recording(&rec, rig)?
+                .into_iter()
+                .filter(|w| e.keeps_window(w.t_start, w.t_start + window_s))
+                .collect();
+            if v.is_empty() {
+                bail!(
+                    "{}: no whole window within the manifest row's span (line {})",
+                    e.path.display(),
+                    e.line
+                );
+            }
             progress.inc(1);
             let n = v.len().max(1) as f64;
             Ok(RecordOutcome {
-                path: e.path_text.clone(),
+                path: e.display_name(),
                 label: labels
                     .iter()
                     .position(|l| l == &e.label)
