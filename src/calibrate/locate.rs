@@ -71,6 +71,8 @@ fn peaks(res: &[f64], min_db: f64) -> Vec<(usize, f64)> {
 const COMB_HARMONICS: usize = 12;
 /// Relative width of the mask around each comb line.
 const COMB_TOL: f64 = 0.03;
+/// Width of the mask around each integer order, orders.
+const INTEGER_TOL: f64 = 0.05;
 
 /// Whether `order` lies on the located fault comb of a faulty recording (or on an integer
 /// order, the inner-race load-zone modulation).
@@ -79,7 +81,7 @@ fn on_fault_comb(m: &Views, order: f64) -> bool {
         return false;
     }
     let near = |target: f64| target > 0.0 && (order - target).abs() <= COMB_TOL * target.max(1.0);
-    if near(order.round()) {
+    if order.round() >= 1.0 && (order - order.round()).abs() <= INTEGER_TOL {
         return true;
     }
     m.fault_peaks.iter().any(|p| {

@@ -116,7 +116,7 @@ fn order_candidates(o: f64, f: &FaultOrders, out: &mut Vec<&str>) {
     if (0.38..=0.48).contains(&o) {
         out.push("fluid-film (oil) whirl or another sub-synchronous instability");
     }
-    let integer = (o - o.round()).abs() <= NEAR * o.round().max(1.0);
+    let integer = (o - o.round()).abs() <= FRACTION_TOL;
     if !integer && o < HALF_ORDERS_UP_TO && near_fraction(o, 2.0, &[1.0]) {
         out.push("mechanical looseness (half-order sub-harmonics), rub");
     }
