@@ -22,17 +22,18 @@ fn repo() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR"))
 }
 
-/// Generate a case with the independent generator; returns its folder and truth.json.
-fn generate(dir: &Path, case: &str) -> Value {
-    generate_seed(dir, case, SEED)
+/// Generate a case with the independent generator; returns truth.json.
+fn generate_seed(dir: &Path, case: &str, seed: &str) -> Value {
+    generate_long(dir, case, seed, SECONDS)
 }
 
-fn generate_seed(dir: &Path, case: &str, seed: &str) -> Value {
+/// Generate `seconds` of each recording.
+fn generate_long(dir: &Path, case: &str, seed: &str, seconds: &str) -> Value {
     let out = Command::new("python3")
         .arg(repo().join("tests/python/measured_like.py"))
         .args(["--out"])
         .arg(dir)
-        .args(["--case", case, "--seed", seed, "--seconds", SECONDS])
+        .args(["--case", case, "--seed", seed, "--seconds", seconds])
         .output()
         .expect("python3 with numpy is needed (tests/python/requirements.txt)");
     assert!(
@@ -52,9 +53,14 @@ struct Run {
 
 /// Generate `case`, run `rigmon calibrate --json` on it (labels only, no parameters).
 fn calibrate(case: &str) -> Run {
+    calibrate_long(case, SECONDS)
+}
+
+/// [`calibrate`] on recordings of `seconds`, analysed whole.
+fn calibrate_long(case: &str, seconds: &str) -> Run {
     let dir = tempfile::tempdir().unwrap();
     let data = dir.path().join("data");
-    let truth = generate(&data, case);
+    let truth = generate_long(&data, case, SEED, seconds);
     let calibrated = dir.path().join("calibrated.toml");
     let report = run_calibrate(
         case,
@@ -73,9 +79,21 @@ fn calibrate(case: &str) -> Run {
 /// `rigmon calibrate --rig <rig> --measured <measured> -o <dir>/calibrated.toml --report
 /// <dir>/report --json`; returns the JSON report and checks the report files exist.
 fn run_calibrate(what: &str, rig: &Path, measured: &Path, dir: &Path) -> Value {
+    run_calibrate_args(what, rig, measured, dir, &[])
+}
+
+/// [`run_calibrate`] with extra arguments (e.g. `--seconds`).
+fn run_calibrate_args(
+    what: &str,
+    rig: &Path,
+    measured: &Path,
+    dir: &Path,
+    extra: &[&str],
+) -> Value {
     let t0 = std::time::Instant::now();
     let out = Command::new(env!("CARGO_BIN_EXE_rigmon"))
         .arg("calibrate")
+        .args(extra)
         .arg("--rig")
         .arg(rig)
         .arg("--measured")
@@ -441,11 +459,13 @@ fn cwru_healthy_record_calibrates() {
         record.display()
     );
     let dir = tempfile::tempdir().unwrap();
-    let r = run_calibrate(
+    // the shipped calibration analyses the record's first 2 s (one second fits, one is held out)
+    let r = run_calibrate_args(
         "cwru",
         &repo().join("config/cwru-de.toml"),
         &record,
         dir.path(),
+        &["--seconds", "2"],
     );
     check_shape(&r);
     assert!(num(&r["error_after"], "error_after") < num(&r["error_before"], "error_before"));
@@ -487,5 +507,83 @@ fn cwru_healthy_record_calibrates() {
         bpfi,
         "the 162 Hz inner-race line is not unexplained: {}",
         r["unexplained"]
+    );
+}
+
+/// A speed fluctuation slower than the old 2 s of analysis could show (period 4 s, 4 %
+/// deep): analysed whole (10 s recordings, two and a half periods), `speed_fluctuation` is
+/// named first with its depth and its period within 20 %, and the report says how much of
+/// each recording was analysed.
+#[test]
+fn a_slow_speed_fluctuation_is_fitted_from_the_whole_recording() {
+    let run = calibrate_long("slow_speed_fluctuation", "10");
+    let r = &run.report;
+    check_shape(r);
+    let effects = r["effects"].as_array().unwrap();
+    assert!(
+        !effects.is_empty() && effects[0]["name"] == "speed_fluctuation",
+        "slow fluctuation: effects {}",
+        r["effects"]
+    );
+    for key in ["fraction", "period_s"] {
+        let fitted = num(&effects[0]["params"][key], key);
+        let truth = num(&run.truth["params"][key], key);
+        assert!(
+            (fitted - truth).abs() <= 0.2 * truth,
+            "slow fluctuation: {key} fitted {fitted}, truth {truth} (more than 20 % off)"
+        );
+    }
+    let (before, after) = (num(&r["error_before"], ""), num(&r["error_after"], ""));
+    assert!(
+        after <= 0.5 * before,
+        "error {before} -> {after} did not halve"
+    );
+    for rec in r["recordings"].as_array().unwrap() {
+        let s = num(&rec["seconds"], "recordings[].seconds");
+        assert!(
+            (s - 10.0).abs() < 0.01,
+            "analysed {s} s of {}",
+            rec["recording"]
+        );
+        assert_eq!(rec["segments"], 5, "{rec}");
+    }
+}
+
+/// A sub-synchronous line locked to the shaft (0.46x, as fluid-film whirl) is no catalog
+/// effect and sits below 1x, where `orders` and `harmonics` do not look and `lines` sees
+/// healthy recordings only: the `fractional` view locates it, locked to speed, within 3 %
+/// of its order, with whirl among the candidates; nothing is accepted for it.
+#[test]
+fn a_sub_synchronous_effect_outside_the_catalog_is_located() {
+    let run = calibrate("whirl");
+    let r = &run.report;
+    check_shape(r);
+    assert_eq!(
+        r["effects"].as_array().unwrap().len(),
+        0,
+        "whirl: a catalog effect absorbed it: {}",
+        r["effects"]
+    );
+    let want = &run.truth["outside"];
+    let loc = num(&want["location"], "truth location");
+    let hit = r["unexplained"].as_array().unwrap().iter().find(|u| {
+        u["unit"] == "order"
+            && u["locked_to"] == "speed"
+            && (num(&u["location"], "location") - loc).abs() <= 0.03 * loc
+    });
+    let hit = hit.unwrap_or_else(|| {
+        panic!(
+            "whirl: nothing unexplained at order {loc} locked to speed; got {}",
+            r["unexplained"]
+        )
+    });
+    assert!(
+        hit["candidates"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .any(|c| c.as_str().unwrap_or("").contains("whirl")),
+        "whirl: candidates {}",
+        hit["candidates"]
     );
 }

@@ -2,6 +2,7 @@
 //! measured in the same run. One file per benchmark; results go in the README with the
 //! machine they ran on (see [`machine_line`]).
 
+pub mod calibrate;
 pub mod features;
 pub mod footprint;
 pub mod load;

@@ -26,7 +26,14 @@
 //! - `floor` (recordings labelled healthy: in a faulty one the impacts' skirts cover the
 //!   quiet part of the spectrum): difference of the absolute broadband floors, dB;
 //! - `speed` (every recording): half the summed absolute difference of the speed-deviation
-//!   spectra, percent.
+//!   spectra, percent;
+//! - `fractional` (every recording): sub-synchronous and fractional shaft orders
+//!   (0.2x-4x between the integers), summed dB / [`FRACTIONAL_PER`] (a 10 dB line about five
+//!   grid points wide counts 0.5);
+//! - `impacts` (recordings labelled healthy: in a faulty one the fault's own comb, which `env`,
+//!   `peaks` and `ratios` compare, fills it): envelope spectrum in Hz of the broadband
+//!   energy, summed dB / [`IMPACTS_PER`]; its residuals are located in faulty recordings too
+//!   ([`super::locate`], away from the labelled fault's comb).
 //!
 //! The README defines it too.
 
@@ -48,11 +55,13 @@ pub struct ErrorParts {
     pub modes: f64,
     pub floor: f64,
     pub speed: f64,
+    pub fractional: f64,
+    pub impacts: f64,
     pub total: f64,
 }
 
 /// Component names, in report order.
-pub const NAMES: [&str; 10] = [
+pub const NAMES: [&str; 12] = [
     "env",
     "peaks",
     "ratios",
@@ -63,6 +72,8 @@ pub const NAMES: [&str; 10] = [
     "modes",
     "floor",
     "speed",
+    "fractional",
+    "impacts",
 ];
 
 /// `modes` when the measured resonance stands out and the simulated one does not (its
@@ -71,6 +82,14 @@ pub const MODE_MISSING_BANDS: f64 = 10.0;
 
 /// Divisor of the summed `lines` and `ratios` differences, dB.
 pub const LINES_PER: f64 = 10.0;
+/// Divisor of the summed `fractional` differences (0.02-order grid), dB.
+pub const FRACTIONAL_PER: f64 = 100.0;
+/// Divisor of the summed `impacts` differences (1 Hz grid), dB.
+pub const IMPACTS_PER: f64 = 20.0;
+
+fn summed_abs(a: &[f64], b: &[f64]) -> f64 {
+    a.iter().zip(b).map(|(x, y)| (x - y).abs()).sum()
+}
 
 /// The smallest cut of each component that counts as a change (acceptance, see
 /// [`super::fit::accepts`]), in the component's unit.
@@ -157,6 +176,12 @@ pub fn pair(m: &Views, s: &Views) -> ErrorParts {
             .zip(&s.speed[..n])
             .map(|(x, y)| (x - y).abs())
             .sum::<f64>();
+    let fractional = summed_abs(&m.fractional, &s.fractional) / FRACTIONAL_PER;
+    let impacts = if m.healthy {
+        summed_abs(&m.impacts, &s.impacts) / IMPACTS_PER
+    } else {
+        f64::NAN
+    };
     ErrorParts {
         env,
         peaks,
@@ -168,6 +193,8 @@ pub fn pair(m: &Views, s: &Views) -> ErrorParts {
         modes,
         floor,
         speed,
+        fractional,
+        impacts,
         total: 0.0,
     }
     .summed()
@@ -187,6 +214,8 @@ impl ErrorParts {
             "modes" => self.modes,
             "floor" => self.floor,
             "speed" => self.speed,
+            "fractional" => self.fractional,
+            "impacts" => self.impacts,
             _ => self.total,
         }
     }
@@ -203,6 +232,8 @@ impl ErrorParts {
             "modes" => &mut self.modes,
             "floor" => &mut self.floor,
             "speed" => &mut self.speed,
+            "fractional" => &mut self.fractional,
+            "impacts" => &mut self.impacts,
             _ => &mut self.total,
         }
     }

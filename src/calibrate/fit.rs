@@ -2,9 +2,13 @@
 //! each catalog effect not yet added (bounded search on the fit part, on the effect's own
 //! components; accepted effects whose view it moves are re-fitted with it), and add the one
 //! that cuts its own components most, if the held-out part confirms it ([`accepts`]). Stops
-//! when nothing passes. Views are cached by (simulation section, operating point), engine
-//! runs by the section's engine part, so effects of the sensor stage (noise, lines) do not
-//! re-run the mechanics.
+//! when nothing passes. The trials of a round run in parallel. Views are cached by
+//! (simulation section, operating point), engine runs by the section's engine part in a
+//! least-recently-used cache, so effects of the sensor stage (noise, lines, shaft lines) do
+//! not re-run the mechanics. A measured recording is analysed whole, its views averaged over
+//! [`views::SEGMENT_S`] segments; its simulated twin is one segment long, and the twin's
+//! `speed` view comes from its speed profile over the whole measured length
+//! ([`views::compute`]).
 
 use super::catalog::{self, Effect, ALL};
 use super::error::{self, min_cut, ErrorParts};
@@ -14,9 +18,11 @@ use super::modes::Mode;
 use super::search;
 use super::views::{self, Views};
 use crate::config::simulation::SimulationConfig;
-use crate::config::RigConfig;
+use crate::config::{RigConfig, SpeedConfig};
+use crate::dsp::speed::SpeedTrack;
 use crate::sim::{
     dominant_resonance_hz, rig_simulation, run_engine, sensor, unit_scale, EngineRun, Scenario,
+    SpeedProfile,
 };
 use anyhow::{Context, Result};
 use rayon::prelude::*;
@@ -117,6 +123,80 @@ pub struct Outcome {
     pub views_after: Vec<Views>,
 }
 
+/// How the calibration runs. [`Options::default`] is the normal way; [`Options::baseline`]
+/// is the way it ran before recordings were analysed whole (each measured recording as one
+/// piece with a twin as long as it, trials one after the other, the engine cache emptied
+/// when full): `rigmon bench calibrate` times both on the same data.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Options {
+    /// Measured views averaged over [`views::SEGMENT_S`] segments and twins one segment long
+    /// (else one piece, the twin as long as the recording).
+    pub segmented: bool,
+    /// The trials of a round in parallel.
+    pub parallel_trials: bool,
+    /// Least-recently-used engine cache (else emptied whenever it is full).
+    pub engine_lru: bool,
+}
+
+impl Default for Options {
+    fn default() -> Self {
+        Options {
+            segmented: true,
+            parallel_trials: true,
+            engine_lru: true,
+        }
+    }
+}
+
+impl Options {
+    /// The calibration as it ran before whole-recording analysis (see [`Options`]).
+    pub fn baseline() -> Self {
+        Options {
+            segmented: false,
+            parallel_trials: false,
+            engine_lru: false,
+        }
+    }
+}
+
+/// Engine runs by key, least recently used evicted first.
+struct EngineCache {
+    runs: HashMap<(String, usize), (Arc<EngineRun>, u64)>,
+    clock: u64,
+    capacity: usize,
+    lru: bool,
+}
+
+impl EngineCache {
+    fn get(&mut self, key: &(String, usize)) -> Option<Arc<EngineRun>> {
+        self.clock += 1;
+        let now = self.clock;
+        self.runs.get_mut(key).map(|(r, used)| {
+            *used = now;
+            r.clone()
+        })
+    }
+
+    fn insert(&mut self, key: (String, usize), run: Arc<EngineRun>) {
+        self.clock += 1;
+        if self.runs.len() >= self.capacity {
+            if self.lru {
+                if let Some(oldest) = self
+                    .runs
+                    .iter()
+                    .min_by_key(|(_, (_, used))| *used)
+                    .map(|(k, _)| k.clone())
+                {
+                    self.runs.remove(&oldest);
+                }
+            } else {
+                self.runs.clear();
+            }
+        }
+        self.runs.insert(key, (run, self.clock));
+    }
+}
+
 /// Measured recordings and their simulated twins.
 pub struct Twin<'a> {
     pub rig: &'a RigConfig,
@@ -126,22 +206,64 @@ pub struct Twin<'a> {
     views: Mutex<HashMap<(String, usize), Arc<Views>>>,
     /// Engine runs by (engine part of the section, operating point): effects that change
     /// only the sensor stage reuse them. Bounded (see [`ENGINE_CACHE_PER_OP`]).
-    engines: Mutex<HashMap<(String, usize), Arc<EngineRun>>>,
+    engines: Mutex<EngineCache>,
     /// Factor from the classifier channel's unit to m/s^2.
     pub unit_to_m_s2: f64,
+    pub options: Options,
 }
 
-/// Engine runs kept per operating point before the cache is emptied (searches vary one
-/// effect at a time, so the runs they reuse are few and recent).
-pub const ENGINE_CACHE_PER_OP: usize = 4;
+/// Engine runs kept per operating point: every trial of a round keeps its own base run and
+/// the run it is varying, so with the trials in parallel the recent runs are a few per
+/// effect that changes the mechanics.
+pub const ENGINE_CACHE_PER_OP: usize = 8;
+/// The same, in the baseline (emptied when full).
+pub const ENGINE_CACHE_PER_OP_BASELINE: usize = 4;
+
+/// The speed track of a simulated twin over `seconds` as the rig's speed source would
+/// read it: a tacho or an estimate follow the twin's speed profile (the sine of
+/// `[simulation.speed_fluctuation]`, else constant); a fixed speed stays fixed and the
+/// `recording` source takes the stored mean speed, as for any simulated recording.
+pub fn twin_speed_track(
+    rig: &RigConfig,
+    sim: &SimulationConfig,
+    rpm: f64,
+    seconds: f64,
+) -> Result<SpeedTrack> {
+    let profile = match &sim.speed_fluctuation {
+        Some(f) => SpeedProfile::Sine {
+            rpm,
+            amplitude_rpm: f.fraction * rpm,
+            period_s: f.period_s,
+        },
+        None => SpeedProfile::Constant { rpm },
+    };
+    match &rig.speed {
+        SpeedConfig::Fixed { rpm } => SpeedTrack::fixed(*rpm),
+        SpeedConfig::Recording => SpeedTrack::constant(profile.mean_rpm(seconds), "recording"),
+        _ => {
+            let n = (seconds * 100.0).ceil() as usize + 2;
+            let t: Vec<f64> = (0..n).map(|i| i as f64 / 100.0).collect();
+            let hz: Vec<f64> = t.iter().map(|&ti| profile.rpm_at(ti) / 60.0).collect();
+            SpeedTrack::from_profile(&t, &hz, "simulated profile")
+        }
+    }
+}
 
 impl<'a> Twin<'a> {
     pub fn new(rig: &'a RigConfig, ops: &'a [Measured]) -> Result<Self> {
+        Self::with_options(rig, ops, Options::default())
+    }
+
+    pub fn with_options(rig: &'a RigConfig, ops: &'a [Measured], options: Options) -> Result<Self> {
         let measured = ops
             .par_iter()
             .map(|m| {
-                views::compute(&m.recording, rig, &m.faults)
-                    .with_context(|| format!("views of {}", m.name))
+                let v = if options.segmented {
+                    views::compute(&m.recording, rig, &m.faults)
+                } else {
+                    whole_piece(&m.recording, rig, &m.faults)
+                };
+                v.with_context(|| format!("views of {}", m.name))
             })
             .collect::<Result<Vec<_>>>()?;
         let ch = rig
@@ -149,13 +271,24 @@ impl<'a> Twin<'a> {
             .or_else(|| rig.acceleration_channels().next())
             .context("the rig has no acceleration channel")?;
         let unit_to_m_s2 = ch.sensitivity / unit_scale(&ch.unit, &ch.name)?;
+        let per_op = if options.engine_lru {
+            ENGINE_CACHE_PER_OP
+        } else {
+            ENGINE_CACHE_PER_OP_BASELINE
+        };
         Ok(Twin {
             rig,
             ops,
             measured,
             unit_to_m_s2,
             views: Mutex::new(HashMap::new()),
-            engines: Mutex::new(HashMap::new()),
+            engines: Mutex::new(EngineCache {
+                runs: HashMap::new(),
+                clock: 0,
+                capacity: per_op * ops.len(),
+                lru: options.engine_lru,
+            }),
+            options,
         })
     }
 
@@ -168,14 +301,15 @@ impl<'a> Twin<'a> {
         let m = &self.ops[i];
         let mut s = sim.clone();
         s.sample_rate_hz = Some(m.recording.sample_rate);
-        let sc = Scenario::constant(&m.faults, m.rpm, m.recording.duration_s(), 1000 + i as u64);
+        let dur = m.recording.duration_s();
+        let twin_s = if self.options.segmented {
+            views::segment_seconds(dur)
+        } else {
+            dur
+        };
+        let sc = Scenario::constant(&m.faults, m.rpm, twin_s, 1000 + i as u64);
         let engine_key = (serde_json::to_string(&s.engine_part())?, i);
-        let cached = self
-            .engines
-            .lock()
-            .expect("cache")
-            .get(&engine_key)
-            .cloned();
+        let cached = self.engines.lock().expect("cache").get(&engine_key);
         let run = match cached {
             Some(r) => r,
             None => {
@@ -183,16 +317,23 @@ impl<'a> Twin<'a> {
                     run_engine(self.rig, &s, &sc)
                         .with_context(|| format!("simulating the twin of {}", m.name))?,
                 );
-                let mut engines = self.engines.lock().expect("cache");
-                if engines.len() >= ENGINE_CACHE_PER_OP * self.ops.len() {
-                    engines.clear();
-                }
-                engines.insert(engine_key, r.clone());
+                self.engines
+                    .lock()
+                    .expect("cache")
+                    .insert(engine_key, r.clone());
                 r
             }
         };
         let rec = sensor::finish(self.rig, &sc.overrides.apply(&s), &sc, &run)?;
-        let mut v = views::compute(&rec, self.rig, &m.faults)?;
+        let mut v = if self.options.segmented {
+            let mut v = views::compute_segment(&rec, self.rig, &m.faults)?;
+            let track = twin_speed_track(self.rig, &s, m.rpm, dur)?;
+            v.speed = views::speed_view(&track, dur, track.mean_rpm(0.0, dur));
+            v.seconds = dur;
+            v
+        } else {
+            whole_piece(&rec, self.rig, &m.faults)?
+        };
         // the simulated side of `modes` is the model's dominant mode (see `error`)
         if let Some(hz) = dominant_resonance_hz(self.rig, &s) {
             v.mode = Mode {
@@ -213,6 +354,19 @@ impl<'a> Twin<'a> {
             .collect::<Result<Vec<_>>>()?;
         Ok(error::mean(&parts))
     }
+}
+
+/// The views of a recording as one piece (the baseline, [`Options::baseline`]).
+fn whole_piece(
+    rec: &crate::recording::Recording,
+    rig: &RigConfig,
+    faults: &[crate::sim::Fault],
+) -> Result<Views> {
+    let mut v = views::compute_segment(rec, rig, faults)?;
+    let track = SpeedTrack::for_recording(rec, rig)?;
+    let dur = rec.duration_s();
+    v.speed = views::speed_view(&track, dur, v.rpm);
+    Ok(v)
 }
 
 /// Extra, reportable parameters derived from the simulation: the total 1x and 2x amplitudes
@@ -304,10 +458,38 @@ fn named_params(
     Ok(p)
 }
 
-/// Run the greedy calibration.
+/// Run the greedy calibration on measured operating points (from [`super::measured::load`],
+/// split by [`super::measured::checkerboard`]): the library entry point of `rigmon
+/// calibrate`.
 pub fn calibrate(rig: &RigConfig, ops: &[Measured], fit_part: Vec<bool>) -> Result<Outcome> {
+    calibrate_with(rig, ops, fit_part, Options::default())
+}
+
+/// Longest `speed_fluctuation` period the catalog searches, s.
+pub const LONGEST_PERIOD_S: f64 = 5.0;
+
+/// [`calibrate`] with explicit [`Options`].
+pub fn calibrate_with(
+    rig: &RigConfig,
+    ops: &[Measured],
+    fit_part: Vec<bool>,
+    options: Options,
+) -> Result<Outcome> {
     let base = rig_simulation(rig)?.clone();
-    let twin = Twin::new(rig, ops)?;
+    let shortest = ops
+        .iter()
+        .map(|m| m.recording.duration_s())
+        .fold(f64::INFINITY, f64::min);
+    if shortest < 2.0 * LONGEST_PERIOD_S {
+        tracing::warn!(
+            "the shortest analysed recording is {shortest:.1} s: a speed fluctuation slower \
+             than {:.1} s per period (half of it) cannot be resolved (the catalog searches up to \
+             {LONGEST_PERIOD_S} s); analyse {:.0} s or more (--seconds, or longer recordings)",
+            shortest / 2.0,
+            2.0 * LONGEST_PERIOD_S
+        );
+    }
+    let twin = Twin::with_options(rig, ops, options)?;
     let all: Vec<usize> = (0..ops.len()).collect();
     let fit: Vec<usize> = all.iter().copied().filter(|&i| fit_part[i]).collect();
     let held: Vec<usize> = all.iter().copied().filter(|&i| !fit_part[i]).collect();
@@ -329,11 +511,12 @@ pub fn calibrate(rig: &RigConfig, ops: &[Measured], fit_part: Vec<bool>) -> Resu
         let cur_held_parts = twin.error(&current, &held)?;
         let (cur_fit, cur_held) = (cur_fit_parts.total, cur_held_parts.total);
         let cur_all = twin.error(&current, &all)?.total;
-        let mut trials = Vec::new();
-        for effect in ALL {
-            if accepted.iter().any(|t| t.effect == Some(effect)) {
-                continue;
-            }
+        let open: Vec<Effect> = ALL
+            .iter()
+            .copied()
+            .filter(|e| !accepted.iter().any(|t| t.effect == Some(*e)))
+            .collect();
+        let try_effect = |effect: Effect| -> Result<Trial> {
             let own = effect.components();
             let (values, _, mut evals) = search_effect(&twin, effect, &current, None, &fit, &cx)?;
             let mut cand = effect.apply(&current, &values, &cx);
@@ -370,7 +553,7 @@ pub fn calibrate(rig: &RigConfig, ops: &[Measured], fit_part: Vec<bool>) -> Resu
             let (own_fit_before, own_held_before) = (cur_fit_parts.of(own), cur_held_parts.of(own));
             let own_held_after = held_parts.of(own);
             let all_parts = twin.error(&cand, &all)?;
-            trials.push(Trial {
+            Ok(Trial {
                 name: effect.name().into(),
                 params: named_params(&twin, effect, &values, &cand, &cx)?,
                 fit_before: cur_fit,
@@ -398,8 +581,15 @@ pub fn calibrate(rig: &RigConfig, ops: &[Measured], fit_part: Vec<bool>) -> Resu
                 effect: Some(effect),
                 values,
                 candidate: Some(cand),
-            });
-        }
+            })
+        };
+        let mut trials: Vec<Trial> = if twin.options.parallel_trials {
+            open.par_iter()
+                .map(|e| try_effect(*e))
+                .collect::<Result<_>>()?
+        } else {
+            open.iter().map(|e| try_effect(*e)).collect::<Result<_>>()?
+        };
         let best = trials
             .iter()
             .enumerate()
@@ -441,7 +631,8 @@ pub fn calibrate(rig: &RigConfig, ops: &[Measured], fit_part: Vec<bool>) -> Resu
         .map(|&i| twin.simulated(&current, i).map(|v| (*v).clone()))
         .collect::<Result<_>>()?;
     let pairs: Vec<(&Views, &Views)> = twin.measured.iter().zip(views_after.iter()).collect();
-    let unexplained = locate(&pairs);
+    let mut unexplained = locate(&pairs);
+    super::trace::annotate(&mut unexplained, &rig.bearing.fault_orders());
     Ok(Outcome {
         fit_part,
         before,

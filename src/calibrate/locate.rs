@@ -1,10 +1,15 @@
 //! Where a residual is: peaks of measured-minus-simulated views, expressed in orders or Hz,
 //! and whether they follow the shaft (`speed`: same order at different speeds), stay put
 //! (`frequency`: same Hz at different speeds) or cannot be told (`undetermined`: one speed
-//! only). Narrowband content comes from the `lines` and `env` views, broadband from `bands`,
-//! modulation from the fault combs' sideband ratios (`modulation`) and misplaced fault lines
-//! from their located orders (`peaks`).
+//! only). Narrowband content comes from the `lines` and `env` views, sub-synchronous and
+//! fractional shaft orders from `fractional`, repeated impacting from `impacts` (envelope of
+//! the band energy, in Hz), broadband from `bands`, modulation from the fault combs'
+//! sideband ratios (`modulation`) and misplaced fault lines from their located orders
+//! (`peaks`). Each finding carries the physical causes that usually produce such a
+//! signature ([`super::trace`]): candidates, not findings.
 
+use super::fractional_orders;
+use super::impacts;
 use super::measured::{distinct_speeds, several_speeds};
 use super::views::{env_order, Views, BAND_HZ, LINES_MIN_HZ};
 use serde::Serialize;
@@ -28,6 +33,12 @@ pub struct Unexplained {
     pub excess_db: f64,
     /// Recordings showing it.
     pub recordings: usize,
+    /// The location in shaft orders (Hz over each recording's shaft speed, mean over the
+    /// recordings showing it); meaningful unless `locked_to` is `frequency`.
+    pub order: f64,
+    /// Physical causes that usually produce this signature ([`super::trace`]); candidates
+    /// to check, never findings.
+    pub candidates: Vec<String>,
 }
 
 struct Peak {
@@ -54,6 +65,30 @@ fn peaks(res: &[f64], min_db: f64) -> Vec<(usize, f64)> {
         .collect()
 }
 
+/// Harmonics of a located fault order, and its modulation sidebands (+-1x, +-2x), masked in
+/// the `impacts` view of a faulty recording: that comb is the labelled fault's own, compared
+/// in `env`, `peaks` and `ratios`.
+const COMB_HARMONICS: usize = 12;
+/// Relative width of the mask around each comb line.
+const COMB_TOL: f64 = 0.03;
+/// Width of the mask around each integer order, orders.
+const INTEGER_TOL: f64 = 0.05;
+
+/// Whether `order` lies on the located fault comb of a faulty recording (or on an integer
+/// order, the inner-race load-zone modulation).
+fn on_fault_comb(m: &Views, order: f64) -> bool {
+    if m.healthy {
+        return false;
+    }
+    let near = |target: f64| target > 0.0 && (order - target).abs() <= COMB_TOL * target.max(1.0);
+    if order.round() >= 1.0 && (order - order.round()).abs() <= INTEGER_TOL {
+        return true;
+    }
+    m.fault_peaks.iter().any(|p| {
+        (1..=COMB_HARMONICS).any(|k| (-2..=2).any(|j| near(k as f64 * p.order + j as f64)))
+    })
+}
+
 /// Residual locations for pairs of (measured, simulated) views.
 pub fn locate(pairs: &[(&Views, &Views)]) -> Vec<Unexplained> {
     let speeds: Vec<f64> = pairs.iter().map(|(m, _)| m.rpm / 60.0).collect();
@@ -62,6 +97,10 @@ pub fn locate(pairs: &[(&Views, &Views)]) -> Vec<Unexplained> {
     let mut line_peaks = Vec::new();
     let mut env_peaks = Vec::new();
     let mut band_peaks = Vec::new();
+    let mut fractional_peaks = Vec::new();
+    let mut impact_peaks = Vec::new();
+    let frac_orders = fractional_orders::orders();
+    let impact_hz = impacts::frequencies();
     let mut modulation = Vec::new();
     let mut misplaced = Vec::new();
     for (r, (m, s)) in pairs.iter().enumerate() {
@@ -110,6 +149,39 @@ pub fn locate(pairs: &[(&Views, &Views)]) -> Vec<Unexplained> {
                 excess: e,
             });
         }
+        let res: Vec<f64> = m
+            .fractional
+            .iter()
+            .zip(&s.fractional)
+            .map(|(a, b)| a - b)
+            .collect();
+        for (i, e) in peaks(&res, LINE_EXCESS_DB) {
+            let o = frac_orders[i];
+            fractional_peaks.push(Peak {
+                rec: r,
+                hz: o * fr,
+                order: o,
+                excess: e,
+            });
+        }
+        let res: Vec<f64> = m
+            .impacts
+            .iter()
+            .zip(&s.impacts)
+            .map(|(a, b)| a - b)
+            .collect();
+        for (i, e) in peaks(&res, LINE_EXCESS_DB) {
+            let hz = impact_hz[i];
+            if on_fault_comb(m, hz / fr) {
+                continue;
+            }
+            impact_peaks.push(Peak {
+                rec: r,
+                hz,
+                order: hz / fr,
+                excess: e,
+            });
+        }
         for (i, (a, b)) in m.bands.iter().zip(&s.bands).enumerate() {
             if a - b > BAND_EXCESS_DB {
                 let hz = m.band_lo_hz[i] + BAND_HZ / 2.0;
@@ -124,6 +196,8 @@ pub fn locate(pairs: &[(&Views, &Views)]) -> Vec<Unexplained> {
     }
     group(&line_peaks, &speeds, "lines", &mut out);
     group(&env_peaks, &speeds, "env", &mut out);
+    group(&fractional_peaks, &speeds, "fractional", &mut out);
+    group(&impact_peaks, &speeds, "impacts", &mut out);
     group(&band_peaks, &speeds, "bands", &mut out);
     group(&modulation, &speeds, "modulation", &mut out);
     group(&misplaced, &speeds, "peaks", &mut out);
@@ -205,6 +279,11 @@ fn group(peaks: &[Peak], speeds: &[f64], view: &str, out: &mut Vec<Unexplained>)
             view: view.into(),
             excess_db: (excess * 10.0).round() / 10.0,
             recordings: n,
+            order: (members.iter().map(|&j| peaks[j].order).sum::<f64>() / members.len() as f64
+                * 1000.0)
+                .round()
+                / 1000.0,
+            candidates: Vec::new(),
         });
     }
 }

@@ -36,7 +36,7 @@ pub struct Measured {
 }
 
 /// Load measured recordings: one `labels.csv` (or a folder holding one) or recording files.
-/// Each is cut to at most `max_seconds`.
+/// Each is cut to at most `max_seconds` (`f64::INFINITY`: whole).
 pub fn load(rig: &RigConfig, inputs: &[PathBuf], max_seconds: f64) -> Result<Vec<Measured>> {
     let mut files: Vec<(PathBuf, Option<String>, ImportOptions)> = Vec::new();
     for p in inputs {
@@ -95,7 +95,7 @@ pub fn mean_rpm(rec: &Recording, rig: &RigConfig) -> Result<f64> {
 pub fn cut(rec: &mut Recording, t0: f64, seconds: f64) {
     let n = rec.len();
     let a = ((t0 * rec.sample_rate) as usize).min(n);
-    let b = (a + (seconds * rec.sample_rate) as usize).min(n);
+    let b = (a + (seconds * rec.sample_rate).clamp(0.0, n as f64) as usize).min(n);
     for c in &mut rec.channels {
         c.samples = c.samples[a..b].to_vec();
     }

@@ -1,14 +1,17 @@
 //! Simulator calibration against measured recordings (`rigmon calibrate`): simulate the
 //! measured operating points ([`measured`]), compare physically meaningful views
-//! ([`views`]: envelope and raw spectra, [`fault_peaks`], [`shaft_orders`], [`modes`]) with
-//! one scalar error of named components ([`error`]), locate the residual
-//! ([`locate`]), attribute it greedily to catalog effects ([`catalog`], [`search`],
+//! ([`views`]: envelope and raw spectra, [`fault_peaks`], [`shaft_orders`],
+//! [`fractional_orders`], [`impacts`], [`modes`]) with one scalar error of named components
+//! ([`error`]), locate the residual ([`locate`]) and name its usual causes ([`trace`]),
+//! attribute it greedily to catalog effects ([`catalog`], [`search`],
 //! [`fit`]) confirmed on a held-out part, and report ([`report`], [`plots`]).
 
 pub mod catalog;
 pub mod error;
 pub mod fault_peaks;
 pub mod fit;
+pub mod fractional_orders;
+pub mod impacts;
 pub mod locate;
 pub mod measured;
 pub mod modes;
@@ -16,4 +19,5 @@ pub mod plots;
 pub mod report;
 pub mod search;
 pub mod shaft_orders;
+pub mod trace;
 pub mod views;

@@ -44,7 +44,7 @@ fn parts(e: &ErrorParts) -> Value {
 }
 
 /// What each component compares, for the Markdown table.
-const DESCRIPTIONS: [(&str, &str); 10] = [
+const DESCRIPTIONS: [(&str, &str); 12] = [
     ("env", "envelope order spectrum, mean dB"),
     ("peaks", "fault-order locations, per mille"),
     ("ratios", "harmonic and sideband ratios, summed dB / 10"),
@@ -58,6 +58,14 @@ const DESCRIPTIONS: [(&str, &str); 10] = [
     ("modes", "dominant resonance location, 100 Hz bands"),
     ("floor", "absolute broadband floor, dB"),
     ("speed", "speed-deviation spectrum"),
+    (
+        "fractional",
+        "sub-synchronous and fractional shaft orders, summed dB / 100",
+    ),
+    (
+        "impacts",
+        "envelope spectrum of the band energy in Hz (healthy recordings), summed dB / 20",
+    ),
 ];
 
 /// The report object printed by `--json`.
@@ -84,7 +92,9 @@ pub fn json(rig: &RigConfig, o: &Outcome, ops: &[Measured], id: &str) -> Value {
         .map(|(i, m)| {
             let b = super::error::pair(&o.measured_views[i], &o.views_before[i]);
             let a = super::error::pair(&o.measured_views[i], &o.views_after[i]);
-            json!({"recording": m.name, "before": parts(&b), "after": parts(&a)})
+            let v = &o.measured_views[i];
+            json!({"recording": m.name, "seconds": (v.seconds * 1000.0).round() / 1000.0,
+                   "segments": v.segments, "before": parts(&b), "after": parts(&a)})
         })
         .collect();
     json!({
@@ -125,14 +135,16 @@ pub fn markdown(rig: &RigConfig, o: &Outcome, ops: &[Measured], id: &str) -> Str
             o.after.get(n)
         );
     }
-    let _ = writeln!(s, "\n## Split (checkerboard by recording)\n\n| recording | label | rpm | part |\n|---|---|---|---|");
-    for (m, f) in ops.iter().zip(&o.fit_part) {
+    let _ = writeln!(s, "\n## Split (checkerboard by recording)\n\n| recording | label | rpm | seconds analysed (segments) | part |\n|---|---|---|---|---|");
+    for ((m, f), v) in ops.iter().zip(&o.fit_part).zip(&o.measured_views) {
         let _ = writeln!(
             s,
-            "| {} | {} | {:.1} | {} |",
+            "| {} | {} | {:.1} | {:.2} ({}) | {} |",
             m.name,
             m.label,
             m.rpm,
+            v.seconds,
+            v.segments,
             if *f { "fit" } else { "held out" }
         );
     }
@@ -185,12 +197,18 @@ pub fn markdown(rig: &RigConfig, o: &Outcome, ops: &[Measured], id: &str) -> Str
             "Nothing above the thresholds (lines/envelope 10 dB, bands 6 dB)."
         );
     } else {
-        let _ = writeln!(s, "| location | unit | locked to | view | excess dB | recordings |\n|---|---|---|---|---|---|");
+        let _ = writeln!(s, "| location | unit | locked to | view | excess dB | recordings | usual causes (candidates, not findings) |\n|---|---|---|---|---|---|---|");
         for u in &o.unexplained {
             let _ = writeln!(
                 s,
-                "| {} | {} | {} | {} | {} | {} |",
-                u.location, u.unit, u.locked_to, u.view, u.excess_db, u.recordings
+                "| {} | {} | {} | {} | {} | {} | {} |",
+                u.location,
+                u.unit,
+                u.locked_to,
+                u.view,
+                u.excess_db,
+                u.recordings,
+                u.candidates.join("; ")
             );
         }
     }

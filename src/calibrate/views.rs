@@ -8,23 +8,35 @@
 //!   electrical lines);
 //! - `bands`: energy in 100 Hz bands from 300 Hz to 0.4 fs, dB within [`BAND_RANGE_DB`] of
 //!   the strongest band (0 below): where the structural resonances put the impact energy;
-//! - `speed`: amplitude spectrum (0.2-5 Hz) of the relative shaft-speed deviation in percent,
+//! - `speed`: amplitude spectrum (0.1-5 Hz) of the relative shaft-speed deviation in percent,
 //!   from the speed source: speed fluctuation;
 //! - `fault_peaks`: the located fault orders of the recording's labelled faults, with their
 //!   harmonic and sideband ratios ([`super::fault_peaks`]);
 //! - `shaft`: the shaft-order lines 1x-30x and their floors ([`super::shaft_orders`]);
 //! - `mode`: the dominant structural resonance ([`super::modes`]);
-//! - `floor_db`: the absolute broadband floor (sensor noise).
+//! - `floor_db`: the absolute broadband floor (sensor noise);
+//! - `fractional`: sub-synchronous and fractional shaft orders of the raw signal
+//!   ([`super::fractional_orders`]), every recording;
+//! - `impacts`: the envelope spectrum in Hz of the broadband band energy
+//!   ([`super::impacts`]), every recording.
+//!
+//! A recording longer than [`SEGMENT_S`] is analysed whole: every view but `speed` is
+//! computed on each [`SEGMENT_S`] segment and averaged over the segments (the expected value
+//! of one segment's view, with the variance of all of them), so a simulated twin of one
+//! segment is compared like with like; `speed` is computed once over the whole recording, so
+//! slow fluctuations (periods up to half the recording) are resolved.
 
 use super::fault_peaks::{self, DbSpectrum, FaultPeak};
 use super::modes::{self, Mode};
 use super::shaft_orders::{self, ShaftOrders};
+use super::{fractional_orders, impacts};
 use crate::config::RigConfig;
 use crate::dsp::order_spectrum::whole_recording;
 use crate::dsp::speed::SpeedTrack;
 use crate::recording::Recording;
 use crate::sim::Fault;
 use anyhow::{bail, Context, Result};
+use rayon::prelude::*;
 use realfft::RealFftPlanner;
 
 pub const ENV_MAX_ORDER: f64 = 12.0;
@@ -37,9 +49,14 @@ pub const BAND_MIN_HZ: f64 = 300.0;
 /// Lowest sample rate the views are defined for: raw lines to [`LINES_MAX_HZ`], bands from
 /// [`BAND_MIN_HZ`] to 0.4 fs.
 pub const MIN_SAMPLE_RATE_HZ: f64 = 2.0 * LINES_MAX_HZ as f64;
-pub const SPEED_MIN_HZ: f64 = 0.2;
+pub const SPEED_MIN_HZ: f64 = 0.1;
 pub const SPEED_MAX_HZ: f64 = 5.0;
-pub const SPEED_STEP_HZ: f64 = 0.05;
+/// Grid step of the speed view times the analysed length: 0.05 Hz over 2 s, 0.005 Hz over
+/// 20 s, so a line spans the same number of grid points (and the `speed` component the same
+/// size) whatever the length.
+pub const SPEED_STEP_TIMES_S: f64 = 0.1;
+/// Length of the segments a recording's views are averaged over, and of a simulated twin.
+pub const SEGMENT_S: f64 = 2.0;
 const THRESHOLD_DB: f64 = 6.0;
 /// Bands more than this below the strongest band count as 0.
 pub const BAND_RANGE_DB: f64 = 20.0;
@@ -71,6 +88,16 @@ pub struct Views {
     /// from 300 Hz to 0.4 fs (the quietest part, where no resonance rings), dB re 1 channel
     /// unit (absolute: the other spectral views are relative to their floors).
     pub floor_db: f64,
+    /// Sub-synchronous and fractional shaft orders, thresholded dB
+    /// ([`fractional_orders::orders`]).
+    pub fractional: Vec<f64>,
+    /// Envelope spectrum of the broadband energy in Hz, thresholded dB
+    /// ([`impacts::frequencies`]).
+    pub impacts: Vec<f64>,
+    /// Seconds of signal analysed.
+    pub seconds: f64,
+    /// Segments averaged.
+    pub segments: usize,
 }
 
 /// Order of `env[i]`.
@@ -78,8 +105,168 @@ pub fn env_order(i: usize) -> f64 {
     ENV_MIN_ORDER + i as f64 * ENV_STEP
 }
 
-/// Compute the views of a recording's classifier channel; `faults` is its label.
+/// Number of [`SEGMENT_S`] segments a recording of `seconds` is analysed in (at least 1;
+/// a remainder shorter than a segment is left out of the segment views, so every segment
+/// view has the statistics of a twin's).
+pub fn segments(seconds: f64) -> usize {
+    ((seconds + 1e-9) / SEGMENT_S).floor().max(1.0) as usize
+}
+
+/// Length of one analysed segment of a recording of `seconds`.
+pub fn segment_seconds(seconds: f64) -> f64 {
+    seconds.min(SEGMENT_S)
+}
+
+/// Compute the views of a recording's classifier channel; `faults` is its label. A recording
+/// longer than a segment is averaged over [`segments`]; `speed` covers it whole.
 pub fn compute(rec: &Recording, rig: &RigConfig, faults: &[Fault]) -> Result<Views> {
+    let track = SpeedTrack::for_recording(rec, rig)?;
+    let dur = rec.duration_s();
+    let k = segments(dur);
+    let seg = segment_seconds(dur);
+    let parts = (0..k)
+        .into_par_iter()
+        .map(|i| {
+            let mut r = rec.clone();
+            super::measured::cut(&mut r, i as f64 * seg, seg);
+            compute_segment(&r, rig, faults).with_context(|| {
+                format!(
+                    "segment {} ({:.1} s from {:.1} s)",
+                    i + 1,
+                    seg,
+                    i as f64 * seg
+                )
+            })
+        })
+        .collect::<Result<Vec<_>>>()?;
+    let mut v = average(parts);
+    v.rpm = track.mean_rpm(0.0, dur);
+    v.speed = speed_view(&track, dur, v.rpm);
+    v.seconds = dur;
+    Ok(v)
+}
+
+fn mean_vec(parts: &[Views], f: impl Fn(&Views) -> &Vec<f64>) -> Vec<f64> {
+    let n = parts.len() as f64;
+    let mut out = f(&parts[0]).clone();
+    for p in &parts[1..] {
+        for (o, v) in out.iter_mut().zip(f(p)) {
+            *o += v;
+        }
+    }
+    out.iter_mut().for_each(|o| *o /= n);
+    out
+}
+
+/// The mean of segment views (one segment: itself). A fault family counts when located in
+/// at least half the segments (its order, height and ratios averaged over those); the mode
+/// is prominent when it is in most segments, at the median of their locations.
+fn average(parts: Vec<Views>) -> Views {
+    if parts.len() == 1 {
+        let mut v = parts.into_iter().next().expect("one part");
+        v.segments = 1;
+        return v;
+    }
+    let n = parts.len();
+    let mut v = parts[0].clone();
+    v.env = mean_vec(&parts, |p| &p.env);
+    v.lines = mean_vec(&parts, |p| &p.lines);
+    v.bands = mean_vec(&parts, |p| &p.bands);
+    v.env_db = mean_vec(&parts, |p| &p.env_db);
+    v.fractional = mean_vec(&parts, |p| &p.fractional);
+    v.impacts = mean_vec(&parts, |p| &p.impacts);
+    v.shaft.amplitude = mean_vec(&parts, |p| &p.shaft.amplitude);
+    v.shaft.floor = mean_vec(&parts, |p| &p.shaft.floor);
+    v.floor_db = parts.iter().map(|p| p.floor_db).sum::<f64>() / n as f64;
+    let mut families: Vec<&'static str> = parts
+        .iter()
+        .flat_map(|p| p.fault_peaks.iter().map(|f| f.family))
+        .collect();
+    families.sort_unstable();
+    families.dedup();
+    v.fault_peaks = families
+        .into_iter()
+        .filter_map(|fam| {
+            let found: Vec<&FaultPeak> = parts
+                .iter()
+                .filter_map(|p| p.fault_peaks.iter().find(|f| f.family == fam))
+                .collect();
+            if 2 * found.len() < n {
+                return None;
+            }
+            let m = found.len() as f64;
+            let opt_mean = |g: &dyn Fn(&FaultPeak) -> Option<f64>| {
+                let s: Vec<f64> = found.iter().filter_map(|f| g(f)).collect();
+                (!s.is_empty()).then(|| s.iter().sum::<f64>() / s.len() as f64)
+            };
+            Some(FaultPeak {
+                family: fam,
+                nominal: found[0].nominal,
+                order: found.iter().map(|f| f.order).sum::<f64>() / m,
+                height_db: found.iter().map(|f| f.height_db).sum::<f64>() / m,
+                harmonic_db: opt_mean(&|f| f.harmonic_db),
+                sideband_db: opt_mean(&|f| f.sideband_db),
+            })
+        })
+        .collect();
+    let prominent: Vec<f64> = parts
+        .iter()
+        .filter(|p| p.mode.prominent)
+        .map(|p| p.mode.hz)
+        .collect();
+    v.mode = if 2 * prominent.len() > n {
+        Mode {
+            hz: median(&prominent),
+            prominent: true,
+        }
+    } else {
+        Mode {
+            hz: median(&parts.iter().map(|p| p.mode.hz).collect::<Vec<_>>()),
+            prominent: false,
+        }
+    };
+    v.segments = n;
+    v
+}
+
+/// Amplitude spectrum (percent) of the relative speed deviation over `[0, dur]`: a
+/// Hann-windowed direct DFT of the speed sampled at 100 Hz, from [`SPEED_MIN_HZ`] to
+/// [`SPEED_MAX_HZ`] in steps of [`SPEED_STEP_TIMES_S`] / `dur`.
+pub fn speed_view(track: &SpeedTrack, dur: f64, rpm: f64) -> Vec<f64> {
+    let n_sp = (dur * 100.0) as usize;
+    let dev: Vec<f64> = (0..n_sp)
+        .map(|i| 100.0 * (track.rpm_at(i as f64 / 100.0) / rpm - 1.0))
+        .collect();
+    let w: Vec<f64> = (0..n_sp)
+        .map(|i| 0.5 - 0.5 * (std::f64::consts::TAU * i as f64 / n_sp as f64).cos())
+        .collect();
+    let wsum: f64 = w.iter().sum::<f64>().max(1e-12);
+    let dmean = dev.iter().zip(&w).map(|(d, w)| d * w).sum::<f64>() / wsum;
+    let x: Vec<f64> = dev.iter().zip(&w).map(|(d, wi)| (d - dmean) * wi).collect();
+    let step = SPEED_STEP_TIMES_S / dur.max(1e-9);
+    let n_speed = ((SPEED_MAX_HZ - SPEED_MIN_HZ) / step + 1e-9) as usize + 1;
+    (0..n_speed)
+        .map(|k| {
+            let f = SPEED_MIN_HZ + k as f64 * step;
+            // phasor recurrence: one complex multiply per sample
+            let (s, c) = (std::f64::consts::TAU * f / 100.0).sin_cos();
+            let (mut pr, mut pi) = (1.0f64, 0.0f64);
+            let (mut re, mut im) = (0.0, 0.0);
+            for xi in &x {
+                re += xi * pr;
+                im += xi * pi;
+                let t = pr * c - pi * s;
+                pi = pr * s + pi * c;
+                pr = t;
+            }
+            2.0 * (re * re + im * im).sqrt() / wsum
+        })
+        .collect()
+}
+
+/// Compute the views of one segment (the whole of `rec`); `speed` is left empty (see
+/// [`speed_view`]).
+pub fn compute_segment(rec: &Recording, rig: &RigConfig, faults: &[Fault]) -> Result<Views> {
     let ch = rig
         .classifier_channel()
         .and_then(|c| rec.channel(&c.name))
@@ -171,42 +358,23 @@ pub fn compute(rec: &Recording, rig: &RigConfig, faults: &[Fault]) -> Result<Vie
         .iter_mut()
         .for_each(|b| *b = (*b - top + BAND_RANGE_DB).max(0.0));
 
-    // speed deviation spectrum (percent), Hann-windowed direct DFT on a 100 Hz grid
-    let n_sp = (dur * 100.0) as usize;
-    let dev: Vec<f64> = (0..n_sp)
-        .map(|i| 100.0 * (track.rpm_at(i as f64 / 100.0) / rpm - 1.0))
-        .collect();
-    let w: Vec<f64> = (0..n_sp)
-        .map(|i| 0.5 - 0.5 * (std::f64::consts::TAU * i as f64 / n_sp as f64).cos())
-        .collect();
-    let wsum: f64 = w.iter().sum::<f64>().max(1e-12);
-    let dmean = dev.iter().zip(&w).map(|(d, w)| d * w).sum::<f64>() / wsum;
-    let n_speed = ((SPEED_MAX_HZ - SPEED_MIN_HZ) / SPEED_STEP_HZ) as usize + 1;
-    let speed = (0..n_speed)
-        .map(|k| {
-            let f = SPEED_MIN_HZ + k as f64 * SPEED_STEP_HZ;
-            let (mut re, mut im) = (0.0, 0.0);
-            for (i, (d, wi)) in dev.iter().zip(&w).enumerate() {
-                let ph = std::f64::consts::TAU * f * i as f64 / 100.0;
-                re += (d - dmean) * wi * ph.cos();
-                im += (d - dmean) * wi * ph.sin();
-            }
-            2.0 * (re * re + im * im).sqrt() / wsum
-        })
-        .collect();
     Ok(Views {
         rpm,
         env,
         lines,
         bands,
         band_lo_hz,
-        speed,
+        speed: Vec::new(),
         env_db,
         healthy: faults.is_empty(),
         fault_peaks,
         shaft: shaft_orders::measure(&ch.samples, fs, &track),
         mode,
         floor_db,
+        fractional: fractional_orders::measure(&ch.samples, fs, &track),
+        impacts: impacts::measure(&ch.samples, fs, BAND_MIN_HZ),
+        seconds: dur,
+        segments: 1,
     })
 }
 

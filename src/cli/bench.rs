@@ -13,6 +13,8 @@ pub enum What {
     Footprint,
     /// Sustained load: 16 ch x 51.2 kHz through the whole pipeline as fast as it goes.
     Load,
+    /// Calibration of six recordings analysed whole, against the same calibration before.
+    Calibrate,
 }
 
 /// Arguments of `rigmon bench`.
@@ -30,6 +32,10 @@ pub struct Args {
     /// Print one JSON object.
     #[arg(long)]
     pub json: bool,
+    /// `calibrate` only: measured recordings (a labels.csv); default: the independent
+    /// generator's speed_fluctuation case, six recordings of 20 s.
+    #[arg(long)]
+    pub measured: Option<PathBuf>,
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
@@ -46,5 +52,6 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         What::Simulate => bench::simulate::run(&opts),
         What::Footprint => bench::footprint::run(&opts),
         What::Load => bench::load::run(&opts),
+        What::Calibrate => bench::calibrate::run(&opts, args.measured, args.seconds),
     }
 }

@@ -22,9 +22,10 @@ pub struct Args {
     /// Report folder (report.md, report.json, spectra.png, residual.png).
     #[arg(long)]
     pub report: PathBuf,
-    /// Seconds of each recording used (from its start).
-    #[arg(long, default_value_t = 2.0)]
-    pub seconds: f64,
+    /// Seconds of each recording analysed (from its start); default: the whole recording
+    /// (slow effects such as a speed fluctuation of period T need 2 T or more).
+    #[arg(long)]
+    pub seconds: Option<f64>,
     /// Print the report as one JSON object on stdout.
     #[arg(long)]
     pub json: bool,
@@ -32,17 +33,18 @@ pub struct Args {
 
 pub fn run(a: Args) -> Result<()> {
     let rig = RigConfig::load(&a.rig)?;
-    let mut ops = measured::load(&rig, &a.measured, a.seconds)?;
+    let mut ops = measured::load(&rig, &a.measured, a.seconds.unwrap_or(f64::INFINITY))?;
     if ops.len() == 1 {
         ops = measured::split_single(&ops[0], &rig)?;
     }
     let part = measured::checkerboard(&ops);
     for (m, p) in ops.iter().zip(&part) {
         eprintln!(
-            "split: {:<32} {:<11} {:7.1} rpm  {}",
+            "split: {:<32} {:<11} {:7.1} rpm  {:6.2} s  {}",
             m.name,
             m.label,
             m.rpm,
+            m.recording.duration_s(),
             if *p { "fit" } else { "held out" }
         );
     }
@@ -65,7 +67,8 @@ pub fn run(a: Args) -> Result<()> {
             let v = |w: &crate::calibrate::views::Views| {
                 serde_json::json!({"rpm": w.rpm, "env": w.env, "lines": w.lines, "bands": w.bands, "band_lo_hz": w.band_lo_hz, "speed": w.speed,
                     "fault_peaks": w.fault_peaks, "shaft_orders": {"amplitude": w.shaft.amplitude, "floor": w.shaft.floor},
-                    "mode": {"hz": w.mode.hz, "prominent": w.mode.prominent}})
+                    "mode": {"hz": w.mode.hz, "prominent": w.mode.prominent},
+                    "fractional": w.fractional, "impacts": w.impacts, "seconds": w.seconds, "segments": w.segments})
             };
             serde_json::json!({"recording": ops[i].name, "measured": v(&outcome.measured_views[i]),
                 "before": v(&outcome.views_before[i]), "after": v(&outcome.views_after[i])})

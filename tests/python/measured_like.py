@@ -10,7 +10,10 @@ unbalance line that grows with speed squared and an analog once-per-rev tacho ch
 
 Each case injects ONE effect with parameters that are written to truth.json and never given
 to `rigmon calibrate`; `baseline` injects nothing, `outside` injects a component that no
-effect in rigmon's catalog explains (an order-locked narrowband line at a non-integer order).
+effect in rigmon's catalog explains (an order-locked narrowband line at a non-integer order),
+`whirl` another one below 1x (a sub-synchronous line locked to the shaft at 0.46x, as
+fluid-film whirl is). `slow_speed_fluctuation` is a speed fluctuation slower than the default
+2 s of signal could show (period 4 s: generate 10 s or more).
 `looseness` adds shaft harmonics 3x..Nx, `noise` changes the sensor noise.
 
     python3 measured_like.py --out DIR --case CASE [--seed N] [--seconds S]
@@ -65,8 +68,11 @@ CASES = {
     "looseness": ("looseness", {"harmonics_m_s2": 0.1, "highest_order": 10, "at_rpm": 1200.0}),
     "noise": ("noise", {"noise_rms_m_s2": 0.1}),
     "outside": (None, {}),
+    "whirl": (None, {}),
+    "slow_speed_fluctuation": ("speed_fluctuation", {"fraction": 0.04, "period_s": 4.0}),
 }
 OUTSIDE = {"location": 17.3, "unit": "order", "locked_to": "speed", "amplitude_m_s2": 0.5}
+WHIRL = {"location": 0.46, "unit": "order", "locked_to": "speed", "amplitude_m_s2": 0.3}
 
 
 def shaft_revolutions(n, rpm, fluct):
@@ -139,7 +145,7 @@ def fault_impacts(label, revs, rpm, rng, slip, contact_deg):
 def record(label, rpm, case, params, seconds, rng):
     n = int(round(seconds * FS))
     t = np.arange(n) / FS
-    fluct = params if case == "speed_fluctuation" else None
+    fluct = params if case in ("speed_fluctuation", "slow_speed_fluctuation") else None
     revs, _ = shaft_revolutions(n, rpm, fluct)
     slip = params.get("slip", 0.0) if case == "slip" else 0.0
     contact = params.get("contact_angle_deg", 0.0) if case == "contact_angle" else 0.0
@@ -177,6 +183,11 @@ def record(label, rpm, case, params, seconds, rng):
         ph = rng.uniform(0, 2 * np.pi)
         for c, g in zip(chans, (0.3, 1.0, 0.6)):
             c += g * OUTSIDE["amplitude_m_s2"] * np.sin(2 * np.pi * OUTSIDE["location"] * revs + ph)
+    if case == "whirl":
+        # sub-synchronous whirl: a line locked to the shaft below 1x
+        ph = rng.uniform(0, 2 * np.pi)
+        for c, g in zip(chans, (0.3, 1.0, 0.6)):
+            c += g * WHIRL["amplitude_m_s2"] * np.sin(2 * np.pi * WHIRL["location"] * revs + ph)
     tacho = np.where(np.mod(revs, 1.0) < TACHO_DUTY, TACHO_HIGH_V, 0.0)
     tacho = tacho + TACHO_NOISE_V * rng.standard_normal(n)
     return t, chans, tacho
@@ -212,6 +223,8 @@ def main():
     outside = None
     if a.case == "outside":
         outside = {k: OUTSIDE[k] for k in ("location", "unit", "locked_to")}
+    if a.case == "whirl":
+        outside = {k: WHIRL[k] for k in ("location", "unit", "locked_to")}
     with open(os.path.join(a.out, "truth.json"), "w") as f:
         json.dump({"case": a.case, "effect": effect, "params": params, "outside": outside}, f, indent=1)
 
