@@ -245,14 +245,25 @@ fn align_step(
         return Ok((model, None));
     }
     let pb = file_bar(progress, healthy.len(), "align");
-    let recs = featurise_all(&healthy, rig, &pb)?;
+    let aligned = align_to_recordings(&model, &healthy, rig, &pb)?;
     pb.finish_and_clear();
+    let info = serde_json::from_str(&aligned.meta.alignment)?;
+    Ok((aligned, Some(info)))
+}
+
+/// `model` aligned to the feature windows of `healthy` recordings of one machine (all of
+/// them, whatever their label; `rigmon align` and `adapt` pass the healthy rows).
+pub fn align_to_recordings(
+    model: &TrainedModel,
+    healthy: &[ManifestEntry],
+    rig: &RigConfig,
+    progress: &ProgressBar,
+) -> Result<TrainedModel> {
+    let recs = featurise_all(healthy, rig, progress)?;
     let views: Vec<_> = recs.iter().map(|r| r.windows.view()).collect();
     let windows = ndarray::concatenate(ndarray::Axis(0), &views)?;
     let names: Vec<String> = recs.iter().map(|r| r.path_text.clone()).collect();
-    let aligned = align_to_healthy(&model, windows.view(), &names)?;
-    let info = serde_json::from_str(&aligned.meta.alignment)?;
-    Ok((aligned, Some(info)))
+    align_to_healthy(model, windows.view(), &names)
 }
 
 /// Score a model file and the rule on labelled recordings of the machine.

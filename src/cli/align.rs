@@ -2,14 +2,12 @@
 //! healthy recordings only (the reference levels of [`crate::model::align`]); nothing is
 //! trained, the network and its labels stay.
 
+use crate::adapt::align_to_recordings;
 use crate::config::RigConfig;
-use crate::model::align::align_to_healthy;
 use crate::model::{export, OnnxClassifier};
 use crate::train::dataset::{manifest_path, read_manifest};
-use crate::train::featurise::featurise_all;
 use anyhow::{bail, Result};
 use indicatif::ProgressBar;
-use ndarray::{concatenate, Axis};
 use std::path::PathBuf;
 
 /// Arguments of `rigmon align`.
@@ -45,17 +43,12 @@ pub fn run(args: Args) -> Result<()> {
             csv.display()
         );
     }
-    let recs = featurise_all(&entries, &rig, &ProgressBar::hidden())?;
-    let views: Vec<_> = recs.iter().map(|r| r.windows.view()).collect();
-    let windows = concatenate(Axis(0), &views)?;
-    let names: Vec<String> = recs.iter().map(|r| r.path_text.clone()).collect();
-    let aligned = align_to_healthy(&base, windows.view(), &names)?;
+    let aligned = align_to_recordings(&base, &entries, &rig, &ProgressBar::hidden())?;
     export::write(&aligned, &args.output)?;
     println!(
-        "aligned {} to {} healthy window(s) of {} recording(s): {}",
+        "aligned {} to {} healthy recording(s): {}",
         args.model.display(),
-        windows.nrows(),
-        names.len(),
+        entries.len(),
         aligned.meta.alignment
     );
     println!("wrote {}", args.output.display());
