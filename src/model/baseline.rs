@@ -6,7 +6,8 @@
 //! the machine's healthy windows and `inv_spread` one pooled 1/std of those windows. A fault
 //! changes a few bins (its orders, harmonics, sidebands); a mean over all bins would dilute it
 //! (on the fan-end records the top-10 RMS flags 47-79 % of the windows of the faint 0.007 in
-//! outer-race faults at 3 and 12 o'clock where the all-bin RMS flags 5-53 %). A window with
+//! outer-race faults at 3 and 12 o'clock where the all-bin RMS flags 5-53 %;
+//! `docs/study/baseline_distance.py`). A window with
 //! `d > threshold` cannot be `healthy`: the healthy probability is set to zero and the others
 //! renormalised, so the record raises an alarm even when the network, trained on simulation,
 //! sees no fault it knows. The same arithmetic runs in the ONNX graph ([`super::export`]).
