@@ -63,3 +63,44 @@ impl Backlog {
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_live_source_is_behind_from_half_the_queue_and_a_file_never() {
+        let stats = SourceStats::default();
+        let mut pipe = PipelineStatus::default();
+        let mut live = Backlog::new(true, 64);
+        live.update(31, &stats, &mut pipe);
+        assert!(!pipe.behind);
+        live.update(32, &stats, &mut pipe);
+        assert!(pipe.behind);
+        // Held for 5 s after the queue empties.
+        live.update(0, &stats, &mut pipe);
+        assert!(pipe.behind);
+        let mut file = Backlog::new(false, 64);
+        let mut pipe = PipelineStatus::default();
+        file.saw_block(10.0, 1.0);
+        file.update(64, &stats, &mut pipe);
+        assert!(!pipe.behind);
+        assert_eq!(pipe.lag_s, 0.0);
+    }
+
+    #[test]
+    fn lag_is_wall_time_minus_signal_time_since_the_first_block() {
+        let stats = SourceStats::default();
+        let mut pipe = PipelineStatus::default();
+        let mut b = Backlog::new(true, 64);
+        b.saw_block(0.1, 0.1);
+        std::thread::sleep(Duration::from_millis(300));
+        // 0.3 s of wall time for 0.1 s of signal: at least 0.2 s behind.
+        b.update(0, &stats, &mut pipe);
+        assert!(pipe.lag_s >= 0.2 - 1e-3, "{}", pipe.lag_s);
+        // A source running ahead of the wall clock never gives a negative lag.
+        b.saw_block(100.0, 0.1);
+        b.update(0, &stats, &mut pipe);
+        assert_eq!(pipe.lag_s, 0.0);
+    }
+}

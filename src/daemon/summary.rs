@@ -128,3 +128,69 @@ impl Summary {
         s
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::daemon::status::{ModelStatus, Phase, PipelineStatus, SourceStatus};
+
+    #[test]
+    fn the_summary_takes_each_counter_from_its_place_in_the_last_status() {
+        let last = StatusMessage {
+            schema: crate::daemon::status::SCHEMA.into(),
+            schema_version: 1,
+            rig: "r".into(),
+            asset: "a".into(),
+            point: "p".into(),
+            time_ns: 1,
+            uptime_s: 2.0,
+            phase: Phase::Finished,
+            software_version: "0".into(),
+            source: SourceStatus {
+                describe: "file x".into(),
+                samples_lost: 3,
+                bad_frames: 4,
+                finished: true,
+                error: Some("gone".into()),
+                ..Default::default()
+            },
+            pipeline: PipelineStatus {
+                windows: 5,
+                samples_in: 6,
+                samples_lost: 7,
+                window_errors: 8,
+                latency_ms_max: 9.5,
+                ..Default::default()
+            },
+            model: ModelStatus {
+                reloads: 10,
+                reloads_rejected: 11,
+                ..Default::default()
+            },
+            sinks: SinkStatus::default(),
+            publish: None,
+            recording: None,
+            state: Some("healthy".into()),
+        };
+        let mut counts = StateCounts::default();
+        counts.states.insert("healthy".into(), 5);
+        let mut lat = LatencyHistogram::default();
+        lat.record(2.0);
+        let dropped = SinkStatus {
+            zenoh_dropped: 12,
+            record_dropped: 13,
+        };
+        let s = Summary::new(&last, counts, &lat, dropped, 14.0);
+        let got = serde_json::to_value(&s).unwrap();
+        let want = serde_json::json!({
+            "source": "file x", "windows": 5, "states": {"healthy": 5}, "window_states": {},
+            "final_state": "healthy", "samples_in": 6, "samples_lost": 7,
+            "source_samples_lost": 3, "bad_frames": 4, "window_errors": 8,
+            "zenoh_dropped": 12, "record_dropped": 13, "reloads": 10, "reloads_rejected": 11,
+            "latency_ms_max": 9.5, "latency_ms_p50": lat.quantile(0.5),
+            "latency_ms_p99": lat.quantile(0.99), "source_error": "gone", "wall_s": 14.0,
+        });
+        assert_eq!(got, want);
+        assert!(s.text().contains("source error: gone"), "{}", s.text());
+    }
+}
