@@ -77,9 +77,10 @@ impl Pipeline {
             config: &config,
             source: &info,
             start_ns,
-            delivery: match opts.lossless {
-                true => Delivery::Wait,
-                false => Delivery::DropNewest,
+            delivery: if opts.lossless {
+                Delivery::Wait
+            } else {
+                Delivery::DropNewest
             },
             wait_for_subscriber: opts.wait_for_subscriber,
         };
