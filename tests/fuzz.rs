@@ -17,8 +17,8 @@
 use rigmon::acquire::can_protocol::{CanDecoder, CanEncoder};
 use rigmon::acquire::opendaq::protocol::{self as odp, Event as OdEvent, StreamDecoder};
 use rigmon::acquire::serial_protocol::{self as sp, FrameEncoder, SampleFormat};
-use rigmon::config::daemon::DaemonConfig;
 use rigmon::config::RigConfig;
+use rigmon::daemon::config::DaemonConfig;
 use rigmon::importers::{self, cwru, mat5, mfpt, ImportOptions};
 use rigmon::recording::mcap_layout;
 use rigmon::recording::{Channel, Provenance, Recording, Tacho};

@@ -14,8 +14,8 @@
 
 use super::{abs, cpu_seconds, free_port, machine_line, percentile, BenchOptions};
 use crate::acquire::{send_block, BlockSender, SampleBlock, Source, SourceStats, StopToken};
-use crate::config::daemon::DaemonConfig;
 use crate::config::{ChannelConfig, ChannelKind, RigConfig};
+use crate::daemon::config::DaemonConfig;
 use crate::daemon::{self, DaemonOptions};
 use crate::dsp::synthetic::Synthetic;
 use crate::dsp::{FeaturePipeline, SpeedTrack};

@@ -3,7 +3,7 @@
 //! only when zenoh flags are given; SIGHUP reloads the model file.
 
 use crate::acquire::{FileSourceConfig, ReplaySpeed, SourceConfig};
-use crate::config::daemon::{DaemonConfig, ModelConfig, PipelineConfig};
+use crate::daemon::config::{DaemonConfig, ModelConfig, PipelineConfig};
 use crate::daemon::{self, DaemonOptions, Output};
 use crate::health::HealthPolicy;
 use crate::publish::zenoh::{ZenohArgs, ZenohSettings};

@@ -2,7 +2,7 @@
 //! SIGHUP reloads the config and swaps the model; SIGTERM/SIGINT stop cleanly.
 
 use crate::acquire::SourceConfig;
-use crate::config::daemon::DaemonConfig;
+use crate::daemon::config::DaemonConfig;
 use crate::daemon::{self, DaemonOptions, Output};
 use crate::publish::zenoh::ZenohArgs;
 use anyhow::Result;

@@ -1,9 +1,9 @@
 //! Rig configuration (TOML): machine identity, bearing geometry, acquisition, channels, speed
 //! source and feature settings. Unknown keys are rejected with their name and line.
 //!
-//! The simulator's section lives in [`simulation`]; the daemon's own file in [`daemon`].
+//! The simulator's section lives in [`simulation`]; the daemon's own file (`rigmon.toml`)
+//! belongs to the daemon (`daemon/config.rs`).
 
-pub mod daemon;
 pub mod simulation;
 
 use crate::bearing::BearingGeometry;

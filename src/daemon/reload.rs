@@ -4,8 +4,8 @@
 //! or fails a test inference is rejected and the running one kept. Changes to sections that
 //! need a restart (rig, source, zenoh, recording) are reported, not applied.
 
-use crate::config::daemon::DaemonConfig;
 use crate::config::RigConfig;
+use crate::daemon::config::DaemonConfig;
 use crate::health::HealthPolicy;
 use crate::model::onnx::OnnxClassifier;
 use anyhow::{bail, Context, Result};

@@ -3,9 +3,11 @@
 //! frames, sequence gaps, reconnects), samples lost or dropped because processing fell
 //! behind, sink drops, reloads, recording errors and publish latency.
 
+use crate::acquire::SourceStats;
 use crate::publish::zenoh::PublishStats;
 use crate::record::RecordStats;
 use serde::{Deserialize, Serialize};
+use std::sync::atomic::Ordering;
 
 pub const SCHEMA: &str = "rigmon.status";
 pub const SCHEMA_VERSION: u32 = 1;
@@ -56,6 +58,65 @@ pub struct SourceStatus {
     /// The source ended (end of file) or failed; `error` says why when it failed.
     pub finished: bool,
     pub error: Option<String>,
+}
+
+impl StatusMessage {
+    /// One status line for systemd (`systemctl status`).
+    pub fn systemd_line(&self) -> String {
+        format!(
+            "{}: state {} | {} windows | source {} lost {} bad frames {} | model {}{}{}",
+            match self.phase {
+                Phase::Running => "running",
+                Phase::Reloading => "reloading",
+                Phase::Stopping => "stopping",
+                Phase::Starting => "starting",
+                Phase::Finished => "finished",
+            },
+            self.state.as_deref().unwrap_or("-"),
+            self.pipeline.windows,
+            if self.source.connected {
+                "connected"
+            } else {
+                "disconnected"
+            },
+            self.source.samples_lost + self.pipeline.samples_lost,
+            self.source.bad_frames,
+            self.model.id,
+            if self.pipeline.behind {
+                " | BEHIND"
+            } else {
+                ""
+            },
+            match self.recording.as_ref().and_then(|r| r.failed.as_deref()) {
+                Some(why) => format!(" | RECORDING FAILED: {why}"),
+                None => String::new(),
+            }
+        )
+    }
+}
+
+impl SourceStatus {
+    /// The source's counters now; `finished` is how it ended, once it has.
+    pub fn read(
+        describe: &str,
+        stats: &SourceStats,
+        finished: Option<&anyhow::Result<()>>,
+    ) -> Self {
+        SourceStatus {
+            describe: describe.to_string(),
+            connected: stats.connected.load(Ordering::Relaxed),
+            blocks: stats.blocks.load(Ordering::Relaxed),
+            samples: stats.samples.load(Ordering::Relaxed),
+            bad_frames: stats.bad_frames.load(Ordering::Relaxed),
+            sequence_gaps: stats.sequence_gaps.load(Ordering::Relaxed),
+            samples_lost: stats.samples_lost.load(Ordering::Relaxed),
+            reconnects: stats.reconnects.load(Ordering::Relaxed),
+            finished: finished.is_some(),
+            error: finished
+                .and_then(|r| r.as_ref().err())
+                .map(|e| format!("{e:#}")),
+        }
+    }
 }
 
 #[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]

@@ -1,0 +1,137 @@
+//! The recording sink, built from `[recording]`: raw blocks, features and health to MCAP
+//! segments ([`crate::record`]), written on the recorder's own thread behind a bounded queue
+//! that also closes chunks on time when no message comes.
+
+use super::intake::SourceInfo;
+use super::queued_sink::{QueueSettings, QueuedSink, Worker};
+use super::sink::{Sink, SinkConfig, SinkContext, SinkReport, WindowEvent};
+use crate::acquire::SampleBlock;
+use crate::config::{RigConfig, SpeedConfig};
+use crate::record::{RecordConfig, RecordEvent, RecordStats, Recorder};
+use crate::recording::mcap_layout::{ChannelInfo, RecordingInfo, TachoInfo};
+use crate::recording::Provenance;
+use anyhow::Result;
+use std::collections::BTreeMap;
+use std::sync::Arc;
+use std::time::Duration;
+
+impl Worker for Recorder {
+    type Msg = RecordEvent;
+    type Stats = RecordStats;
+
+    fn work(&mut self, msg: RecordEvent) {
+        self.handle(msg);
+    }
+
+    fn idle(&mut self) {
+        self.tick();
+    }
+
+    fn snapshot(&self, into: &mut RecordStats) {
+        into.clone_from(self.stats());
+    }
+
+    fn wind_up(self) -> RecordStats {
+        self.finish()
+    }
+}
+
+/// The recorder behind its queue.
+pub struct RecordSink {
+    queue: QueuedSink<Recorder>,
+}
+
+impl SinkConfig for RecordConfig {
+    fn build(&self, cx: &SinkContext) -> Result<Option<Box<dyn Sink>>> {
+        if !self.enabled {
+            return Ok(None);
+        }
+        let info = recording_info(cx.rig, cx.source, cx.start_ns);
+        let recorder = Recorder::new(self.clone(), info, &cx.rig.machine.id)?;
+        let settings = QueueSettings {
+            thread: "rigmon-record",
+            capacity: cx.config.pipeline.sink_queue,
+            delivery: cx.delivery,
+            // Chunks close every `flush_s` even when nothing comes.
+            idle_every: Some(Duration::from_secs_f64(
+                (self.flush_s / 2.0).clamp(0.05, 1.0),
+            )),
+        };
+        Ok(Some(Box::new(RecordSink {
+            queue: QueuedSink::spawn(recorder, settings)?,
+        })))
+    }
+}
+
+/// What the raw layout says about the recording: the rig's acceleration channels, its tacho
+/// and the source's rate and nominal speed.
+fn recording_info(rig: &RigConfig, source: &SourceInfo, start_ns: u64) -> RecordingInfo {
+    let tacho = match &rig.speed {
+        SpeedConfig::Tacho { channel, .. } => TachoInfo::Analog {
+            unit: rig
+                .channels
+                .iter()
+                .find(|c| &c.name == channel)
+                .map(|c| c.unit.clone())
+                .unwrap_or_else(|| "V".into()),
+        },
+        SpeedConfig::Edges { .. } => TachoInfo::Edges,
+        _ => TachoInfo::None,
+    };
+    RecordingInfo {
+        sample_rate: source.sample_rate,
+        start_time_ns: start_ns,
+        channels: rig
+            .acceleration_channels()
+            .map(|c| ChannelInfo {
+                name: c.name.clone(),
+                axis: c.axis.clone(),
+                unit: c.unit.clone(),
+            })
+            .collect(),
+        tacho,
+        rpm: source.nominal_rpm,
+        provenance: Provenance {
+            source_path: source.describe.clone(),
+            format: "rigmon-daemon".into(),
+            notes: Vec::new(),
+        },
+        metadata: BTreeMap::from([("rig_id".to_string(), rig.machine.id.clone())]),
+    }
+}
+
+impl Sink for RecordSink {
+    fn on_block(&mut self, block: &Arc<SampleBlock>) {
+        self.queue.send(RecordEvent::Block(block.clone()));
+    }
+
+    fn on_window(&mut self, w: &WindowEvent) {
+        let t_ns = w.health.window.end_ns;
+        if let Some(fw) = w.features {
+            self.queue.send(RecordEvent::Features {
+                t_ns,
+                json: serde_json::to_vec(fw).unwrap_or_default(),
+            });
+        }
+        self.queue.send(RecordEvent::Health {
+            t_ns,
+            json: w.health_json.to_vec(),
+        });
+    }
+
+    fn report(&self, into: &mut SinkReport) {
+        into.dropped.record_dropped = self.queue.dropped();
+        into.recording = Some(self.queue.stats());
+    }
+
+    fn close(self: Box<Self>) {
+        let st = self.queue.close();
+        if st.write_errors > 0 {
+            tracing::warn!(
+                "recording had {} write errors; last: {}",
+                st.write_errors,
+                st.last_error.unwrap_or_default()
+            );
+        }
+    }
+}
