@@ -12,12 +12,10 @@ pub mod notify;
 pub mod reload;
 pub mod signals;
 pub mod sinks;
-pub mod speed_window;
 pub mod status;
-pub mod velocity;
-pub mod windows;
 
 use crate::acquire::{Source, SourceStats, StopToken};
+use crate::analysis::{WindowSpec, Windower};
 use crate::config::daemon::DaemonConfig;
 use crate::health::message::HealthMessage;
 use crate::publish::zenoh::ZenohPublisher;
@@ -36,7 +34,6 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::mpsc::RecvTimeoutError;
 use std::sync::Arc;
 use std::time::{Duration, Instant};
-use windows::{WindowSpec, Windower};
 
 /// What to print on stdout, one line per health message.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -439,18 +436,29 @@ pub fn run_with_source(mut opts: DaemonOptions, source: Box<dyn Source>) -> Resu
                 rx.recv_timeout(Duration::from_millis(50))
             }
         };
-        match received {
+        // The source has ended: the last windows no longer wait for their lookahead.
+        let ended = matches!(received, Err(RecvTimeoutError::Disconnected));
+        if ended {
+            windower.finish();
+        }
+        match received
+            .map(Some)
+            .or_else(|e| if ended { Ok(None) } else { Err(e) })
+        {
             Ok(block) => {
                 let last_block_at = Instant::now();
-                notifier.progress();
-                let block = Arc::new(block);
-                windower.push(&block);
-                if let Some(next) = windower.next_sample() {
-                    newest_t = next as f64 / fs;
-                    first_block.get_or_insert((Instant::now(), newest_t - block.len() as f64 / fs));
-                }
-                if let Some(r) = &record {
-                    r.send(RecordEvent::Block(block.clone()));
+                if let Some(block) = block {
+                    notifier.progress();
+                    let block = Arc::new(block);
+                    windower.push(&block);
+                    if let Some(next) = windower.next_sample() {
+                        newest_t = next as f64 / fs;
+                        first_block
+                            .get_or_insert((Instant::now(), newest_t - block.len() as f64 / fs));
+                    }
+                    if let Some(r) = &record {
+                        r.send(RecordEvent::Block(block.clone()));
+                    }
                 }
                 while let Some(view) = windower.window() {
                     let out = analyzer.analyze(&view);
@@ -493,14 +501,14 @@ pub fn run_with_source(mut opts: DaemonOptions, source: Box<dyn Source>) -> Resu
                 pipe.gaps = ws.gaps;
                 pipe.restarts = ws.restarts;
                 pipe.window_errors = analyzer.errors;
+                if ended {
+                    break match source_thread.join() {
+                        Ok(r) => r,
+                        Err(_) => Err(anyhow::anyhow!("the source thread panicked")),
+                    };
+                }
             }
-            Err(RecvTimeoutError::Timeout) => {}
-            Err(RecvTimeoutError::Disconnected) => {
-                break match source_thread.join() {
-                    Ok(r) => r,
-                    Err(_) => Err(anyhow::anyhow!("the source thread panicked")),
-                };
-            }
+            Err(_) => {}
         }
 
         // Falling behind (live sources): blocks keep waiting in the queue, so every receive
