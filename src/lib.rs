@@ -1,6 +1,7 @@
 //! rigmon: on-line condition monitoring of rotating machinery.
 //!
-//! Data flows one way: [`acquire`] (sources) -> [`dsp`] (features) -> [`model`] (inference)
+//! Data flows one way: [`acquire`] (sources) -> [`analysis`] (windows, speed and features,
+//! built on [`dsp`]; the same code for training and serving) -> [`model`] (inference)
 //! -> [`health`] (state machine) -> [`publish`], [`record`] (sinks). [`sim`] and [`train`]
 //! sit beside the stream and produce models; [`calibrate`] fits the simulator to measured
 //! recordings (residual views, effect catalog, held-out acceptance, calibrated rig file);
@@ -9,6 +10,7 @@
 
 pub mod acquire;
 pub mod adapt;
+pub mod analysis;
 pub mod bearing;
 pub mod bench;
 pub mod calibrate;

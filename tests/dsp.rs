@@ -2,10 +2,11 @@
 //! ramp, tacho repair, bin layout, NaN handling) and the shared CWRU recordings (fault-order
 //! peaks, speed estimation).
 
+use rigmon::analysis::extract_recording;
 use rigmon::config::{RigConfig, SpeedConfig};
 use rigmon::dsp::order_spectrum::whole_recording;
 use rigmon::dsp::synthetic::Synthetic;
-use rigmon::dsp::{extract_recording, speed_estimate, FeaturePipeline, SpeedTrack};
+use rigmon::dsp::{speed_estimate, FeaturePipeline, SpeedTrack};
 use rigmon::importers::{self, ImportOptions};
 use rigmon::recording::{Channel, Provenance, Recording, Tacho};
 use std::collections::BTreeMap;
@@ -102,7 +103,8 @@ fn order_peak_stays_in_its_bin_under_a_20_percent_ramp_analog_tacho_and_edges() 
     let rig = rig("lut-rig.toml");
     let (rec, _) = lut_recording(&syn, false);
     let fixed =
-        rigmon::dsp::extract_with_speed(&rec, &rig, &SpeedTrack::fixed(600.0).unwrap()).unwrap();
+        rigmon::analysis::extract_with_speed(&rec, &rig, &SpeedTrack::fixed(600.0).unwrap())
+            .unwrap();
     assert!(fixed
         .iter()
         .any(|w| argmax(w.classifier_features(&rig)) != 7));
@@ -144,7 +146,7 @@ fn missing_and_extra_tacho_pulses_are_repaired_and_flagged() {
     let total: u32 = windows.iter().map(|w| w.quality.missing_pulses).sum();
     assert!(total >= 3);
     // the repaired track agrees with the true angle
-    let speed = SpeedTrack::for_recording(&rec, &rig).unwrap();
+    let speed = rigmon::analysis::whole_recording(&rec, &rig).unwrap();
     for k in 0..85 {
         let t = 1.05 + k as f64 * 0.1;
         assert!(
@@ -297,7 +299,7 @@ fn cwru_envelope_order_peak_at_the_fault_order() {
     let fo = rig.bearing.fault_orders();
     for c in CWRU.iter().filter(|c| c.fault.is_some()) {
         let rec = load_cwru(c.file, &rig);
-        let speed = SpeedTrack::for_recording(&rec, &rig).unwrap();
+        let speed = rigmon::analysis::whole_recording(&rec, &rig).unwrap();
         assert_eq!(speed.source(), "recording");
         let de = rec.channel("DE").unwrap();
         let spec = whole_recording(
@@ -336,7 +338,7 @@ fn cwru_estimated_speed_within_one_percent() {
     for c in &CWRU {
         let rec = load_cwru(c.file, &rig);
         let stored = rec.rpm.expect("CWRU files store the rpm");
-        let speed = SpeedTrack::for_recording(&rec, &rig).unwrap();
+        let speed = rigmon::analysis::whole_recording(&rec, &rig).unwrap();
         assert_eq!(speed.source(), "estimate");
         let est = speed.mean_rpm(0.0, rec.duration_s());
         assert!(

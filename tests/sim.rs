@@ -247,7 +247,7 @@ fn dsp_features_see_the_fault_orders() {
             (vec![Fault::InnerRace], o.bpfi),
         ] {
             let rec = sim::simulate(&r, &Scenario::constant(&faults, fr * 60.0, 3.0, 8)).unwrap();
-            let wins = rigmon::dsp::extract_recording(&rec, &r).unwrap();
+            let wins = rigmon::analysis::extract_recording(&rec, &r).unwrap();
             assert!(wins.len() >= 3, "{} windows", wins.len());
             for w in &wins {
                 assert!(
@@ -428,7 +428,6 @@ fn the_split_simulator_reproduces_the_shipped_replay() {
 fn shaft_lines_have_their_configured_amplitudes() {
     use rigmon::calibrate::shaft_orders;
     use rigmon::config::simulation::ShaftLinesConfig;
-    use rigmon::dsp::speed::SpeedTrack;
     let mut rig = rig("lut-rig.toml");
     let section = rig.simulation.as_mut().unwrap();
     section.shaft_lines = Some(ShaftLinesConfig {
@@ -438,7 +437,7 @@ fn shaft_lines_have_their_configured_amplitudes() {
         phase_deg: 30.0,
     });
     let rec = sim::simulate(&rig, &Scenario::constant(&[], 600.0, 3.0, 5)).unwrap();
-    let track = SpeedTrack::for_recording(&rec, &rig).unwrap();
+    let track = rigmon::analysis::whole_recording(&rec, &rig).unwrap();
     for (ch, want) in [
         ("vertical", [0.1, 0.05]),
         ("horizontal", [0.1, 0.05]),

@@ -363,7 +363,7 @@ fn whole_piece(
     faults: &[crate::sim::Fault],
 ) -> Result<Views> {
     let mut v = views::compute_segment(rec, rig, faults)?;
-    let track = SpeedTrack::for_recording(rec, rig)?;
+    let track = crate::analysis::whole_recording(rec, rig)?;
     let dur = rec.duration_s();
     v.speed = views::speed_view(&track, dur, v.rpm);
     Ok(v)

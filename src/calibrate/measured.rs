@@ -4,7 +4,6 @@
 //! Also the checkerboard fit / held-out split.
 
 use crate::config::RigConfig;
-use crate::dsp::speed::SpeedTrack;
 use crate::importers::{self, ImportOptions};
 use crate::recording::Recording;
 use crate::sim::Fault;
@@ -87,7 +86,7 @@ fn is_manifest(p: &Path) -> bool {
 
 /// Mean speed of a recording over its whole length, rpm.
 pub fn mean_rpm(rec: &Recording, rig: &RigConfig) -> Result<f64> {
-    let track = SpeedTrack::for_recording(rec, rig)?;
+    let track = crate::analysis::whole_recording(rec, rig)?;
     Ok(track.mean_rpm(0.0, rec.duration_s()))
 }
 

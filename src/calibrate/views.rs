@@ -120,7 +120,7 @@ pub fn segment_seconds(seconds: f64) -> f64 {
 /// Compute the views of a recording's classifier channel; `faults` is its label. A recording
 /// longer than a segment is averaged over [`segments`]; `speed` covers it whole.
 pub fn compute(rec: &Recording, rig: &RigConfig, faults: &[Fault]) -> Result<Views> {
-    let track = SpeedTrack::for_recording(rec, rig)?;
+    let track = crate::analysis::whole_recording(rec, rig)?;
     let dur = rec.duration_s();
     let k = segments(dur);
     let seg = segment_seconds(dur);
@@ -281,7 +281,7 @@ pub fn compute_segment(rec: &Recording, rig: &RigConfig, faults: &[Fault]) -> Re
             ch.name
         );
     }
-    let track = SpeedTrack::for_recording(rec, rig)?;
+    let track = crate::analysis::whole_recording(rec, rig)?;
     let dur = rec.duration_s();
     let rpm = track.mean_rpm(0.0, dur);
 

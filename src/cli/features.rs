@@ -1,8 +1,9 @@
 //! `rigmon features <recording> --rig <toml>`: envelope-order-spectrum features per window,
 //! as JSON Lines (`--json`) or a short text table.
 
+use crate::analysis;
 use crate::config::RigConfig;
-use crate::dsp::{self, FeatureWindow, SpeedTrack};
+use crate::dsp::{FeatureWindow, SpeedTrack};
 use crate::importers::{self, ImportOptions};
 use anyhow::{Context, Result};
 use serde::Serialize;
@@ -59,8 +60,8 @@ fn features(args: Args) -> Result<()> {
     };
     let rec = importers::load(&args.recording, &rig, &opts)?;
     let windows = match args.rpm {
-        Some(rpm) => dsp::extract_with_speed(&rec, &rig, &SpeedTrack::fixed(rpm)?)?,
-        None => dsp::extract_recording(&rec, &rig)?,
+        Some(rpm) => analysis::extract_with_speed(&rec, &rig, &SpeedTrack::fixed(rpm)?)?,
+        None => analysis::extract_recording(&rec, &rig)?,
     }
     .into_iter();
     let stdout = std::io::stdout();

@@ -78,7 +78,7 @@ fn inspect(args: Args) -> Result<()> {
     })?;
     let speed = match args.rpm {
         Some(rpm) => SpeedTrack::fixed(rpm)?,
-        None => SpeedTrack::for_recording(&rec, &rig)?,
+        None => crate::analysis::whole_recording(&rec, &rig)?,
     };
     let fo = rig.bearing.fault_orders();
     let max_order = args

@@ -7,6 +7,10 @@
 pub mod simulation;
 
 use crate::bearing::BearingGeometry;
+// The `[speed]` and `[features]` sections belong to the DSP layer; re-exported here so the
+// rig file reads as one type.
+pub use crate::dsp::feature_settings::{FeatureSettings, MAX_FEATURE_BINS};
+pub use crate::dsp::speed_config::SpeedConfig;
 use anyhow::{bail, Context, Result};
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
@@ -88,130 +92,6 @@ pub struct ChannelConfig {
 
 fn one() -> f64 {
     1.0
-}
-
-/// Where shaft speed and angle come from.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(tag = "source", rename_all = "snake_case", deny_unknown_fields)]
-pub enum SpeedConfig {
-    /// Analog tacho channel: threshold with hysteresis, sub-sample edge interpolation.
-    Tacho {
-        /// Name of the tacho channel in `channels`.
-        channel: String,
-        #[serde(default = "one_u32")]
-        pulses_per_rev: u32,
-        /// Switching threshold in the channel's unit (V).
-        #[serde(default = "default_threshold")]
-        threshold: f64,
-        /// Hysteresis half-width around the threshold.
-        #[serde(default = "default_hysteresis")]
-        hysteresis: f64,
-    },
-    /// Edge timestamps delivered by the source (DAQ adapters, MCAP tacho edges).
-    Edges {
-        #[serde(default = "one_u32")]
-        pulses_per_rev: u32,
-    },
-    /// A fixed, known speed.
-    Fixed { rpm: f64 },
-    /// The speed stored in the recording (e.g. CWRU's `X<nnn>RPM`); falls back to estimation.
-    Recording,
-    /// Estimate from the vibration itself by tracking the 1x line.
-    Estimate {
-        #[serde(default = "default_min_rpm")]
-        min_rpm: f64,
-        #[serde(default = "default_max_rpm")]
-        max_rpm: f64,
-    },
-}
-
-fn one_u32() -> u32 {
-    1
-}
-fn default_threshold() -> f64 {
-    2.5
-}
-fn default_hysteresis() -> f64 {
-    0.5
-}
-fn default_min_rpm() -> f64 {
-    300.0
-}
-fn default_max_rpm() -> f64 {
-    3600.0
-}
-
-/// The envelope-order-spectrum recipe (thesis section 4.2).
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct FeatureSettings {
-    /// Low-pass cut-off before the envelope, Hz.
-    #[serde(default = "default_lowpass")]
-    pub lowpass_hz: f64,
-    /// Window length, s.
-    #[serde(default = "default_window")]
-    pub window_s: f64,
-    /// Hop between windows, s.
-    #[serde(default = "default_hop")]
-    pub hop_s: f64,
-    /// Width of one RMS bin in orders.
-    #[serde(default = "default_bin_width")]
-    pub bin_width_order: f64,
-    /// Highest order (the last bin ends here).
-    #[serde(default = "default_max_order")]
-    pub max_order: f64,
-    /// Channel (by name or axis) whose features feed the classifier.
-    #[serde(default = "default_axis")]
-    pub classifier_axis: String,
-}
-
-/// Upper limit on order bins per channel (the thesis recipe uses 100).
-pub const MAX_FEATURE_BINS: usize = 10_000;
-
-fn default_lowpass() -> f64 {
-    4000.0
-}
-fn default_window() -> f64 {
-    1.0
-}
-fn default_hop() -> f64 {
-    0.5
-}
-fn default_bin_width() -> f64 {
-    0.5
-}
-fn default_max_order() -> f64 {
-    50.0
-}
-fn default_axis() -> String {
-    "vertical".into()
-}
-
-impl Default for FeatureSettings {
-    fn default() -> Self {
-        FeatureSettings {
-            lowpass_hz: default_lowpass(),
-            window_s: default_window(),
-            hop_s: default_hop(),
-            bin_width_order: default_bin_width(),
-            max_order: default_max_order(),
-            classifier_axis: default_axis(),
-        }
-    }
-}
-
-impl FeatureSettings {
-    /// Number of RMS bins (100 for the default 0.5 .. 50 recipe).
-    pub fn n_bins(&self) -> usize {
-        (self.max_order / self.bin_width_order).round() as usize
-    }
-
-    /// Bin edges in orders: bin k covers (edges[k], edges[k+1]]; bin 0 ends at `bin_width`.
-    pub fn bin_edges(&self) -> Vec<f64> {
-        (0..=self.n_bins())
-            .map(|k| k as f64 * self.bin_width_order)
-            .collect()
-    }
 }
 
 /// Which calibration produced a rig file; flows into model metadata.
@@ -354,12 +234,7 @@ impl RigConfig {
 
     /// Pulses per revolution of the tacho, whatever form it comes in.
     pub fn pulses_per_rev(&self) -> u32 {
-        match self.speed {
-            SpeedConfig::Tacho { pulses_per_rev, .. } | SpeedConfig::Edges { pulses_per_rev } => {
-                pulses_per_rev
-            }
-            _ => 1,
-        }
+        self.speed.pulses_per_rev()
     }
 }
 

@@ -1,13 +1,11 @@
-//! One window -> one health message: speed track for the window, data-quality checks,
-//! envelope order spectrum features, the classifier, the health state machine, fault-band
-//! amplitudes and the ISO 20816-3 velocity advisory. Buffers are made once and reused.
+//! One window -> one health message: the shared analysis stage (speed, data-quality checks,
+//! envelope order spectrum features, velocity RMS), then the classifier, the health state
+//! machine, fault-band amplitudes and the ISO 20816-3 velocity advisory.
 
-use super::speed_window::SpeedWindow;
-use super::velocity::VelocityRms;
-use super::windows::WindowView;
+use crate::analysis::{AnalysisStage, SpeedSource, WindowError, WindowView};
 use crate::bearing::FaultOrders;
 use crate::config::RigConfig;
-use crate::dsp::features::{FeaturePipeline, FeatureWindow};
+use crate::dsp::features::FeatureWindow;
 use crate::health::message::{
     FaultBands, HealthMessage, ModelInfo, QualityReport, WindowTimes, SCHEMA, SCHEMA_VERSION,
 };
@@ -26,21 +24,14 @@ pub struct WindowOutput {
 /// Everything that turns a window into a health message.
 pub struct Analyzer {
     rig: RigConfig,
-    pipeline: FeaturePipeline,
+    stage: AnalysisStage,
     model: OnnxClassifier,
     model_id: String,
     health: HealthStateMachine,
-    velocity: VelocityRms,
-    speed: SpeedWindow,
-    /// Rig acceleration channel names and units, in source order.
+    /// Rig acceleration channel names, in source order.
     names: Vec<String>,
-    units: Vec<String>,
-    /// Channels the source cannot deliver (NaN in every block): skipped.
-    absent: Vec<bool>,
     classifier: usize,
     fault_orders: FaultOrders,
-    /// Sanitised copies of the window (NaN -> 0), one per channel.
-    scratch: Vec<Vec<f32>>,
     sample_rate: f64,
     start_time_ns: u64,
     seq: u64,
@@ -65,12 +56,12 @@ impl Analyzer {
         model
             .check_rig(rig)
             .with_context(|| format!("model {model_id}"))?;
-        let pipeline = FeaturePipeline::new(rig, sample_rate)?;
-        let len = pipeline.window_len();
         let health = HealthStateMachine::new(policy, &model.meta().labels)?;
-        let chans: Vec<_> = rig.acceleration_channels().collect();
-        let names: Vec<String> = chans.iter().map(|c| c.name.clone()).collect();
-        let units: Vec<String> = chans.iter().map(|c| c.unit.clone()).collect();
+        let chans: Vec<(String, String)> = rig
+            .acceleration_channels()
+            .map(|c| (c.name.clone(), c.unit.clone()))
+            .collect();
+        let names: Vec<String> = chans.iter().map(|(n, _)| n.clone()).collect();
         let cls = rig
             .classifier_channel()
             .context("the rig file names no classifier channel")?;
@@ -84,17 +75,13 @@ impl Analyzer {
                 cls.name
             );
         }
+        let speed = SpeedSource::new(&rig.speed, sample_rate, nominal_rpm)?;
         Ok(Analyzer {
-            pipeline,
+            stage: AnalysisStage::new(rig, sample_rate, &chans, absent, speed)?,
             model,
             model_id: model_id.to_string(),
             health,
-            velocity: VelocityRms::new(len, sample_rate),
-            speed: SpeedWindow::new(rig, sample_rate, nominal_rpm)?,
-            absent: names.iter().map(|n| absent.contains(n)).collect(),
-            scratch: names.iter().map(|_| vec![0.0; len]).collect(),
             names,
-            units,
             classifier,
             fault_orders: rig.bearing.fault_orders(),
             sample_rate,
@@ -138,54 +125,28 @@ impl Analyzer {
     /// Analyse one window.
     pub fn analyze(&mut self, view: &WindowView) -> WindowOutput {
         self.seq += 1;
+        let analysis = self.stage.analyse(view);
         let mut quality = QualityReport {
             ok: true,
             ..Default::default()
         };
-        if view.lost_samples > 0 {
-            quality.dropout_samples = view.lost_samples;
+        if analysis.lost_samples > 0 {
+            quality.dropout_samples = analysis.lost_samples;
             quality.flag("dropout");
         }
-        // Copy, count and zero non-finite samples (the feature pipeline refuses them).
-        let mut bad_classifier = view.lost_samples > 0;
-        for (k, (src, dst)) in view
-            .channels
-            .iter()
-            .zip(self.scratch.iter_mut())
-            .enumerate()
-        {
-            if self.absent[k] {
-                continue;
-            }
-            let mut nan = 0u32;
-            for (d, &s) in dst.iter_mut().zip(src.iter()) {
-                *d = if s.is_finite() {
-                    s
-                } else {
-                    nan += 1;
-                    0.0
-                };
-            }
-            // Lost samples are NaN-filled by the windower; count only the other ones.
-            let extra = nan.saturating_sub(view.lost_samples);
-            if extra > 0 {
-                quality.nan_samples += extra;
-                quality.flag("nan");
-            }
-            if nan > 0 && k == self.classifier {
-                bad_classifier = true;
-            }
+        if analysis.nan_samples > 0 {
+            quality.nan_samples += analysis.nan_samples;
+            quality.flag("nan");
         }
-
-        let speed = self.speed.track(view, &self.scratch[self.classifier]);
+        let mut bad_classifier = analysis.classifier_nan;
         let labels = self.model.meta().labels.clone();
         let mut features = None;
         let mut probs: Vec<f32> = Vec::new();
         let mut novelty = f32::NAN;
         let mut rpm = None;
-        let mut speed_source = self.speed.source_name().to_string();
-        match &speed {
-            Err(e) => {
+        let mut speed_source = analysis.speed_source.to_string();
+        match analysis.features {
+            Err(WindowError::NoSpeed(e)) => {
                 quality.flag("no_speed");
                 tracing::debug!(
                     "window {:.1}-{:.1} s: no speed: {e:#}",
@@ -194,81 +155,72 @@ impl Analyzer {
                 );
                 bad_classifier = true;
             }
-            Ok(track) => {
-                if self.speed.lost_pulses(track, view.t_start, view.t_end) {
+            Err(WindowError::Features(e)) => {
+                if analysis.tacho_lost {
+                    quality.flag("tacho_lost");
+                }
+                self.errors += 1;
+                quality.flag("features_failed");
+                tracing::warn!(
+                    "window {:.1}-{:.1} s: features failed: {e:#}",
+                    view.t_start,
+                    view.t_end
+                );
+                bad_classifier = true;
+            }
+            Ok(fw) => {
+                if analysis.tacho_lost {
                     quality.flag("tacho_lost");
                     bad_classifier = true;
                 }
-                let chans: Vec<(&str, &[f32])> = self
-                    .names
-                    .iter()
-                    .zip(&self.scratch)
-                    .zip(&self.absent)
-                    .filter(|(_, absent)| !**absent)
-                    .map(|((n, s), _)| (n.as_str(), s.as_slice()))
-                    .collect();
-                match self.pipeline.process_window(view.t_start, &chans, track) {
-                    Ok(fw) => {
-                        rpm = Some(fw.rpm).filter(|r| r.is_finite());
-                        speed_source = fw.speed_source.clone();
-                        let q = &fw.quality;
-                        let cls = &self.names[self.classifier];
-                        for (flag, list) in [
-                            ("clipping", &q.clipped),
-                            ("flat", &q.flat),
-                            ("dropout", &q.dropout),
-                            ("nan", &q.non_finite),
-                        ] {
-                            if !list.is_empty() {
-                                quality.flag(flag);
-                                if list.contains(cls) {
-                                    bad_classifier = true;
-                                }
-                            }
-                        }
-                        if !q.dc_offset.is_empty() {
-                            // Advisory: the envelope features ignore DC.
-                            quality.flag("dc_offset");
-                        }
-                        quality.flat_channels = q.flat.clone();
-                        quality.clipped_samples = q.clipped.len() as u32;
-                        quality.missing_tacho_pulses = q.missing_pulses;
-                        if q.missing_pulses > 0 {
-                            quality.flag("missing_tacho_pulses");
-                        }
-                        if q.speed_out_of_range {
-                            quality.flag("speed_out_of_range");
+                rpm = Some(fw.rpm).filter(|r| r.is_finite());
+                speed_source = fw.speed_source.clone();
+                let q = &fw.quality;
+                let cls = &self.names[self.classifier];
+                for (flag, list) in [
+                    ("clipping", &q.clipped),
+                    ("flat", &q.flat),
+                    ("dropout", &q.dropout),
+                    ("nan", &q.non_finite),
+                ] {
+                    if !list.is_empty() {
+                        quality.flag(flag);
+                        if list.contains(cls) {
                             bad_classifier = true;
                         }
-                        quality.dsp = serde_json::to_value(q).unwrap_or_default();
-                        match self.model.predict(fw.classifier_features(&self.rig)) {
-                            Ok(p) => {
-                                probs = p.probs;
-                                novelty = p.novelty;
-                            }
-                            Err(e) => {
-                                self.errors += 1;
-                                tracing::warn!(
-                                    "window {:.1}-{:.1} s: inference failed: {e:#}",
-                                    view.t_start,
-                                    view.t_end
-                                );
-                                bad_classifier = true;
-                            }
-                        }
-                        features = Some(fw);
+                    }
+                }
+                if !q.dc_offset.is_empty() {
+                    // Advisory: the envelope features ignore DC.
+                    quality.flag("dc_offset");
+                }
+                quality.flat_channels = q.flat.clone();
+                quality.clipped_samples = q.clipped.len() as u32;
+                quality.missing_tacho_pulses = q.missing_pulses;
+                if q.missing_pulses > 0 {
+                    quality.flag("missing_tacho_pulses");
+                }
+                if q.speed_out_of_range {
+                    quality.flag("speed_out_of_range");
+                    bad_classifier = true;
+                }
+                quality.dsp = serde_json::to_value(q).unwrap_or_default();
+                match self.model.predict(fw.classifier_features(&self.rig)) {
+                    Ok(p) => {
+                        probs = p.probs;
+                        novelty = p.novelty;
                     }
                     Err(e) => {
                         self.errors += 1;
-                        quality.flag("features_failed");
                         tracing::warn!(
-                            "window {:.1}-{:.1} s: features failed: {e:#}",
+                            "window {:.1}-{:.1} s: inference failed: {e:#}",
                             view.t_start,
                             view.t_end
                         );
                         bad_classifier = true;
                     }
                 }
+                features = Some(fw);
             }
         }
 
@@ -286,9 +238,7 @@ impl Analyzer {
             bad_quality: bad_classifier,
         });
         // None when the window has non-finite samples or the unit is not an acceleration.
-        let velocity = self
-            .velocity
-            .mm_per_s(view.channels[self.classifier], &self.units[self.classifier]);
+        let velocity = analysis.velocity_mm_s;
         let zone = velocity.and_then(|v| self.health.policy().iso20816.zone(v));
         let fault_bands = features
             .as_ref()

@@ -19,12 +19,9 @@ pub mod record_sink;
 pub mod reload;
 pub mod signals;
 pub mod sink;
-pub mod speed_window;
 pub mod status;
 pub mod stdout_sink;
 pub mod summary;
-pub mod velocity;
-pub mod windows;
 pub mod zenoh_sink;
 
 pub use options::DaemonOptions;
@@ -74,7 +71,10 @@ pub fn run_with_source(opts: DaemonOptions, source: Box<dyn Source>) -> Result<S
         match intake.receive() {
             Received::Block(block) => pipeline.on_block(block),
             Received::Nothing => {}
-            Received::Ended => break intake.join(),
+            Received::Ended => {
+                pipeline.on_source_end();
+                break intake.join();
+            }
         }
         pipeline.on_tick(intake.backlog(), stopping);
     };

@@ -18,9 +18,9 @@ use super::reload::{self, Loaded, Reloader};
 use super::sink::{SinkContext, Sinks, WindowEvent};
 use super::status::{self, ModelStatus, Phase, PipelineStatus, SourceStatus, StatusMessage};
 use super::summary::{StateCounts, Summary};
-use super::windows::{WindowSpec, Windower};
 use crate::acquire::{SampleBlock, Source, SourceStats};
-use crate::config::{RigConfig, SpeedConfig};
+use crate::analysis::Windower;
+use crate::config::RigConfig;
 use crate::model::onnx::OnnxClassifier;
 use anyhow::Result;
 use std::path::PathBuf;
@@ -147,6 +147,17 @@ impl Pipeline {
                 .saw_block(next as f64 / fs, block.len() as f64 / fs);
         }
         self.sinks.on_block(&block);
+        self.drain_windows(block_at);
+    }
+
+    /// The source has ended: the last windows no longer wait for their lookahead.
+    pub fn on_source_end(&mut self) {
+        self.windower.finish();
+        self.drain_windows(Instant::now());
+    }
+
+    /// Analyse every window the cutter has ready and update the pipeline counters.
+    fn drain_windows(&mut self, block_at: Instant) {
         while let Some(view) = self.windower.window() {
             let out = self.analyzer.analyze(&view);
             drop(view);
@@ -362,15 +373,11 @@ fn analysis(
         source.nominal_rpm,
         start_ns,
     )?;
-    let spec = WindowSpec::new(fs, rig.features.window_s, rig.features.hop_s)?;
-    let tacho_levels = match &rig.speed {
-        SpeedConfig::Tacho {
-            threshold,
-            hysteresis,
-            ..
-        } => Some((*threshold, *hysteresis)),
-        _ => None,
-    };
-    let windower = Windower::new(spec, rig.acceleration_channels().count(), tacho_levels);
+    let windower = Windower::for_rig(
+        &rig.speed,
+        &rig.features,
+        fs,
+        rig.acceleration_channels().count(),
+    )?;
     Ok((analyzer, windower))
 }

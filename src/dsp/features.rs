@@ -4,12 +4,13 @@
 //! made once in [`FeaturePipeline::new`]; a window allocates only its returned
 //! [`FeatureWindow`].
 
-use crate::config::{RigConfig, SpeedConfig};
+use crate::config::RigConfig;
 use crate::dsp::envelope::Envelope;
 use crate::dsp::order_spectrum::OrderFft;
 use crate::dsp::order_tracking::OrderTracker;
 use crate::dsp::quality::{scan, Quality};
 use crate::dsp::speed::SpeedTrack;
+use crate::dsp::speed_config::SpeedConfig;
 use anyhow::{bail, Result};
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;

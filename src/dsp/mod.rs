@@ -1,24 +1,28 @@
 //! Feature pipeline: low-pass, Hilbert envelope, computed order tracking from the tacho,
 //! order spectrum, RMS per order bin. Plans and buffers are made once and reused.
 //!
-//! Layers, bottom up: [`tacho`] (analog tacho -> edges), [`speed`] (shaft angle/speed vs
+//! Layers, bottom up: [`speed_config`] and [`feature_settings`] (the rig file's `[speed]` and
+//! `[features]` sections), [`tacho`] (analog tacho -> edges), [`speed`] (shaft angle/speed vs
 //! time, pulse repair) and [`speed_estimate`] (speed from vibration), [`envelope`],
-//! [`order_tracking`], [`order_spectrum`], [`features`] (the per-window pipeline),
-//! [`quality`] (flags) and [`extract`] (whole recordings).
+//! [`order_tracking`], [`order_spectrum`], [`features`] (the per-window pipeline) and
+//! [`quality`] (flags). Windows of a stream or a whole recording are cut and given their
+//! speed in `analysis`.
 
 pub mod envelope;
-pub mod extract;
+pub mod feature_settings;
 pub mod features;
 pub mod fft_len;
 pub mod order_spectrum;
 pub mod order_tracking;
 pub mod quality;
 pub mod speed;
+pub mod speed_config;
 pub mod speed_estimate;
 pub mod synthetic;
 pub mod tacho;
 
-pub use extract::{extract_recording, extract_with_speed};
+pub use feature_settings::FeatureSettings;
 pub use features::{FeaturePipeline, FeatureWindow};
 pub use quality::Quality;
 pub use speed::SpeedTrack;
+pub use speed_config::SpeedConfig;

@@ -1,12 +1,10 @@
 //! Shaft speed and angle versus time: [`SpeedTrack`]. Built from tacho edge times (with
 //! missing/extra pulse repair), from an analog tacho, from a fixed rpm, from a speed profile
-//! (the vibration-based estimate), or from a recording and its rig file
-//! ([`SpeedTrack::for_recording`]). Angle is in revolutions; between pulses time-versus-angle
+//! (the vibration-based estimate); which of these a rig asks for is decided in
+//! `analysis::speed_source`. Angle is in revolutions; between pulses time-versus-angle
 //! is a monotone cubic (Fritsch-Carlson), so speed is continuous and angle never runs backwards.
 
-use crate::config::{RigConfig, SpeedConfig};
-use crate::dsp::{speed_estimate, tacho};
-use crate::recording::{Recording, Tacho};
+use crate::dsp::tacho;
 use anyhow::{bail, Context, Result};
 
 /// A repair made to the tacho pulse train.
@@ -126,60 +124,6 @@ impl SpeedTrack {
             kind: Kind::Knots { t, theta, m },
             source: source.into(),
             repairs,
-        }
-    }
-
-    /// The speed track a rig file asks for, built from a recording:
-    /// `tacho` (analog channel, or edges if the recording has those), `edges`, `fixed`,
-    /// `recording` (the stored rpm; falls back to the tacho, then to estimation) and `estimate`
-    /// (tracking the 1x line of the classifier channel).
-    pub fn for_recording(rec: &Recording, rig: &RigConfig) -> Result<SpeedTrack> {
-        let ppr = rig.pulses_per_rev();
-        let from_tacho = |tacho: &Tacho| -> Result<SpeedTrack> {
-            match tacho {
-                Tacho::Edges { times_s } => Self::from_edges(times_s, ppr, "edges"),
-                Tacho::Analog { samples, .. } => {
-                    let (thr, hyst) = match &rig.speed {
-                        SpeedConfig::Tacho {
-                            threshold,
-                            hysteresis,
-                            ..
-                        } => (*threshold, *hysteresis),
-                        _ => tacho::auto_threshold(samples)
-                            .context("the analog tacho channel has no usable levels")?,
-                    };
-                    Self::from_analog(samples, rec.sample_rate, thr, hyst, ppr)
-                }
-            }
-        };
-        let estimate = |min_rpm: f64, max_rpm: f64| -> Result<SpeedTrack> {
-            let ch = rig
-                .classifier_channel()
-                .and_then(|c| rec.channel(&c.name))
-                .or_else(|| rec.channels.first())
-                .context("the recording has no acceleration channel to estimate speed from")?;
-            speed_estimate::estimate_track(&ch.samples, rec.sample_rate, min_rpm, max_rpm)
-                .with_context(|| format!("estimating speed from channel {:?}", ch.name))
-        };
-        let what = &rec.provenance.source_path;
-        match &rig.speed {
-            SpeedConfig::Tacho { channel, .. } => {
-                let t = rec.tacho.as_ref().with_context(|| {
-                    format!("{what}: the rig file takes speed from tacho channel {channel:?}, but the recording has no tacho; use --rpm or a rig file with [speed] source = \"estimate\"")
-                })?;
-                from_tacho(t)
-            }
-            SpeedConfig::Edges { .. } => {
-                let t = rec.tacho.as_ref().with_context(|| format!("{what}: the rig file takes speed from tacho edges, but the recording has none"))?;
-                from_tacho(t)
-            }
-            SpeedConfig::Fixed { rpm } => Self::fixed(*rpm),
-            SpeedConfig::Recording => match (rec.rpm, &rec.tacho) {
-                (Some(rpm), _) => Self::constant(rpm, "recording"),
-                (None, Some(t)) => from_tacho(t),
-                (None, None) => estimate(300.0, 3600.0),
-            },
-            SpeedConfig::Estimate { min_rpm, max_rpm } => estimate(*min_rpm, *max_rpm),
         }
     }
 

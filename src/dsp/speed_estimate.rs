@@ -5,9 +5,11 @@
 //! synchronous machine at exactly 3000/3600 rpm needs a tacho or `--rpm`). A steady result (all segments within 1 % of the whole-record
 //! estimate) gives a constant-speed track, otherwise a speed profile.
 
+use crate::dsp::fft_len::fast_len_at_most;
 use crate::dsp::speed::SpeedTrack;
 use anyhow::{bail, Result};
 use realfft::RealFftPlanner;
+use rustfft::num_complex::Complex32;
 
 /// Harmonics summed per candidate fundamental.
 const HARMONICS: usize = 5;
@@ -30,57 +32,148 @@ struct Whitened {
     prom: Vec<f64>,
 }
 
-fn largest_fast_len(n: usize) -> usize {
-    // largest even 2^a 3^b 5^c <= n
-    let mut best = 2;
-    let mut p2 = 2usize;
-    while p2 <= n {
-        let mut p3 = p2;
-        while p3 <= n {
-            let mut p5 = p3;
-            while p5 <= n {
-                best = best.max(p5);
-                p5 *= 5;
-            }
-            p3 *= 3;
-        }
-        p2 *= 2;
-    }
-    best
+/// FFT plans (cached per length by the planner) and buffers for whitened spectra, made once
+/// and reused: the daemon, estimating speed every window, plans nothing after the first one.
+pub struct SpeedEstimator {
+    planner: RealFftPlanner<f32>,
+    buf: Vec<f32>,
+    spec: Vec<Complex32>,
+    scratch: Vec<Complex32>,
+    logm: Vec<f64>,
+    win: Vec<f64>,
 }
 
-fn whitened(x: &[f32], fs: f64, pad: usize, f_top: f64) -> Whitened {
-    let n = largest_fast_len(x.len());
-    let x = &x[..n];
-    let mean = x.iter().map(|&v| v as f64).sum::<f64>() / n as f64;
-    let len = n * pad;
-    let mut buf = vec![0.0f32; len];
-    for (i, (b, &v)) in buf.iter_mut().zip(x).enumerate() {
-        let w = 0.5 - 0.5 * (2.0 * std::f64::consts::PI * i as f64 / n as f64).cos();
-        *b = ((v as f64 - mean) * w) as f32;
+impl Default for SpeedEstimator {
+    fn default() -> Self {
+        Self::new()
     }
-    let fft = RealFftPlanner::<f32>::new().plan_fft_forward(len);
-    let mut spec = fft.make_output_vec();
-    fft.process(&mut buf, &mut spec)
-        .expect("buffer sizes match the plan");
-    let df = fs / len as f64;
-    let top = ((f_top / df).ceil() as usize).min(spec.len() - 1);
-    let half = ((BACKGROUND_HZ / df / 2.0).round() as usize).max(2);
-    let logm: Vec<f64> = spec[..=top + half]
-        .iter()
-        .map(|c| (c.norm() as f64 + 1e-30).ln())
-        .collect();
-    let mut win = Vec::with_capacity(2 * half + 1);
-    let prom = (0..=top)
-        .map(|i| {
-            win.clear();
-            win.extend_from_slice(&logm[i.saturating_sub(half)..(i + half + 1).min(logm.len())]);
-            let mid = win.len() / 2;
-            let med = *win.select_nth_unstable_by(mid, |a, b| a.total_cmp(b)).1;
-            logm[i] - med
-        })
-        .collect();
-    Whitened { df, prom }
+}
+
+impl SpeedEstimator {
+    pub fn new() -> Self {
+        SpeedEstimator {
+            planner: RealFftPlanner::new(),
+            buf: Vec::new(),
+            spec: Vec::new(),
+            scratch: Vec::new(),
+            logm: Vec::new(),
+            win: Vec::new(),
+        }
+    }
+
+    /// Whitened spectrum of `x` (cut to the largest fast FFT length, zero-padded `pad` times).
+    fn whitened(&mut self, x: &[f32], fs: f64, pad: usize, f_top: f64) -> Whitened {
+        let n = fast_len_at_most(x.len());
+        let x = &x[..n];
+        let mean = x.iter().map(|&v| v as f64).sum::<f64>() / n as f64;
+        let len = n * pad;
+        let fft = self.planner.plan_fft_forward(len);
+        self.buf.clear();
+        self.buf.resize(len, 0.0);
+        for (i, (b, &v)) in self.buf.iter_mut().zip(x).enumerate() {
+            let w = 0.5 - 0.5 * (2.0 * std::f64::consts::PI * i as f64 / n as f64).cos();
+            *b = ((v as f64 - mean) * w) as f32;
+        }
+        self.spec.clear();
+        self.spec.resize(len / 2 + 1, Complex32::default());
+        self.scratch.clear();
+        self.scratch
+            .resize(fft.get_scratch_len(), Complex32::default());
+        fft.process_with_scratch(&mut self.buf, &mut self.spec, &mut self.scratch)
+            .expect("buffer sizes match the plan");
+        let df = fs / len as f64;
+        let top = ((f_top / df).ceil() as usize).min(self.spec.len() - 1);
+        let half = ((BACKGROUND_HZ / df / 2.0).round() as usize).max(2);
+        self.logm.clear();
+        self.logm.extend(
+            self.spec[..=top + half]
+                .iter()
+                .map(|c| (c.norm() as f64 + 1e-30).ln()),
+        );
+        let (logm, win) = (&self.logm, &mut self.win);
+        let prom = (0..=top)
+            .map(|i| {
+                win.clear();
+                win.extend_from_slice(
+                    &logm[i.saturating_sub(half)..(i + half + 1).min(logm.len())],
+                );
+                let mid = win.len() / 2;
+                let med = *win.select_nth_unstable_by(mid, |a, b| a.total_cmp(b)).1;
+                logm[i] - med
+            })
+            .collect();
+        Whitened { df, prom }
+    }
+
+    /// One speed for the whole signal: see [`estimate_constant`].
+    pub fn estimate_constant(
+        &mut self,
+        x: &[f32],
+        fs: f64,
+        min_rpm: f64,
+        max_rpm: f64,
+    ) -> Result<Estimate> {
+        check_input(x, fs, min_rpm, max_rpm)?;
+        let (fmin, fmax) = (min_rpm / 60.0, max_rpm / 60.0);
+        let w = self.whitened(x, fs, 1, (HARMONICS as f64 + 1.0) * fmax);
+        Ok(fundamental(&w, fmin, fmax))
+    }
+
+    /// The 1x line tracked over time: see [`estimate_track`].
+    pub fn estimate_track(
+        &mut self,
+        x: &[f32],
+        fs: f64,
+        min_rpm: f64,
+        max_rpm: f64,
+    ) -> Result<SpeedTrack> {
+        check_input(x, fs, min_rpm, max_rpm)?;
+        let (fmin, fmax) = (min_rpm / 60.0, max_rpm / 60.0);
+        let seg = ((SEGMENT_S.max(8.0 / fmin).min(8.0)) * fs) as usize;
+        if x.len() < 3 * seg {
+            let rpm = self.estimate_constant(x, fs, min_rpm, max_rpm)?.rpm;
+            return SpeedTrack::constant(rpm, "estimate");
+        }
+        let top = (HARMONICS as f64 + 1.0) * fmax;
+        let whole = self.whitened(x, fs, 1, top);
+        let g = fundamental(&whole, fmin, fmax).rpm / 60.0;
+        let (mut ts, mut spectra, mut raw) = (Vec::new(), Vec::new(), Vec::new());
+        let mut start = 0;
+        while start + seg <= x.len() {
+            let w = self.whitened(&x[start..start + seg], fs, 4, top);
+            // prefer the whole-record line when this segment supports it nearly as well as its own
+            // best (short segments are easily fooled by fault lines); follow the segment otherwise
+            let own = fundamental(&w, fmin, fmax);
+            let (near, near_score) = w.best_in((g * 0.95).max(fmin), (g * 1.05).min(fmax));
+            raw.push(if near_score >= 0.7 * own.score {
+                near
+            } else {
+                own.rpm / 60.0
+            });
+            ts.push((start + seg / 2) as f64 / fs);
+            spectra.push(w);
+            start += seg / 2;
+        }
+        let n = raw.len();
+        let mut win = Vec::with_capacity(5);
+        let track: Vec<f64> = (0..n)
+            .map(|i| {
+                win.clear();
+                win.extend_from_slice(&raw[i.saturating_sub(2)..(i + 3).min(n)]);
+                win.sort_by(|a, b| a.total_cmp(b));
+                let smooth = win[win.len() / 2];
+                spectra[i].best_in(smooth * 0.97, smooth * 1.03).0
+            })
+            .collect();
+        let mut sorted = track.clone();
+        sorted.sort_by(|a, b| a.total_cmp(b));
+        let med = sorted[n / 2];
+        if track.iter().all(|f| (f / med - 1.0).abs() < 0.01) {
+            let (f, _) = whole.best_in(med * 0.99, med * 1.01);
+            return SpeedTrack::constant(f * 60.0, "estimate");
+        }
+        SpeedTrack::from_profile(&ts, &track, "estimate")
+    }
 }
 
 impl Whitened {
@@ -125,10 +218,7 @@ fn is_mains(f: f64) -> bool {
 
 /// One speed for the whole record, from the strongest harmonic series of the shaft line.
 pub fn estimate_constant(x: &[f32], fs: f64, min_rpm: f64, max_rpm: f64) -> Result<Estimate> {
-    check_input(x, fs, min_rpm, max_rpm)?;
-    let (fmin, fmax) = (min_rpm / 60.0, max_rpm / 60.0);
-    let w = whitened(x, fs, 1, (HARMONICS as f64 + 1.0) * fmax);
-    Ok(fundamental(&w, fmin, fmax))
+    SpeedEstimator::new().estimate_constant(x, fs, min_rpm, max_rpm)
 }
 
 fn fundamental(w: &Whitened, fmin: f64, fmax: f64) -> Estimate {
@@ -195,51 +285,7 @@ fn check_input(x: &[f32], fs: f64, min_rpm: f64, max_rpm: f64) -> Result<()> {
 /// median is used (finer resolution); otherwise the track follows the segment estimates.
 /// Recordings shorter than three segments get the whole-record estimate. Source "estimate".
 pub fn estimate_track(x: &[f32], fs: f64, min_rpm: f64, max_rpm: f64) -> Result<SpeedTrack> {
-    check_input(x, fs, min_rpm, max_rpm)?;
-    let (fmin, fmax) = (min_rpm / 60.0, max_rpm / 60.0);
-    let seg = ((SEGMENT_S.max(8.0 / fmin).min(8.0)) * fs) as usize;
-    if x.len() < 3 * seg {
-        return SpeedTrack::constant(estimate_constant(x, fs, min_rpm, max_rpm)?.rpm, "estimate");
-    }
-    let top = (HARMONICS as f64 + 1.0) * fmax;
-    let whole = whitened(x, fs, 1, top);
-    let g = fundamental(&whole, fmin, fmax).rpm / 60.0;
-    let (mut ts, mut spectra, mut raw) = (Vec::new(), Vec::new(), Vec::new());
-    let mut start = 0;
-    while start + seg <= x.len() {
-        let w = whitened(&x[start..start + seg], fs, 4, top);
-        // prefer the whole-record line when this segment supports it nearly as well as its own
-        // best (short segments are easily fooled by fault lines); follow the segment otherwise
-        let own = fundamental(&w, fmin, fmax);
-        let (near, near_score) = w.best_in((g * 0.95).max(fmin), (g * 1.05).min(fmax));
-        raw.push(if near_score >= 0.7 * own.score {
-            near
-        } else {
-            own.rpm / 60.0
-        });
-        ts.push((start + seg / 2) as f64 / fs);
-        spectra.push(w);
-        start += seg / 2;
-    }
-    let n = raw.len();
-    let mut win = Vec::with_capacity(5);
-    let track: Vec<f64> = (0..n)
-        .map(|i| {
-            win.clear();
-            win.extend_from_slice(&raw[i.saturating_sub(2)..(i + 3).min(n)]);
-            win.sort_by(|a, b| a.total_cmp(b));
-            let smooth = win[win.len() / 2];
-            spectra[i].best_in(smooth * 0.97, smooth * 1.03).0
-        })
-        .collect();
-    let mut sorted = track.clone();
-    sorted.sort_by(|a, b| a.total_cmp(b));
-    let med = sorted[n / 2];
-    if track.iter().all(|f| (f / med - 1.0).abs() < 0.01) {
-        let (f, _) = whole.best_in(med * 0.99, med * 1.01);
-        return SpeedTrack::constant(f * 60.0, "estimate");
-    }
-    SpeedTrack::from_profile(&ts, &track, "estimate")
+    SpeedEstimator::new().estimate_track(x, fs, min_rpm, max_rpm)
 }
 
 #[cfg(test)]

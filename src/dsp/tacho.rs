@@ -41,6 +41,17 @@ impl EdgeDetector {
     /// Feed the next block of samples; rising-edge times (s since the first sample ever fed)
     /// are appended to `edges`. Non-finite samples are skipped (they never switch the trigger).
     pub fn push(&mut self, block: &[f32], edges: &mut Vec<f64>) {
+        self.run(block, |t, _| edges.push(t));
+    }
+
+    /// [`push`](Self::push), with each edge's time and the index (counted from the first
+    /// sample ever fed) of the sample that confirmed it: an edge is known once that sample
+    /// has arrived, whatever the block boundaries.
+    pub fn push_indexed(&mut self, block: &[f32], edges: &mut Vec<(f64, u64)>) {
+        self.run(block, |t, k| edges.push((t, k)));
+    }
+
+    fn run(&mut self, block: &[f32], mut emit: impl FnMut(f64, u64)) {
         for &x in block {
             let k = self.next_index;
             self.next_index += 1;
@@ -61,7 +72,7 @@ impl EdgeDetector {
                 if x >= self.hi {
                     self.high = true;
                     if let Some(c) = self.candidate.take() {
-                        edges.push(c / self.sample_rate);
+                        emit(c / self.sample_rate, k);
                     }
                 }
             } else if x <= self.lo {

@@ -12,7 +12,7 @@
 
 use crate::bearing::FaultOrders;
 use crate::config::RigConfig;
-use crate::dsp::{FeaturePipeline, SpeedTrack};
+use crate::dsp::FeaturePipeline;
 use crate::recording::Recording;
 use anyhow::{bail, Context, Result};
 use serde::Serialize;
@@ -150,8 +150,8 @@ impl EnvelopeRule {
                 )
             })?
             .samples;
-        let speed =
-            SpeedTrack::for_recording(rec, rig).with_context(|| format!("speed for {what}"))?;
+        let speed = crate::analysis::whole_recording(rec, rig)
+            .with_context(|| format!("speed for {what}"))?;
         let mut pipe = FeaturePipeline::new(rig, rec.sample_rate)?;
         let n = pipe.window_len();
         let hop = ((rig.features.hop_s * rec.sample_rate).round() as usize).max(1);
@@ -245,7 +245,7 @@ mod tests {
         };
         let rig = rig();
         let mut pipe = FeaturePipeline::new(&rig, 12_000.0).unwrap();
-        let speed = SpeedTrack::fixed(1800.0).unwrap();
+        let speed = crate::dsp::SpeedTrack::fixed(1800.0).unwrap();
         let rule = EnvelopeRule::new(orders(), RuleSettings::default(), 50.0);
         let n = pipe.window_len();
         (0..7)

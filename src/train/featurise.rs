@@ -1,6 +1,7 @@
 //! Turning manifest entries into classifier features: each recording is read with the
-//! importers (any supported format) and run through the DSP feature pipeline; files are
-//! processed in parallel and hashed for the training-data hash.
+//! importers (any supported format) and run through the analysis stage the daemon uses
+//! (`analysis::extract_recording`); files are processed in parallel and hashed for the
+//! training-data hash.
 
 use super::dataset::{ManifestEntry, RecordingFeatures};
 use crate::config::RigConfig;
@@ -40,7 +41,7 @@ pub fn featurise(entry: &ManifestEntry, rig: &RigConfig) -> Result<RecordingFeat
             entry.path.display()
         )
     })?;
-    let wins = crate::dsp::extract_recording(&rec, rig)
+    let wins = crate::analysis::extract_recording(&rec, rig)
         .with_context(|| format!("features of {}", entry.path.display()))?;
     let n = rig.features.n_bins();
     let mut data = Vec::with_capacity(wins.len() * n);

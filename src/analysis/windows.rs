@@ -6,19 +6,30 @@
 //!
 //! An analog tacho is turned into edge times as blocks arrive (a streaming Schmitt trigger),
 //! so every window sees tacho edges on the pipeline clock, whatever form the tacho came in.
+//! A window is handed out once one hop of samples past its end has arrived (its lookahead;
+//! at the end of the stream, [`Windower::finish`], at once). It sees exactly the tacho edges
+//! from one window before its start that were known by the end of its lookahead (an analog
+//! edge is known once the sample that confirms it has arrived), so the speed at its end is
+//! interpolated, a pulse missing near its end is seen, and its edges, hence its speed and
+//! features, do not depend on how the samples were cut into blocks: a whole recording and a
+//! live stream give the same windows.
 //!
 //! The buffers are allocated once (window + largest block) and slid with `copy_within`.
 
 use crate::acquire::SampleBlock;
+use crate::dsp::speed_config::SpeedConfig;
 use crate::dsp::tacho::EdgeDetector;
 use std::collections::VecDeque;
 
-/// Window length and hop in samples.
+/// Window length, hop and lookahead in samples.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct WindowSpec {
     pub sample_rate: f64,
     pub len: usize,
     pub hop: usize,
+    /// Samples past a window's end that must arrive before it is analysed (tacho edges up to
+    /// there are used for its speed); one hop.
+    pub lookahead: usize,
 }
 
 impl WindowSpec {
@@ -34,6 +45,7 @@ impl WindowSpec {
             sample_rate,
             len,
             hop,
+            lookahead: hop,
         })
     }
 }
@@ -60,10 +72,34 @@ pub struct WindowView<'a> {
     pub t_end: f64,
     /// One slice per source channel (rig acceleration channel order), `len` samples each.
     pub channels: Vec<&'a [f32]>,
-    /// Tacho edge times (s, pipeline clock) from one window before the start to the end.
-    pub edges: &'a VecDeque<f64>,
+    /// Tacho edges held by the windower: (time in s on the pipeline clock, pipeline-clock
+    /// sample from which the edge is known). Read them with [`WindowView::edges`].
+    pub edge_buffer: &'a VecDeque<(f64, u64)>,
+    /// Edges known from this pipeline-clock sample on are not used (the end of the window's
+    /// lookahead).
+    pub edges_until: u64,
+    /// Edges before this time (s) belong to earlier windows.
+    pub edges_from: f64,
     /// Samples inside this window that were lost on the sample clock (NaN-filled).
     pub lost_samples: u32,
+}
+
+impl WindowView<'_> {
+    /// Tacho edge times (s, pipeline clock) from one window before the start, known by the
+    /// end of the window's lookahead.
+    pub fn edges(&self) -> impl Iterator<Item = f64> + '_ {
+        let (from, end) = (self.edges_from, self.edges_until);
+        self.edge_buffer
+            .iter()
+            .filter(move |&&(t, known)| t >= from && known < end)
+            .map(|&(t, _)| t)
+    }
+}
+
+/// Pipeline-clock sample from which an edge delivered by the source (time `t` s) is known:
+/// the sample it falls in.
+fn known_at(t: f64, fs: f64) -> u64 {
+    (t * fs).floor().max(0.0) as u64
 }
 
 /// Per-channel sliding buffers.
@@ -75,8 +111,8 @@ pub struct Windower {
     tacho_levels: Option<(f64, f64)>,
     /// Edge detector for the analog tacho and the pipeline-clock sample it started at.
     detector: Option<(EdgeDetector, u64)>,
-    new_edges: Vec<f64>,
-    edges: VecDeque<f64>,
+    new_edges: Vec<(f64, u64)>,
+    edges: VecDeque<(f64, u64)>,
     /// Pipeline-clock index of `bufs[_][0]`.
     start: u64,
     /// Pipeline-clock index of the next expected sample (None before the first block).
@@ -85,6 +121,8 @@ pub struct Windower {
     offset: i128,
     /// NaN-filled ranges (pipeline clock, [from, to)) still inside the buffers.
     holes: VecDeque<(u64, u64)>,
+    /// The stream has ended: windows no longer wait for their lookahead.
+    finished: bool,
     stats: WindowStats,
 }
 
@@ -105,8 +143,21 @@ impl Windower {
             next: None,
             offset: 0,
             holes: VecDeque::new(),
+            finished: false,
             stats: WindowStats::default(),
         }
+    }
+
+    /// The windower a rig asks for: windows and hop from `[features]`, the analog tacho's
+    /// switching levels when `[speed]` takes speed from one.
+    pub fn for_rig(
+        speed: &SpeedConfig,
+        features: &crate::dsp::FeatureSettings,
+        sample_rate: f64,
+        n_channels: usize,
+    ) -> anyhow::Result<Self> {
+        let spec = WindowSpec::new(sample_rate, features.window_s, features.hop_s)?;
+        Ok(Windower::new(spec, n_channels, speed.tacho_levels()))
     }
 
     pub fn spec(&self) -> WindowSpec {
@@ -122,8 +173,15 @@ impl Windower {
         self.next
     }
 
+    /// The stream has ended: hand out the remaining complete windows without waiting for
+    /// their lookahead.
+    pub fn finish(&mut self) {
+        self.finished = true;
+    }
+
     /// Add a block. Returns the number of samples found missing before it.
     pub fn push(&mut self, block: &SampleBlock) -> u64 {
+        self.finished = false;
         let n = block.len();
         if block.channels.len() != self.bufs.len() {
             // A source that changes its channel count mid-stream is a bug upstream; keep the
@@ -186,14 +244,17 @@ impl Windower {
                     .detector
                     .get_or_insert_with(|| (EdgeDetector::new(thr, hyst, fs), pos));
                 self.new_edges.clear();
-                det.push(a, &mut self.new_edges);
-                let shift = *origin as f64 / fs;
-                self.edges.extend(self.new_edges.iter().map(|&e| e + shift));
+                det.push_indexed(a, &mut self.new_edges);
+                let (origin, shift) = (*origin, *origin as f64 / fs);
+                self.edges
+                    .extend(self.new_edges.iter().map(|&(e, k)| (e + shift, origin + k)));
             }
             _ => {
                 let shift = self.offset as f64 / fs;
-                self.edges
-                    .extend(block.tacho_edges.iter().map(|&e| e + shift));
+                self.edges.extend(block.tacho_edges.iter().map(|&e| {
+                    let t = e + shift;
+                    (t, known_at(t, fs))
+                }));
             }
         }
         self.next = Some(pos + n as u64);
@@ -213,7 +274,12 @@ impl Windower {
     /// using it.
     pub fn window(&self) -> Option<WindowView<'_>> {
         let len = self.spec.len;
-        if self.bufs.first().is_none_or(|b| b.len() < len) {
+        let ahead = if self.finished {
+            0
+        } else {
+            self.spec.lookahead
+        };
+        if self.bufs.first().is_none_or(|b| b.len() < len + ahead) {
             return None;
         }
         let end = self.start + len as u64;
@@ -228,7 +294,9 @@ impl Windower {
             t_start: self.start as f64 / fs,
             t_end: end as f64 / fs,
             channels: self.bufs.iter().map(|b| &b[..len]).collect(),
-            edges: &self.edges,
+            edge_buffer: &self.edges,
+            edges_until: end + self.spec.lookahead as u64,
+            edges_from: self.edges_from(self.start),
             lost_samples: lost as u32,
         })
     }
@@ -251,11 +319,16 @@ impl Windower {
             self.holes.pop_front();
         }
         // Keep one window of edges before the start for speed at the window's beginning.
-        let keep_from = self.start as f64 / self.spec.sample_rate
-            - self.spec.len as f64 / self.spec.sample_rate;
-        while self.edges.front().is_some_and(|&e| e < keep_from) {
+        let keep_from = self.edges_from(self.start);
+        while self.edges.front().is_some_and(|&(e, _)| e < keep_from) {
             self.edges.pop_front();
         }
+    }
+
+    /// Edges a window starting at `start` uses begin one window before it (s).
+    fn edges_from(&self, start: u64) -> f64 {
+        let fs = self.spec.sample_rate;
+        start as f64 / fs - self.spec.len as f64 / fs
     }
 }
 
@@ -293,13 +366,21 @@ mod tests {
                 w.advance();
             }
         }
+        // Each window waited for one hop past its end; the last one comes at the end.
+        assert_eq!(starts, [0, 50, 100, 150]);
+        w.finish();
+        while let Some(v) = w.window() {
+            starts.push(v.first_sample);
+            w.advance();
+        }
         assert_eq!(starts, [0, 50, 100, 150, 200]);
         assert_eq!(w.stats().samples_lost, 0);
     }
 
     #[test]
     fn short_gap_is_nan_filled_and_counted() {
-        let spec = WindowSpec::new(100.0, 1.0, 0.5).unwrap();
+        let mut spec = WindowSpec::new(100.0, 1.0, 0.5).unwrap();
+        spec.lookahead = 0;
         let mut w = Windower::new(spec, 2, None);
         w.push(&block(0, 60, 1.0));
         assert_eq!(w.push(&block(70, 60, 1.0)), 10);
@@ -321,7 +402,8 @@ mod tests {
 
     #[test]
     fn long_gap_and_backwards_clock_restart() {
-        let spec = WindowSpec::new(100.0, 1.0, 0.5).unwrap();
+        let mut spec = WindowSpec::new(100.0, 1.0, 0.5).unwrap();
+        spec.lookahead = 0;
         let mut w = Windower::new(spec, 2, None);
         w.push(&block(0, 80, 1.0));
         assert_eq!(w.push(&block(500, 100, 2.0)), 420);
@@ -334,17 +416,18 @@ mod tests {
         w.push(&block(0, 100, 3.0));
         let v = w.window().unwrap();
         assert_eq!(v.first_sample, 600);
+        let e: Vec<f64> = v.edges().collect();
         assert!(
-            (v.edges[0] - 6.0).abs() < 1e-9,
-            "edges follow the folded clock: {:?}",
-            v.edges
+            (e[0] - 6.0).abs() < 1e-9,
+            "edges follow the folded clock: {e:?}"
         );
         assert_eq!(w.stats().restarts, 2);
     }
 
     #[test]
     fn analog_tacho_edges_land_on_the_pipeline_clock() {
-        let spec = WindowSpec::new(100.0, 1.0, 0.5).unwrap();
+        let mut spec = WindowSpec::new(100.0, 1.0, 0.5).unwrap();
+        spec.lookahead = 0;
         let mut w = Windower::new(spec, 2, Some((2.5, 0.5)));
         for k in 0..4u64 {
             let mut b = block(k * 50, 50, 1.0);
@@ -364,12 +447,65 @@ mod tests {
             w.push(&b);
         }
         let v = w.window().unwrap();
-        let e: Vec<f64> = v.edges.iter().copied().collect();
-        assert_eq!(e.len(), 8, "{e:?}");
+        let e: Vec<f64> = v.edges().collect();
+        // Only the edges known by the window's last sample (100 samples = 4 pulses), although
+        // the buffers already hold 200 samples.
+        assert_eq!(e.len(), 4, "{e:?}");
         // Crossing of 2.5 V between samples 9 (0 V) and 10 (5 V): 9.5 samples.
         assert!(
             (e[0] - 0.095).abs() < 1e-9 && (e[1] - 0.345).abs() < 1e-9,
             "{e:?}"
         );
+    }
+
+    /// Every window's tacho edges, with an analog tacho cut into blocks of `n` samples.
+    fn window_edges(n: usize) -> Vec<(u64, Vec<f64>)> {
+        let spec = WindowSpec::new(100.0, 1.0, 0.5).unwrap();
+        let mut w = Windower::new(spec, 1, Some((2.5, 0.5)));
+        // a pulse every 13 samples, rising over samples 4..6
+        let tacho: Vec<f32> = (0..400)
+            .map(|i| [0.0, 0.0, 0.0, 0.0, 2.0, 4.0, 5.0, 5.0][(i % 13).min(7)])
+            .collect();
+        let mut out = Vec::new();
+        let mut drain = |w: &mut Windower| {
+            while let Some(v) = w.window() {
+                out.push((v.first_sample, v.edges().collect::<Vec<f64>>()));
+                w.advance();
+            }
+        };
+        for (k, a) in tacho.chunks(n).enumerate() {
+            w.push(&SampleBlock {
+                first_sample: (k * n) as u64,
+                sample_rate: 100.0,
+                channels: vec![vec![1.0; a.len()]],
+                tacho_analog: Some(a.to_vec()),
+                tacho_edges: Vec::new(),
+            });
+            drain(&mut w);
+        }
+        w.finish();
+        drain(&mut w);
+        out
+    }
+
+    #[test]
+    fn window_edges_reach_one_hop_past_the_end_whatever_the_blocks() {
+        let whole = window_edges(400);
+        assert_eq!(whole.len(), 7);
+        for n in [1, 7, 50, 64, 150] {
+            assert_eq!(window_edges(n), whole, "blocks of {n}");
+        }
+        // The window [100, 200) sees edges from sample 0 to its lookahead's end (250).
+        let (first, e) = &whole[2];
+        assert_eq!(*first, 100);
+        let want: Vec<f64> = (0..20)
+            .map(|k| (13 * k) as f64 + 4.25)
+            .filter(|&s| s < 250.0)
+            .map(|s| s / 100.0)
+            .collect();
+        assert_eq!(e.len(), want.len(), "{e:?}");
+        for (a, b) in e.iter().zip(&want) {
+            assert!((a - b).abs() < 1e-9, "{e:?} vs {want:?}");
+        }
     }
 }

@@ -1,0 +1,121 @@
+//! Whole recordings -> feature windows, exactly as the daemon would compute them: the
+//! recording is fed as sample blocks through the same [`Windower`] and [`AnalysisStage`]
+//! (window by window speed included), so `rigmon features`, training and evaluation see the
+//! features a served model is given. A window that cannot be computed (NaN samples, no
+//! speed) is an error naming the window.
+
+use super::speed_source::SpeedSource;
+use super::stage::AnalysisStage;
+use super::windows::Windower;
+use crate::acquire::SampleBlock;
+use crate::config::RigConfig;
+use crate::dsp::features::FeatureWindow;
+use crate::dsp::speed::SpeedTrack;
+use crate::recording::{Recording, Tacho};
+use anyhow::{bail, Context, Result};
+
+/// Samples per block fed to the windower (the result does not depend on it).
+const BLOCK: usize = 4096;
+
+/// Features of every full window of a recording, with the speed source from the rig file.
+pub fn extract_recording(rec: &Recording, rig: &RigConfig) -> Result<Vec<FeatureWindow>> {
+    let speed = SpeedSource::new(&rig.speed, rec.sample_rate, rec.rpm)?;
+    speed
+        .check_recording(rec)
+        .with_context(|| format!("speed for {}", rec.provenance.source_path))?;
+    extract(rec, rig, speed)
+}
+
+/// Features of every full window of a recording along a given speed track.
+pub fn extract_with_speed(
+    rec: &Recording,
+    rig: &RigConfig,
+    speed: &SpeedTrack,
+) -> Result<Vec<FeatureWindow>> {
+    extract(rec, rig, SpeedSource::given(speed.clone(), rec.sample_rate))
+}
+
+fn extract(rec: &Recording, rig: &RigConfig, speed: SpeedSource) -> Result<Vec<FeatureWindow>> {
+    let what = &rec.provenance.source_path;
+    if rec.channels.is_empty() {
+        bail!("{what}: the recording has no acceleration channel");
+    }
+    if let Some(bad) = rec.channels.iter().find(|c| c.samples.len() != rec.len()) {
+        bail!(
+            "{what}: channel {:?} has {} samples but {:?} has {}; channels must be the same length",
+            bad.name,
+            bad.samples.len(),
+            rec.channels[0].name,
+            rec.len()
+        );
+    }
+    let fs = rec.sample_rate;
+    let channels: Vec<(String, String)> = rec
+        .channels
+        .iter()
+        .map(|c| (c.name.clone(), c.unit.clone()))
+        .collect();
+    let mut stage = AnalysisStage::new(rig, fs, &channels, &[], speed)?.strict();
+    let n = stage.window_len();
+    if rec.len() < n {
+        bail!(
+            "{what}: {:.3} s of signal is shorter than one feature window ({} s); use a longer recording or a shorter features.window_s",
+            rec.duration_s(),
+            rig.features.window_s
+        );
+    }
+    let mut windower = Windower::for_rig(&rig.speed, &rig.features, fs, channels.len())?;
+    let hop = windower.spec().hop;
+    let mut out = Vec::with_capacity((rec.len() - n) / hop + 1);
+    let mut drain = |windower: &mut Windower, out: &mut Vec<FeatureWindow>| -> Result<()> {
+        while let Some(view) = windower.window() {
+            let a = stage.analyse(&view);
+            drop(view);
+            windower.advance();
+            let t = a.t_start;
+            out.push(
+                a.features
+                    .map_err(|e| e.into_error())
+                    .with_context(|| format!("{what}: window at t = {t:.3} s"))?,
+            );
+        }
+        Ok(())
+    };
+    let mut start = 0;
+    while start < rec.len() {
+        let end = (start + BLOCK).min(rec.len());
+        windower.push(&block(rec, start, end));
+        drain(&mut windower, &mut out)?;
+        start = end;
+    }
+    // The end of the recording: the last windows do not wait for their lookahead.
+    windower.finish();
+    drain(&mut windower, &mut out)?;
+    Ok(out)
+}
+
+/// Samples `[start, end)` of the recording as the block a file replay would deliver.
+fn block(rec: &Recording, start: usize, end: usize) -> SampleBlock {
+    let fs = rec.sample_rate;
+    let (tacho_analog, tacho_edges) = match &rec.tacho {
+        Some(Tacho::Analog { samples, .. }) => (Some(samples[start..end].to_vec()), Vec::new()),
+        Some(Tacho::Edges { times_s }) => {
+            let (t0, t1) = (start as f64 / fs, end as f64 / fs);
+            let lo = times_s.partition_point(|&t| t < t0);
+            let hi = times_s.partition_point(|&t| t < t1);
+            (None, times_s[lo..hi].to_vec())
+        }
+        None => (None, Vec::new()),
+    };
+    SampleBlock {
+        first_sample: start as u64,
+        sample_rate: fs,
+        channels: rec
+            .channels
+            .iter()
+            .map(|c| c.samples[start..end].to_vec())
+            .collect(),
+        tacho_analog,
+        tacho_edges,
+    }
+}

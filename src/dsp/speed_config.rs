@@ -1,0 +1,80 @@
+//! The rig file's `[speed]` section: where shaft speed and angle come from (analog tacho,
+//! delivered edges, a fixed rpm, the recording's stored rpm, or an estimate from the
+//! vibration). Owned by the DSP layer; `config` embeds it in the rig file.
+
+use serde::{Deserialize, Serialize};
+
+/// Where shaft speed and angle come from.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "source", rename_all = "snake_case", deny_unknown_fields)]
+pub enum SpeedConfig {
+    /// Analog tacho channel: threshold with hysteresis, sub-sample edge interpolation.
+    Tacho {
+        /// Name of the tacho channel in `channels`.
+        channel: String,
+        #[serde(default = "one_u32")]
+        pulses_per_rev: u32,
+        /// Switching threshold in the channel's unit (V).
+        #[serde(default = "default_threshold")]
+        threshold: f64,
+        /// Hysteresis half-width around the threshold.
+        #[serde(default = "default_hysteresis")]
+        hysteresis: f64,
+    },
+    /// Edge timestamps delivered by the source (DAQ adapters, MCAP tacho edges).
+    Edges {
+        #[serde(default = "one_u32")]
+        pulses_per_rev: u32,
+    },
+    /// A fixed, known speed.
+    Fixed { rpm: f64 },
+    /// The speed stored in the recording (e.g. CWRU's `X<nnn>RPM`); falls back to estimation.
+    Recording,
+    /// Estimate from the vibration itself by tracking the 1x line.
+    Estimate {
+        #[serde(default = "default_min_rpm")]
+        min_rpm: f64,
+        #[serde(default = "default_max_rpm")]
+        max_rpm: f64,
+    },
+}
+
+fn one_u32() -> u32 {
+    1
+}
+fn default_threshold() -> f64 {
+    2.5
+}
+fn default_hysteresis() -> f64 {
+    0.5
+}
+fn default_min_rpm() -> f64 {
+    300.0
+}
+fn default_max_rpm() -> f64 {
+    3600.0
+}
+
+impl SpeedConfig {
+    /// Pulses per revolution of the tacho, whatever form it comes in (1 without a tacho).
+    pub fn pulses_per_rev(&self) -> u32 {
+        match self {
+            SpeedConfig::Tacho { pulses_per_rev, .. } | SpeedConfig::Edges { pulses_per_rev } => {
+                *pulses_per_rev
+            }
+            _ => 1,
+        }
+    }
+
+    /// (threshold, hysteresis) of the analog tacho, when speed comes from one.
+    pub fn tacho_levels(&self) -> Option<(f64, f64)> {
+        match self {
+            SpeedConfig::Tacho {
+                threshold,
+                hysteresis,
+                ..
+            } => Some((*threshold, *hysteresis)),
+            _ => None,
+        }
+    }
+}
