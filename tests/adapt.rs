@@ -82,7 +82,7 @@ fn adapt_writes_a_model_and_report_that_evaluate_uses() {
     eprintln!(
         "adapt: {:.1} s; steps {}",
         t0.elapsed().as_secs_f64(),
-        report["timings_s"]
+        report["timings"]
     );
     for f in [
         "model.onnx",
@@ -96,6 +96,8 @@ fn adapt_writes_a_model_and_report_that_evaluate_uses() {
         "holdout_confusion_after.png",
         "calibration_spectra.png",
         "calibration/report.md",
+        "seeds/seed1.onnx",
+        "seeds/seed2.onnx",
     ] {
         assert!(out.join(f).is_file(), "adapt wrote no {f}");
     }

@@ -1,14 +1,16 @@
 //! `rigmon adapt`: turn a rig file plus measured recordings of that machine into a diagnosis
 //! for it. Measured data calibrates the simulator ([`crate::calibrate`]) and is scored; it
 //! never trains the classifier. Steps: calibrate -> derive the dataset plan ([`plan`]) ->
-//! simulate with the plan's ranges spread around the calibration -> train `seeds` models and
-//! keep the best on simulated validation -> score the labelled recordings before (a
-//! zero-shot model) and after, with the rule baseline beside -> write the folder
-//! ([`report`]). Before it is written, the kept model is aligned to the machine's healthy
+//! simulate with the plan's ranges spread around the calibration (and the uncalibrated rig
+//! for the zero-shot model) -> train `seeds` models and the zero-shot model in parallel
+//! (rayon), keep the best seed on simulated validation -> score the labelled recordings
+//! before (the zero-shot model) and after, with the rule baseline beside -> write the folder
+//! ([`report`], with wall and CPU time per step: [`timing`]). Before it is written, the kept model is aligned to the machine's healthy
 //! recordings ([`crate::model::align`]: reference levels and the healthy-baseline gate).
 
 pub mod plan;
 pub mod report;
+pub mod timing;
 
 use crate::calibrate::{fit as cal_fit, measured, plots as cal_plots, report as cal_report};
 use crate::config::RigConfig;
@@ -26,9 +28,10 @@ use crate::train::score::{model_outcomes, rule_outcomes};
 use crate::train::trainer::TrainConfig;
 use anyhow::{bail, Context, Result};
 use indicatif::{ProgressBar, ProgressStyle};
+use rayon::prelude::*;
 use serde::Serialize;
 use std::path::{Path, PathBuf};
-use std::time::Instant;
+use timing::{StepTime, Stopwatch};
 
 /// What `rigmon adapt` is asked to do.
 #[derive(Debug, Clone)]
@@ -102,8 +105,10 @@ pub struct AdaptOutcome {
     pub alignment: Option<serde_json::Value>,
     pub measured_scores: SetScores,
     pub holdout_scores: Option<SetScores>,
-    pub timings_s: Vec<(String, f64)>,
+    /// Wall and CPU seconds per step, with the load average.
+    pub timings: Vec<StepTime>,
     pub total_s: f64,
+    pub total_cpu_s: f64,
 }
 
 fn step_bar(progress: bool, n: u64) -> ProgressBar {
@@ -205,34 +210,32 @@ fn simulate_and_featurise(
     Ok((s, recs))
 }
 
-/// Train one seed.
+/// Train one seed (epochs counted on the shared bar `pb`).
 fn train_seed(
     recs: &[RecordingFeatures],
     rig: &RigConfig,
     labels: &[String],
     seed: u64,
     epochs: usize,
-    progress: bool,
+    pb: &ProgressBar,
 ) -> Result<(TrainedModel, FitReport, Evaluation)> {
     let cfg = TrainConfig {
         seed,
         epochs,
         ..TrainConfig::default()
     };
-    let pb = file_bar(progress, epochs, &format!("train seed {seed}"));
-    let r = fit(recs, rig, labels, &cfg, 0.1, |_| pb.inc(1))?;
-    pb.finish_and_clear();
-    Ok(r)
+    fit(recs, rig, labels, &cfg, 0.1, |_| pb.inc(1))
 }
 
-/// Align the kept model to the machine's healthy measured recordings (reference levels and
-/// the healthy-baseline gate); a model is kept as trained when none is labelled healthy.
+/// Align models to the machine's healthy measured recordings (reference levels and the
+/// healthy-baseline gate; the recordings are featurised once); models are kept as trained
+/// when none is labelled healthy.
 fn align_step(
-    model: TrainedModel,
+    models: Vec<TrainedModel>,
     entries: &[ManifestEntry],
     rig: &RigConfig,
     progress: bool,
-) -> Result<(TrainedModel, Option<serde_json::Value>)> {
+) -> Result<(Vec<TrainedModel>, Option<serde_json::Value>)> {
     let healthy: Vec<ManifestEntry> = entries
         .iter()
         .filter(|e| e.label == "healthy")
@@ -242,12 +245,19 @@ fn align_step(
         tracing::warn!(
             "no measured recording is labelled healthy: the model is not aligned to the machine"
         );
-        return Ok((model, None));
+        return Ok((models, None));
     }
     let pb = file_bar(progress, healthy.len(), "align");
-    let aligned = align_to_recordings(&model, &healthy, rig, &pb)?;
+    let recs = featurise_all(&healthy, rig, &pb)?;
     pb.finish_and_clear();
-    let info = serde_json::from_str(&aligned.meta.alignment)?;
+    let views: Vec<_> = recs.iter().map(|r| r.windows.view()).collect();
+    let windows = ndarray::concatenate(ndarray::Axis(0), &views)?;
+    let names: Vec<String> = recs.iter().map(|r| r.path_text.clone()).collect();
+    let aligned = models
+        .iter()
+        .map(|m| align_to_healthy(m, windows.view(), &names))
+        .collect::<Result<Vec<_>>>()?;
+    let info = serde_json::from_str(&aligned[0].meta.alignment)?;
     Ok((aligned, Some(info)))
 }
 
@@ -298,8 +308,7 @@ fn score_set(
 
 /// Run the whole adaptation; writes `o.out` and returns what the report holds.
 pub fn adapt(o: &AdaptOptions) -> Result<AdaptOutcome> {
-    let t_all = Instant::now();
-    let mut timings: Vec<(String, f64)> = Vec::new();
+    let mut clock = Stopwatch::start();
     if o.seeds == 0 {
         bail!("--seeds 0: give at least 1");
     }
@@ -318,9 +327,8 @@ pub fn adapt(o: &AdaptOptions) -> Result<AdaptOutcome> {
 
     // 1. calibrate
     steps.set_message("calibrating the simulator on the measured recordings");
-    let t = Instant::now();
     let (cal_rig, calibration) = calibrate_step(&o.rig, &rig, &o.measured, o.seconds, &o.out)?;
-    timings.push(("calibrate".into(), t.elapsed().as_secs_f64()));
+    clock.lap("calibrate");
     steps.inc(1);
 
     // 2. plan
@@ -341,26 +349,64 @@ pub fn adapt(o: &AdaptOptions) -> Result<AdaptOutcome> {
         ),
     };
     std::fs::write(o.out.join("plan.toml"), toml::to_string(&the_plan)?)?;
+    clock.lap("plan");
     steps.inc(1);
 
-    // 3. simulate the calibrated rig
+    // 3. simulate the calibrated rig, and the uncalibrated one for the zero-shot model
     steps.set_message("simulating the calibrated rig");
-    let t = Instant::now();
     let work = o.out.join("datasets");
     let (summary, recs) = simulate_and_featurise(&cal_rig, &the_plan, &work.join("calibrated"), o)?;
-    timings.push(("simulate (calibrated)".into(), t.elapsed().as_secs_f64()));
+    clock.lap("simulate (calibrated rig)");
+    let recs0 = match &o.baseline_model {
+        Some(_) => None,
+        None => {
+            steps.set_message("simulating the uncalibrated rig (zero-shot model)");
+            let (_, r) = simulate_and_featurise(&rig, &the_plan, &work.join("uncalibrated"), o)?;
+            clock.lap("simulate (uncalibrated rig, zero-shot)");
+            Some(r)
+        }
+    };
     steps.inc(1);
 
-    // 4. train seeds, keep the best on simulated validation
-    steps.set_message(format!("training {} seeds", o.seeds));
-    let t = Instant::now();
+    // 4. train the seeds and the zero-shot model in parallel; keep the best seed on
+    // simulated validation
+    steps.set_message(format!(
+        "training {} seeds{}",
+        o.seeds,
+        if recs0.is_some() {
+            " and the zero-shot model"
+        } else {
+            ""
+        }
+    ));
     let labels = class_labels(range.labels.iter().any(|l| l == "ball"));
+    let n_jobs = o.seeds as usize + usize::from(recs0.is_some());
+    let pb = file_bar(o.progress, n_jobs * o.epochs, "train");
+    // job 0 is the zero-shot model (seed 1 on the uncalibrated rig), jobs 1.. the seeds
+    let jobs: Vec<u64> = (u64::from(recs0.is_none())..=o.seeds).collect();
+    let trained: Vec<(u64, Result<(TrainedModel, FitReport, Evaluation)>)> = jobs
+        .par_iter()
+        .map(|&job| {
+            let r = match (job, &recs0) {
+                (0, Some(r0)) => train_seed(r0, &rig, &labels, 1, o.epochs, &pb),
+                _ => train_seed(&recs, &cal_rig, &labels, job, o.epochs, &pb),
+            };
+            (job, r)
+        })
+        .collect();
+    pb.finish_and_clear();
     let mut seeds = Vec::new();
-    let mut best: Option<(f64, u64, TrainedModel)> = None;
-    for seed in 1..=o.seeds {
-        let (model, rep, ev) = train_seed(&recs, &cal_rig, &labels, seed, o.epochs, o.progress)?;
+    let mut models = Vec::new();
+    let mut best: Option<(f64, u64)> = None;
+    let mut zero_shot = None;
+    for (job, r) in trained {
+        let (model, rep, ev) = r?;
+        if job == 0 {
+            zero_shot = Some(model);
+            continue;
+        }
         seeds.push(SeedResult {
-            seed,
+            seed: job,
             validation_balanced_accuracy: ev.balanced_accuracy,
             validation_record_accuracy: ev.record_accuracy,
             validation_window_accuracy: ev.window_accuracy,
@@ -369,54 +415,68 @@ pub fn adapt(o: &AdaptOptions) -> Result<AdaptOutcome> {
         });
         // whole-record balanced accuracy, then window accuracy; the first seed wins ties
         let key = ev.balanced_accuracy + 1e-3 * ev.window_accuracy;
-        if best.as_ref().is_none_or(|(k, _, _)| key > *k) {
-            best = Some((key, seed, model));
+        if best.is_none_or(|(k, _)| key > k) {
+            best = Some((key, job));
         }
+        models.push(model);
     }
-    let (_, chosen_seed, model) = best.expect("at least one seed");
-    let (model, alignment) = align_step(model, &entries, &rig, o.progress)?;
-    let model_path = o.out.join("model.onnx");
-    export::write(&model, &model_path)?;
-    let after = OnnxClassifier::load(&model_path)?;
-    after.check_rig(&rig)?;
-    timings.push(("train".into(), t.elapsed().as_secs_f64()));
+    let (_, chosen_seed) = best.expect("at least one seed");
+    clock.lap(&format!(
+        "train ({n_jobs} models in parallel, {} threads)",
+        rayon::current_num_threads()
+    ));
     steps.inc(1);
 
-    // 5. the zero-shot model to compare with
-    steps.set_message("zero-shot model (uncalibrated rig)");
-    let t = Instant::now();
-    let (before, before_name) = match &o.baseline_model {
-        Some(p) => (OnnxClassifier::load(p)?, p.display().to_string()),
-        None => {
-            let (_, recs0) =
-                simulate_and_featurise(&rig, &the_plan, &work.join("uncalibrated"), o)?;
-            let (m0, _, _) = train_seed(&recs0, &rig, &labels, 1, o.epochs, o.progress)?;
+    // 5. align the kept model to the machine's healthy recordings; write both models
+    steps.set_message("aligning the model to the machine's healthy recordings");
+    let (models, alignment) = align_step(models, &entries, &rig, o.progress)?;
+    // every seed's model, aligned the same way, so real-data scores of all seeds can be had
+    let seed_dir = o.out.join("seeds");
+    std::fs::create_dir_all(&seed_dir)
+        .with_context(|| format!("cannot create {}", seed_dir.display()))?;
+    for (s, m) in seeds.iter().zip(&models) {
+        export::write(m, &seed_dir.join(format!("seed{}.onnx", s.seed)))?;
+    }
+    let model_path = o.out.join("model.onnx");
+    let kept = seeds
+        .iter()
+        .position(|s| s.seed == chosen_seed)
+        .expect("the kept seed was trained");
+    export::write(&models[kept], &model_path)?;
+    let after = OnnxClassifier::load(&model_path)?;
+    after.check_rig(&rig)?;
+    let (before, before_name) = match (&o.baseline_model, zero_shot) {
+        (Some(p), _) => (OnnxClassifier::load(p)?, p.display().to_string()),
+        (None, Some(m0)) => {
             let p = o.out.join("before.onnx");
             export::write(&m0, &p)?;
             (
                 OnnxClassifier::load(&p)?,
-                "before.onnx (same plan on the uncalibrated rig file, seed 1)".to_string(),
+                "before.onnx (same plan on the uncalibrated rig file, seed 1, not aligned)"
+                    .to_string(),
             )
         }
+        (None, None) => bail!("internal: no zero-shot model was trained"),
     };
     before.check_rig(&rig)?;
-    timings.push(("zero-shot model".into(), t.elapsed().as_secs_f64()));
+    clock.lap("align and write");
     steps.inc(1);
 
     // 6. score
     steps.set_message("scoring the labelled recordings");
-    let t = Instant::now();
     let measured_scores = score_set(&o.measured, &rig, &before, &after, o.progress)?;
     let holdout_scores = match &o.holdout {
         Some(h) => Some(score_set(h, &rig, &before, &after, o.progress)?),
         None => None,
     };
-    timings.push(("score".into(), t.elapsed().as_secs_f64()));
+    clock.lap("score");
     steps.inc(1);
     steps.finish_and_clear();
     if !o.keep_datasets {
         let _ = std::fs::remove_dir_all(&work);
     }
+    let total_s = clock.steps.iter().map(|t| t.wall_s).sum();
+    let total_cpu_s = clock.steps.iter().map(|t| t.cpu_s).sum();
     let outcome = AdaptOutcome {
         rig: o.rig.display().to_string(),
         rig_id: rig.machine.id.clone(),
@@ -439,8 +499,9 @@ pub fn adapt(o: &AdaptOptions) -> Result<AdaptOutcome> {
         alignment,
         measured_scores,
         holdout_scores,
-        timings_s: timings,
-        total_s: t_all.elapsed().as_secs_f64(),
+        timings: clock.steps,
+        total_s,
+        total_cpu_s,
     };
     report::write(&o.out, &outcome)?;
     Ok(outcome)

@@ -1,8 +1,11 @@
 //! The dataset plan `rigmon adapt` derives from a rig file and the measured recordings of
-//! that machine: the speed range the recordings span (+-3 %), defect sizes scaled to the
+//! that machine: the speed range the recordings span (-6 % to +3 %: a motor slows under load), defect sizes scaled to the
 //! bearing's balls, outer-race defects all around the race, inner-race defects at any angle,
-//! slip, contact angle, unbalance, noise, resonance and speed-fluctuation ranges wide enough
-//! to cover an unknown machine. Where calibration fitted a parameter, `rigmon dataset
+//! an axial preload with a small contact angle (so every ball carries load and an outer-race
+//! defect away from the radial load zone still makes impacts, as on the CWRU motor whose
+//! 3 and 12 o'clock faults show BPFO lines; `config/plans/cwru-preload.toml`), a radial load,
+//! slip, unbalance, noise, resonance and speed-fluctuation ranges wide enough to cover an
+//! unknown machine. Where calibration fitted a parameter, `rigmon dataset
 //! --calibrated spread` semantics move these ranges onto the fitted value (see
 //! [`crate::sim::dataset::CalibratedDraws::Spread`]). Classes: healthy, outer race, inner race,
 //! plus ball when the measured labels hold a ball record.
@@ -11,6 +14,15 @@ use crate::config::RigConfig;
 use crate::sim::plan::{Plan, PlanCase, RandomRanges};
 use anyhow::{bail, Result};
 use serde::Serialize;
+
+/// How far below the slowest measured speed the derived plan draws (fraction).
+pub const RPM_BELOW: f64 = 0.06;
+/// Contact angle range of the derived plan, degrees (> 0, so a preload loads every ball).
+pub const CONTACT_ANGLE_DEG: [f64; 2] = [3.0, 10.0];
+/// Axial preload range of the derived plan, N (`cwru-preload.toml`'s).
+pub const PRELOAD_N: [f64; 2] = [50.0, 400.0];
+/// Static radial load range of the derived plan, N.
+pub const RADIAL_LOAD_N: [f64; 2] = [0.0, 400.0];
 
 /// What the measured recordings say about the operating range.
 #[derive(Debug, Clone, Serialize)]
@@ -63,14 +75,20 @@ pub fn derive(
     let d = rig.bearing.ball_diameter_mm;
     let top_hz = (0.4 * fs).min(5000.0);
     let random = RandomRanges {
-        rpm: Some([0.97 * range.rpm_min, 1.03 * range.rpm_max]),
+        // an induction motor slows under load (CWRU 0 -> 3 hp: 1797 -> 1730 rpm, -3.7 %):
+        // faults may be recorded under more load than the healthy recordings
+        rpm: Some([(1.0 - RPM_BELOW) * range.rpm_min, 1.03 * range.rpm_max]),
         // EDM-like pits from 2 % to 10 % of the ball diameter (0.16-0.79 mm for 7.94 mm balls)
         defect_width_mm: Some([0.02 * d, 0.10 * d]),
         defect_depth_mm: Some([0.05, 0.3]),
         inner_race_position_deg: Some([0.0, 360.0]),
         slip: Some([0.0, 0.01]),
         slip_jitter: Some([0.005, 0.02]),
-        contact_angle_deg: Some([0.0, 10.0]),
+        // a small contact angle with an axial preload loads every ball: without it the
+        // simulator leaves an outer-race defect away from the load zone silent
+        contact_angle_deg: Some(CONTACT_ANGLE_DEG),
+        preload_n: Some(PRELOAD_N),
+        radial_load_n: Some(RADIAL_LOAD_N),
         unbalance_scale: Some([0.3, 3.0]),
         noise_rms_m_s2: Some([0.1, 1.0]),
         resonance_hz: Some([(0.5 * top_hz).min(2000.0), top_hz]),
@@ -136,12 +154,23 @@ mod tests {
         .unwrap();
         let p = derive(&rig, &r, 10, 2.0).unwrap();
         let [lo, hi] = p.random.rpm.unwrap();
-        assert!(lo < 1772.0 && hi > 1796.0 && lo > 1700.0 && hi < 1900.0);
+        // down to 6 % below the slowest recording (a motor slows under load), 3 % above the fastest
+        assert!(lo < 0.95 * 1772.0 && hi > 1796.0 && lo > 1650.0 && hi < 1900.0);
         assert_eq!(p.cases.len(), 3);
         assert_eq!(p.totals(), (30, 60.0));
         // text form parses back as a plan
         let text = toml::to_string(&p).unwrap();
         assert_eq!(Plan::parse(&text).unwrap(), p);
+        // every draw carries an axial preload and a contact angle > 0, so outer-race defects
+        // all around the race make impacts
+        let [a_lo, _] = p.random.contact_angle_deg.unwrap();
+        let [f_lo, _] = p.random.preload_n.unwrap();
+        assert!(a_lo > 0.0 && f_lo > 0.0, "{:?}", p.random);
+        let runs = p.expand().unwrap();
+        assert!(runs.iter().all(|r| {
+            let o = &r.scenario.overrides;
+            o.preload_n.is_some_and(|f| f >= f_lo) && o.contact_angle_deg.is_some_and(|a| a >= a_lo)
+        }));
         let r = MeasuredRange::of(&[(1796.0, 48_000.0, "ball".into())]).unwrap();
         assert_eq!(derive(&rig, &r, 10, 2.0).unwrap().cases.len(), 4);
     }

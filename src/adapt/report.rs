@@ -1,6 +1,6 @@
 //! The `rigmon adapt` report folder: `report.json` (everything in [`AdaptOutcome`]),
 //! `report.md` (calibration error before/after, simulated validation per seed, every
-//! labelled recording's diagnosis before/after/rule, timings) and confusion-matrix PNGs
+//! labelled recording's diagnosis before/after/rule, wall and CPU time per step) and confusion-matrix PNGs
 //! (`confusion_{before,after,rule}.png`, with a `holdout_` prefix for the held-out set).
 
 use super::{AdaptOutcome, SetScores};
@@ -171,7 +171,7 @@ Calibrated rig file: `rig.toml`; full report: `calibration/report.md`.\n\n",
         .collect();
     let _ = write!(
         m,
-        "\nMean {}, worst {} over {} seeds. Model: `model.onnx` (sha256 {}). Zero-shot model compared with: {}.\n\n",
+        "\nMean {}, worst {} over {} seeds. Model: `model.onnx` (sha256 {}); every seed's model, aligned the same way: `seeds/seed<N>.onnx`. Zero-shot model compared with: {}.\n\n",
         pct(v.iter().sum::<f64>() / v.len().max(1) as f64),
         pct(v.iter().copied().fold(f64::INFINITY, f64::min)),
         v.len(),
@@ -200,9 +200,22 @@ Calibrated rig file: `rig.toml`; full report: `calibration/report.md`.\n\n",
     }
     m += "Missed alarm: a faulty record called healthy. False alarm: a healthy record called faulty. \
 The rule has no ball class; a ball record it calls a race fault is an alarm, not a miss.\n\n## Time\n\n";
-    for (k, t) in &o.timings_s {
-        let _ = writeln!(m, "- {k}: {t:.1} s");
+    m += "| step | wall (s) | CPU (s) | load average (1 min) |\n|---|---|---|---|\n";
+    let load = |l: Option<f64>| l.map_or_else(|| "-".to_string(), |l| format!("{l:.1}"));
+    for t in &o.timings {
+        let _ = writeln!(
+            m,
+            "| {} | {:.1} | {:.1} | {} |",
+            t.step,
+            t.wall_s,
+            t.cpu_s,
+            load(t.load_1min)
+        );
     }
-    let _ = writeln!(m, "- total: {:.1} s", o.total_s);
+    let _ = writeln!(
+        m,
+        "| total | {:.1} | {:.1} | |\n\nCPU time is this process's (user + system, all threads); the wall time depends on what else ran on the machine (load average).",
+        o.total_s, o.total_cpu_s
+    );
     m
 }

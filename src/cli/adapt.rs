@@ -119,9 +119,10 @@ pub fn run(a: Args) -> Result<()> {
         show("held out", h);
     }
     println!(
-        "wrote {} (model.onnx, rig.toml, report.md, report.json, *.png) in {:.1} s",
+        "wrote {} (model.onnx, rig.toml, report.md, report.json, *.png) in {:.1} s wall, {:.1} s CPU",
         a.output.display(),
-        r.total_s
+        r.total_s,
+        r.total_cpu_s
     );
     Ok(())
 }
