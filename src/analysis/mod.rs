@@ -3,9 +3,11 @@
 //! ([`speed_source`], the one place `[speed]` is interpreted) -> envelope order spectrum
 //! features, quality flags and velocity RMS ([`stage`], [`velocity`]). [`recording`] feeds a
 //! whole recording through the same windows as a stream, so training and serving compute
-//! the same features bit for bit. Sits between `dsp` (the maths) and `model`/`health`.
+//! the same features bit for bit. [`rig_recipe`] plans the DSP for a rig file. Sits between
+//! `dsp` (the maths) and `model`/`health`.
 
 pub mod recording;
+pub mod rig_recipe;
 pub mod speed_source;
 pub mod stage;
 pub mod velocity;

@@ -1,11 +1,11 @@
 //! The feature pipeline (thesis section 4.2): per window and channel, low-pass + Hilbert
 //! envelope, computed order tracking, order power spectrum, RMS per `bin_width_order` bin from
 //! 0 to `max_order` (100 values per channel for the default recipe). Plans and buffers are
-//! made once in [`FeaturePipeline::new`]; a window allocates only its returned
+//! made once in [`FeaturePipeline::with_settings`]; a window allocates only its returned
 //! [`FeatureWindow`].
 
-use crate::config::RigConfig;
 use crate::dsp::envelope::Envelope;
+use crate::dsp::feature_settings::FeatureSettings;
 use crate::dsp::order_spectrum::OrderFft;
 use crate::dsp::order_tracking::OrderTracker;
 use crate::dsp::quality::{scan, Quality};
@@ -31,12 +31,10 @@ pub struct FeatureWindow {
 }
 
 impl FeatureWindow {
-    /// The classifier channel's features (empty if this window lacks that channel).
-    pub fn classifier_features(&self, rig: &RigConfig) -> &[f32] {
-        rig.classifier_channel()
-            .and_then(|c| self.features.get(&c.name))
-            .map(Vec::as_slice)
-            .unwrap_or(&[])
+    /// One channel's features (empty if this window lacks that channel). The rig's
+    /// classifier channel: `classifier_features` (in `analysis::rig_recipe`).
+    pub fn channel_features(&self, name: &str) -> &[f32] {
+        self.features.get(name).map(Vec::as_slice).unwrap_or(&[])
     }
 }
 
@@ -57,9 +55,14 @@ pub struct FeaturePipeline {
 }
 
 impl FeaturePipeline {
-    /// Plan the pipeline for the rig's feature settings at `sample_rate`.
-    pub fn new(rig: &RigConfig, sample_rate: f64) -> Result<Self> {
-        let f = &rig.features;
+    /// Plan the pipeline for a feature recipe at `sample_rate`; `speed` bounds the speeds
+    /// accepted when they are estimated. For a rig file: `FeaturePipeline::new` (in
+    /// `analysis::rig_recipe`).
+    pub fn with_settings(
+        f: &FeatureSettings,
+        speed: &SpeedConfig,
+        sample_rate: f64,
+    ) -> Result<Self> {
         if !(sample_rate.is_finite() && sample_rate > 0.0) {
             bail!("sample rate {sample_rate} Hz: must be a positive number");
         }
@@ -67,7 +70,7 @@ impl FeaturePipeline {
         if len < 64 {
             bail!("features.window_s = {} s at {sample_rate} Hz gives {len} samples; need at least 64", f.window_s);
         }
-        let rpm_limits = match rig.speed {
+        let rpm_limits = match *speed {
             SpeedConfig::Estimate { min_rpm, max_rpm } => Some((min_rpm, max_rpm)),
             _ => None,
         };
