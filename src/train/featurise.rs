@@ -31,7 +31,7 @@ pub fn featurise(entry: &ManifestEntry, rig: &RigConfig) -> Result<RecordingFeat
             entry.path.display()
         )
     })?;
-    let sha256 = crate::model::onnx::sha256_hex(&bytes);
+    let sha256 = crate::model::digest::sha256_hex(&bytes);
     drop(bytes);
     let rec = importers::load(&entry.path, rig, &entry.import_options()).with_context(|| {
         format!(
