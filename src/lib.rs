@@ -20,6 +20,7 @@ pub mod embed;
 pub mod evaluate;
 pub mod health;
 pub mod importers;
+pub mod manifest;
 pub mod model;
 pub mod plots;
 pub mod publish;

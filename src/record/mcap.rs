@@ -3,8 +3,8 @@
 //! recorder retries with a fresh segment after `RETRY` instead of giving up.
 
 use super::RecordConfig;
-use crate::acquire::SampleBlock;
 use crate::recording::mcap_layout::{RecordingInfo, RecordingWriter, WriterSettings};
+use crate::recording::SampleBlock;
 use anyhow::{Context, Result};
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;

@@ -2,9 +2,10 @@
 //! importers (any supported format) and run through the DSP feature pipeline; files are
 //! processed in parallel and hashed for the training-data hash.
 
-use super::dataset::{ManifestEntry, RecordingFeatures};
+use super::dataset::RecordingFeatures;
 use crate::config::RigConfig;
 use crate::importers;
+use crate::manifest::ManifestEntry;
 use anyhow::{bail, Context, Result};
 use ndarray::Array2;
 use rayon::prelude::*;
