@@ -1,7 +1,7 @@
 //! rigmon: on-line condition monitoring of rotating machinery.
 //!
 //! Data flows one way: [`acquire`] (sources) -> [`dsp`] (features) -> [`model`] (inference)
-//! -> [`health`] (state machine) -> [`publish`], [`record`] (sinks). [`sim`] and [`train`]
+//! -> [`health`] (state machine) -> [`publish`], [`recorder`] (sinks). [`sim`] and [`train`]
 //! sit beside the stream and produce models; [`calibrate`] fits the simulator to measured
 //! recordings (residual views, effect catalog, held-out acceptance, calibrated rig file);
 //! [`adapt`] chains calibration, simulation and training for one measured machine.
@@ -24,7 +24,7 @@ pub mod manifest;
 pub mod model;
 pub mod plots;
 pub mod publish;
-pub mod record;
+pub mod recorder;
 pub mod recording;
 pub mod sim;
 pub mod train;

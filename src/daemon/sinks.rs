@@ -3,7 +3,7 @@
 //! message and counts it (status topic `sinks.*_dropped`). Replays use [`Delivery::Wait`].
 
 use crate::publish::zenoh::{PublishStats, ZenohPublisher};
-use crate::record::{RecordEvent, RecordStats, Recorder};
+use crate::recorder::{RecordEvent, RecordStats, Recorder};
 use anyhow::Result;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::mpsc::{RecvTimeoutError, SyncSender, TrySendError};

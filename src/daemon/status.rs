@@ -4,7 +4,7 @@
 //! behind, sink drops, reloads, recording errors and publish latency.
 
 use crate::publish::zenoh::PublishStats;
-use crate::record::RecordStats;
+use crate::recorder::RecordStats;
 use serde::{Deserialize, Serialize};
 
 pub const SCHEMA: &str = "rigmon.status";

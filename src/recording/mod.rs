@@ -2,11 +2,11 @@
 //! and the sinks: acceleration channels on one sample clock, the tacho (analog or edges),
 //! a stored speed if the file has one, and provenance.
 //!
-//! The MCAP layout that stores a recording on disk is in [`mcap_layout`]; a block of samples
+//! The MCAP layout that stores a recording on disk is in [`mcap`]; a block of samples
 //! as it streams from a source is a [`SampleBlock`] ([`block`]).
 
 pub mod block;
-pub mod mcap_layout;
+pub mod mcap;
 
 pub use block::SampleBlock;
 
