@@ -396,10 +396,19 @@ fn no_module_pair_imports_each_other() {
             }
         }
     }
+    // `config` composes the rig file from section types its components own (as
+    // `sim::config::SimulationConfig`); such a file imports nothing from `config`, so no file
+    // depends on itself through it, and the edge is not counted between top-level modules.
+    let imports_config = |m: &Module| {
+        tree.edges
+            .keys()
+            .any(|(a, b)| a == m && b.first().is_some_and(|y| y == "config"))
+    };
     let mut top: BTreeMap<(String, String), BTreeSet<String>> = BTreeMap::new();
     for ((a, b), why) in &tree.edges {
+        let section_type = a.first().is_some_and(|x| x == "config") && !imports_config(b);
         if let (Some(x), Some(y)) = (a.first(), b.first()) {
-            if x != y {
+            if x != y && !section_type {
                 top.entry((x.clone(), y.clone()))
                     .or_default()
                     .extend(why.iter().cloned());

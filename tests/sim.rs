@@ -427,8 +427,8 @@ fn the_split_simulator_reproduces_the_shipped_replay() {
 #[test]
 fn shaft_lines_have_their_configured_amplitudes() {
     use rigmon::calibrate::shaft_orders;
-    use rigmon::config::simulation::ShaftLinesConfig;
     use rigmon::dsp::speed::SpeedTrack;
+    use rigmon::sim::config::ShaftLinesConfig;
     let mut rig = rig("lut-rig.toml");
     let section = rig.simulation.as_mut().unwrap();
     section.shaft_lines = Some(ShaftLinesConfig {
