@@ -2,7 +2,7 @@
 //!
 //! Data flows one way: [`acquire`] (sources) -> [`analysis`] (windows, speed and features,
 //! built on [`dsp`]; the same code for training and serving) -> [`model`] (inference)
-//! -> [`health`] (state machine) -> [`publish`], [`record`] (sinks). [`sim`] and [`train`]
+//! -> [`health`] (state machine) -> [`publish`], [`recorder`] (sinks). [`sim`] and [`train`]
 //! sit beside the stream and produce models; [`calibrate`] fits the simulator to measured
 //! recordings (residual views, effect catalog, held-out acceptance, calibrated rig file);
 //! [`adapt`] chains calibration, simulation and training for one measured machine.
@@ -22,10 +22,11 @@ pub mod embed;
 pub mod evaluate;
 pub mod health;
 pub mod importers;
+pub mod manifest;
 pub mod model;
 pub mod plots;
 pub mod publish;
-pub mod record;
+pub mod recorder;
 pub mod recording;
 pub mod sim;
 pub mod train;

@@ -124,7 +124,7 @@ fn file_source_replays_a_real_mcap_bit_exact() {
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("healthy.mcap");
     let rec = lut_recording(1.25);
-    rigmon::recording::mcap_layout::write_recording(&path, &rec).unwrap();
+    rigmon::recording::mcap::write_recording(&path, &rec).unwrap();
     let text = format!(
         "type = \"file\"\npath = \"{}\"\nspeed = \"max\"\nblock_ms = 100",
         path.display()
@@ -300,7 +300,7 @@ fn emulate_command_streams_int16_through_its_pty() {
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("run.mcap");
     let rec = lut_recording(1.0);
-    rigmon::recording::mcap_layout::write_recording(&path, &rec).unwrap();
+    rigmon::recording::mcap::write_recording(&path, &rec).unwrap();
     let rig_path = Path::new(env!("CARGO_MANIFEST_DIR")).join("config/lut-rig.toml");
     let mut child = std::process::Command::new(env!("CARGO_BIN_EXE_rigmon"))
         .args(["emulate", "serial", "--rig"])

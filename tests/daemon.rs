@@ -423,7 +423,7 @@ fn sd_notify_ready_watchdog_status_then_sigterm_stops_cleanly_and_closes_the_rec
         .collect();
     assert_eq!(files.len(), 1, "one segment expected: {files:?}");
     let raw = &files[0];
-    let rec = rigmon::recording::mcap_layout::read_recording(raw).unwrap();
+    let rec = rigmon::recording::mcap::read_recording(raw).unwrap();
     assert_eq!(rec.channels.len(), 3);
     assert!(rec.duration_s() >= 1.0, "recorded {} s", rec.duration_s());
     let bytes = std::fs::read(raw).unwrap();

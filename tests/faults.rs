@@ -13,7 +13,7 @@ mod wrong_shape;
 
 use harness::*;
 use rigmon::health::message::HealthMessage;
-use rigmon::recording::mcap_layout::{read_recording, write_recording};
+use rigmon::recording::mcap::{read_recording, write_recording};
 use rigmon::recording::{Recording, Tacho};
 use std::os::unix::net::UnixDatagram;
 use std::os::unix::process::CommandExt;

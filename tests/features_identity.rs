@@ -165,7 +165,7 @@ fn bits(v: &[f32]) -> Vec<u32> {
 fn assert_identical(name: &str, speed: &str, rec: &Recording, want_source: &str) {
     let tmp = tempfile::tempdir().unwrap();
     let path = tmp.path().join("rec.mcap");
-    rigmon::recording::mcap_layout::write_recording(&path, rec).unwrap();
+    rigmon::recording::mcap::write_recording(&path, rec).unwrap();
     let rig = rig_file(tmp.path(), speed);
     let a = batch(&path, &rig);
     let b = served(&path, &rig, tmp.path());

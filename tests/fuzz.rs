@@ -20,7 +20,7 @@ use rigmon::acquire::serial_protocol::{self as sp, FrameEncoder, SampleFormat};
 use rigmon::config::RigConfig;
 use rigmon::daemon::config::DaemonConfig;
 use rigmon::importers::{self, cwru, mat5, mfpt, ImportOptions};
-use rigmon::recording::mcap_layout;
+use rigmon::recording::mcap as rigmon_mcap;
 use rigmon::recording::{Channel, Provenance, Recording, Tacho};
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::cell::{Cell, RefCell};
@@ -834,7 +834,7 @@ fn mcap_target() -> Target {
         kind: Kind::Binary,
         fixup: None,
         run: Box::new(
-            |input: &[u8]| match mcap_layout::read_recording_bytes(input) {
+            |input: &[u8]| match rigmon_mcap::read_recording_bytes(input) {
                 Ok(rec) => {
                     let n = rec.len();
                     let tacho_len = match &rec.tacho {
@@ -1488,7 +1488,7 @@ fn mcap_plain(bytes: &[u8], chunked: bool) -> Vec<u8> {
     let mut out = std::io::Cursor::new(Vec::new());
     {
         let mut w = mcap::WriteOptions::new()
-            .profile(mcap_layout::PROFILE)
+            .profile(rigmon_mcap::PROFILE)
             .compression(None)
             .use_chunks(chunked)
             .chunk_size(Some(4096))
@@ -1552,7 +1552,7 @@ fn mcap_seeds() {
         ),
     ] {
         let p = dir.path().join("x.mcap");
-        mcap_layout::write_recording(&p, &rec).unwrap();
+        rigmon_mcap::write_recording(&p, &rec).unwrap();
         let bytes = std::fs::read(&p).unwrap();
         write_seed("mcap", &format!("{file}-zstd.mcap"), &bytes);
         write_seed(

@@ -5,7 +5,7 @@
 
 use rigmon::config::RigConfig;
 use rigmon::importers::{self, ImportOptions};
-use rigmon::recording::mcap_layout::{self, RecordingInfo, RecordingWriter, WriterSettings};
+use rigmon::recording::mcap::{self, RecordingInfo, RecordingWriter, WriterSettings};
 use rigmon::recording::{Channel, Provenance, Recording, Tacho};
 use std::collections::BTreeMap;
 use std::io::Write;
@@ -246,8 +246,8 @@ fn cwru_style_mat_round_trips_in_both_byte_orders_plain_and_compressed() {
             );
             // And through MCAP.
             let out = dir.path().join(format!("r_{be}_{z}.mcap"));
-            mcap_layout::write_recording(&out, &rec).unwrap();
-            assert_eq!(mcap_layout::read_recording(&out).unwrap(), rec);
+            mcap::write_recording(&out, &rec).unwrap();
+            assert_eq!(mcap::read_recording(&out).unwrap(), rec);
         }
     }
 }
@@ -621,8 +621,8 @@ fn wav_float32_int16_int24_round_trip_with_channel_map_and_sensitivity() {
         assert_eq!(unit, "V");
         assert!((samples[5] - 0.9).abs() < 1e-3 && samples[50].abs() < 1e-6);
         let out = dir.path().join(format!("rig_{bits}.mcap"));
-        mcap_layout::write_recording(&out, &rec).unwrap();
-        assert_eq!(mcap_layout::read_recording(&out).unwrap(), rec);
+        mcap::write_recording(&out, &rec).unwrap();
+        assert_eq!(mcap::read_recording(&out).unwrap(), rec);
     }
 }
 
@@ -811,8 +811,8 @@ fn csv_round_trips_with_and_without_time_column() {
     );
     // Through MCAP.
     let out = dir.path().join("daq.mcap");
-    mcap_layout::write_recording(&out, &rec).unwrap();
-    assert_eq!(mcap_layout::read_recording(&out).unwrap(), rec);
+    mcap::write_recording(&out, &rec).unwrap();
+    assert_eq!(mcap::read_recording(&out).unwrap(), rec);
 }
 
 #[test]
@@ -1168,8 +1168,8 @@ fn mcap_write_read_is_exact_for_analog_and_edge_tachos() {
         synthetic(n, None),
     ] {
         let p = dir.path().join("x.mcap");
-        mcap_layout::write_recording(&p, &rec).unwrap();
-        let back = mcap_layout::read_recording(&p).unwrap();
+        mcap::write_recording(&p, &rec).unwrap();
+        let back = mcap::read_recording(&p).unwrap();
         assert_eq!(back, rec);
         // importers::load keeps an MCAP's own provenance and metadata.
         assert_eq!(
@@ -1177,7 +1177,7 @@ fn mcap_write_read_is_exact_for_analog_and_edge_tachos() {
             rec
         );
     }
-    let e = err_of(mcap_layout::read_recording(&write(
+    let e = err_of(mcap::read_recording(&write(
         dir.path(),
         "not.mcap",
         b"\x89MCAP0\r\nrubbish",
@@ -1195,7 +1195,7 @@ fn mcap_streaming_writer_survives_kill_and_truncation() {
     let full = synthetic(n_blocks * bl, None);
     let all_edges = edges(n_blocks * bl, 10_000.0);
     let mut info = RecordingInfo::of(&full);
-    info.tacho = mcap_layout::TachoInfo::Edges;
+    info.tacho = mcap::TachoInfo::Edges;
     let p = dir.path().join("stream.mcap");
     let settings = WriterSettings {
         chunk_size: 8 * 1024,
@@ -1217,7 +1217,7 @@ fn mcap_streaming_writer_survives_kill_and_truncation() {
     }
     // Killed: no finish, no summary, no footer. Everything flushed at block 40 survives.
     std::mem::forget(w);
-    let killed = mcap_layout::read_recording(&p).unwrap();
+    let killed = mcap::read_recording(&p).unwrap();
     assert!(
         killed.len() >= 41 * bl && killed.len() <= full.len(),
         "{}",
@@ -1255,7 +1255,7 @@ fn mcap_streaming_writer_survives_kill_and_truncation() {
     let mut errors = 0;
     for k in 1..40 {
         let cut = bytes.len() * k / 40;
-        match mcap_layout::read_recording_bytes(&bytes[..cut]) {
+        match mcap::read_recording_bytes(&bytes[..cut]) {
             Ok(r) => {
                 assert!(r.len() >= last, "more bytes never give fewer samples");
                 last = r.len();
@@ -1302,7 +1302,7 @@ fn mcap_gaps_are_zero_filled_and_noted() {
         w.write_block((b * 250) as u64, &chans, None, &[]).unwrap();
     }
     w.finish().unwrap();
-    let r = mcap_layout::read_recording(&p).unwrap();
+    let r = mcap::read_recording(&p).unwrap();
     assert_eq!(r.len(), 1000);
     assert!(r.channels[0].samples[500..750].iter().all(|&x| x == 0.0));
     assert_eq!(
@@ -1353,7 +1353,7 @@ fn python_mcap_package_reads_the_layout() {
     rec.metadata
         .insert("rig_config".into(), rig_text("lut-rig.toml"));
     let p = dir.path().join("py.mcap");
-    mcap_layout::write_recording(&p, &rec).unwrap();
+    mcap::write_recording(&p, &rec).unwrap();
     let v = python_read(&p, true);
     assert_eq!(v["profile"], "rigmon");
     assert_eq!(v["schemas"]["rigmon.SampleBlock"], "rigmon-le");
@@ -1401,7 +1401,7 @@ fn python_mcap_package_reads_the_layout() {
             times_s: edges(5000, 10_000.0),
         }),
     );
-    mcap_layout::write_recording(&p, &rec).unwrap();
+    mcap::write_recording(&p, &rec).unwrap();
     let v = python_read(&p, false);
     let got: Vec<f64> = v["edges_bits"]
         .as_array()
@@ -1414,7 +1414,7 @@ fn python_mcap_package_reads_the_layout() {
 
     // A real CWRU file imported: counts and sums agree.
     let r97 = importers::load(&cwru("97_Normal_0.mat"), &rig("cwru-de.toml"), &no_opts()).unwrap();
-    mcap_layout::write_recording(&p, &r97).unwrap();
+    mcap::write_recording(&p, &r97).unwrap();
     let v = python_read(&p, false);
     for c in &r97.channels {
         let ch = &v["channels"][format!("/accel/{}", c.name)];
@@ -1463,7 +1463,7 @@ fn rigmon_import_writes_mcap_and_prints_a_summary() {
             "label inner_race",
         ],
     );
-    let rec = mcap_layout::read_recording(&out).unwrap();
+    let rec = mcap::read_recording(&out).unwrap();
     assert_eq!(
         (rec.len(), rec.sample_rate, rec.rpm),
         (121_265, 12_000.0, Some(1797.0))

@@ -668,7 +668,7 @@ fn manifest_sample_rate_column_reaches_the_importers() {
         "path,label,sample_rate_hz\nplain.csv,healthy,12000\nw.wav,healthy,\nw.wav,healthy,12000\n",
     )
     .unwrap();
-    let entries = rigmon::train::dataset::read_manifest(&labels).unwrap();
+    let entries = rigmon::manifest::read_manifest(&labels).unwrap();
     let load = |k: usize| importers::load(&entries[k].path, &de, &entries[k].import_options());
     let r = load(0).unwrap();
     assert_eq!((r.sample_rate, r.len()), (12_000.0, 2400));

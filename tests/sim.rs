@@ -316,7 +316,7 @@ profile = { kind = "ramp", from_rpm = 600.0, to_rpm = 900.0, seconds = 0.5 }
     assert_eq!(lines.len(), 5, "{csv}");
     for line in &lines[1..] {
         let (path, label) = line.split_once(',').unwrap();
-        let rec = rigmon::recording::mcap_layout::read_recording(&dir.path().join(path)).unwrap();
+        let rec = rigmon::recording::mcap::read_recording(&dir.path().join(path)).unwrap();
         assert_eq!(rec.label(), Some(label), "{path}");
         assert_eq!(rec.metadata["plan"], "tiny");
         assert_eq!(rec.len(), 5000);
@@ -427,7 +427,7 @@ fn the_split_simulator_reproduces_the_shipped_replay() {
 #[test]
 fn shaft_lines_have_their_configured_amplitudes() {
     use rigmon::calibrate::shaft_orders;
-    use rigmon::config::simulation::ShaftLinesConfig;
+    use rigmon::sim::config::ShaftLinesConfig;
     let mut rig = rig("lut-rig.toml");
     let section = rig.simulation.as_mut().unwrap();
     section.shaft_lines = Some(ShaftLinesConfig {
@@ -504,7 +504,7 @@ recordings = 12
         for e in std::fs::read_dir(dir.path()).unwrap() {
             let p = e.unwrap().path();
             if p.extension().is_some_and(|x| x == "mcap") {
-                let rec = rigmon::recording::mcap_layout::read_recording(&p).unwrap();
+                let rec = rigmon::recording::mcap::read_recording(&p).unwrap();
                 noises.push(rec.metadata["noise_rms_m_s2"].parse::<f64>().unwrap());
                 freqs.push(rec.metadata["resonance_hz"].parse::<f64>().unwrap());
             }

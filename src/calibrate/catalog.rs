@@ -12,7 +12,7 @@
 //! | `looseness` | `harmonics_m_s2` 0.0005-3 (log), `slope` -2-3, `highest_order` {5, 10, 20, 30} | `shaft_lines` orders 3..highest: `harmonics_m_s2` (k / k_mid)^`slope`, k_mid the geometric mean order |
 //! | `noise` | `noise_rms_m_s2` 0.003-3 (log) | `structure.noise_rms_m_s2` |
 
-use crate::config::simulation::{ShaftLinesConfig, SimulationConfig, SpeedFluctuationConfig};
+use crate::sim::config::{ShaftLinesConfig, SimulationConfig, SpeedFluctuationConfig};
 use serde::Serialize;
 
 /// Effects the calibrator can add.

@@ -17,9 +17,9 @@ use super::measured::{several_speeds, Measured};
 use super::modes::Mode;
 use super::search;
 use super::views::{self, Views};
-use crate::config::simulation::SimulationConfig;
 use crate::config::{RigConfig, SpeedConfig};
 use crate::dsp::speed::SpeedTrack;
+use crate::sim::config::SimulationConfig;
 use crate::sim::{
     dominant_resonance_hz, rig_simulation, run_engine, sensor, unit_scale, EngineRun, Scenario,
     SpeedProfile,

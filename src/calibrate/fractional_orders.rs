@@ -99,7 +99,7 @@ pub fn measure(x: &[f32], fs: f64, track: &SpeedTrack) -> Vec<f64> {
                 .filter(|(p, _)| (p - o).abs() <= FLOOR_HALF_WIDTH)
                 .map(|(_, b)| *b)
                 .collect();
-            let floor = super::views::median(&local).max(1e-30);
+            let floor = super::stats::median(&local).max(1e-30);
             (20.0 * (a / floor).max(1e-6).log10() - THRESHOLD_DB).clamp(0.0, CAP_DB)
         })
         .collect()

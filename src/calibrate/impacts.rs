@@ -84,7 +84,7 @@ pub fn measure(x: &[f32], fs: f64, band_lo_hz: f64) -> Vec<f64> {
                 .filter(|(_, g)| (**g - f).abs() <= MEDIAN_HALF_WIDTH_HZ)
                 .map(|(b, _)| *b)
                 .collect();
-            let m = super::views::median(&local).max(1e-300);
+            let m = super::stats::median(&local).max(1e-300);
             (20.0 * (a / m).max(1e-6).log10() - THRESHOLD_DB).clamp(0.0, CAP_DB)
         })
         .collect()

@@ -5,9 +5,9 @@
 
 use crate::config::RigConfig;
 use crate::importers::{self, ImportOptions};
+use crate::manifest::{manifest_path, read_manifest};
 use crate::recording::Recording;
 use crate::sim::Fault;
-use crate::train::dataset::{manifest_path, read_manifest};
 use anyhow::{bail, Context, Result};
 use std::path::{Path, PathBuf};
 

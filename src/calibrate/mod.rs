@@ -1,10 +1,10 @@
 //! Simulator calibration against measured recordings (`rigmon calibrate`): simulate the
 //! measured operating points ([`measured`]), compare physically meaningful views
 //! ([`views`]: envelope and raw spectra, [`fault_peaks`], [`shaft_orders`],
-//! [`fractional_orders`], [`impacts`], [`modes`]) with one scalar error of named components
-//! ([`error`]), locate the residual ([`locate`]) and name its usual causes ([`trace`]),
-//! attribute it greedily to catalog effects ([`catalog`], [`search`],
-//! [`fit`]) confirmed on a held-out part, and report ([`report`], [`plots`]).
+//! [`fractional_orders`], [`impacts`], [`modes`], with order [`stats`]) with one scalar
+//! error of named components ([`error`]), locate the residual ([`locate`]) and name its
+//! usual causes ([`trace`]), attribute it greedily to catalog effects ([`catalog`],
+//! [`search`], [`fit`]) confirmed on a held-out part, and report ([`report`], [`plots`]).
 
 pub mod catalog;
 pub mod error;
@@ -19,5 +19,6 @@ pub mod plots;
 pub mod report;
 pub mod search;
 pub mod shaft_orders;
+pub mod stats;
 pub mod trace;
 pub mod views;

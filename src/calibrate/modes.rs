@@ -33,7 +33,7 @@ pub fn dominant(band_db: &[f64], lo_hz: &[f64], width_hz: f64) -> Mode {
             offset = (0.5 * (a - c) / den).clamp(-0.5, 0.5);
         }
     }
-    let med = super::views::median(band_db);
+    let med = super::stats::median(band_db);
     let neighbour = [k.checked_sub(1), Some(k + 1)]
         .into_iter()
         .flatten()

@@ -91,7 +91,7 @@ pub fn measure(x: &[f32], fs: f64, track: &SpeedTrack) -> ShaftOrders {
             .iter()
             .flat_map(|row| row[1..].iter().map(|z| amp(*z)))
             .collect();
-        out.floor[k] = super::views::median(&f);
+        out.floor[k] = super::stats::median(&f);
     }
     out
 }

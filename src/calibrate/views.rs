@@ -29,6 +29,7 @@
 use super::fault_peaks::{self, DbSpectrum, FaultPeak};
 use super::modes::{self, Mode};
 use super::shaft_orders::{self, ShaftOrders};
+use super::stats::{median, quantile};
 use super::{fractional_orders, impacts};
 use crate::config::RigConfig;
 use crate::dsp::order_spectrum::whole_recording;
@@ -380,22 +381,6 @@ pub fn compute_segment(rec: &Recording, rig: &RigConfig, faults: &[Fault]) -> Re
 
 fn threshold(db: f64) -> f64 {
     (db - THRESHOLD_DB).clamp(0.0, CAP_DB)
-}
-
-/// Median of a slice (0 when empty).
-pub fn median(x: &[f64]) -> f64 {
-    quantile(x, 0.5)
-}
-
-/// The `q` quantile of a slice (nearest rank; 0 when empty).
-pub fn quantile(x: &[f64], q: f64) -> f64 {
-    if x.is_empty() {
-        return 0.0;
-    }
-    let mut v = x.to_vec();
-    let k = ((q.clamp(0.0, 1.0) * v.len() as f64) as usize).min(v.len() - 1);
-    v.select_nth_unstable_by(k, |a, b| a.total_cmp(b));
-    v[k]
 }
 
 /// Welch estimate (Hann, 50 % overlap): per-bin peak amplitude and power, `nseg/2+1` bins.

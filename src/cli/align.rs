@@ -4,8 +4,8 @@
 
 use crate::adapt::align_to_recordings;
 use crate::config::RigConfig;
+use crate::manifest::{manifest_path, read_manifest};
 use crate::model::{export, OnnxClassifier};
-use crate::train::dataset::{manifest_path, read_manifest};
 use anyhow::{bail, Result};
 use indicatif::ProgressBar;
 use std::path::PathBuf;

@@ -4,9 +4,9 @@
 use crate::config::RigConfig;
 use crate::embed::{pca, tsne, Method, TsneConfig};
 use crate::importers::{self, ImportOptions};
+use crate::manifest::{manifest_path, read_manifest, ManifestEntry};
 use crate::model::preprocess::Preprocess;
 use crate::plots::embedding::{draw, Point};
-use crate::train::dataset::{read_manifest, ManifestEntry};
 use crate::train::featurise::featurise_all;
 use anyhow::{bail, Result};
 use indicatif::ProgressBar;
@@ -47,7 +47,7 @@ pub fn run(args: Args) -> Result<()> {
             || p.extension()
                 .is_some_and(|e| e.eq_ignore_ascii_case("csv") && is_manifest(p))
         {
-            entries.extend(read_manifest(&crate::train::dataset::manifest_path(p))?);
+            entries.extend(read_manifest(&manifest_path(p))?);
         } else {
             let rec = importers::load(p, &rig, &ImportOptions::default())?;
             let label = rec.label().unwrap_or("unlabelled").to_string();

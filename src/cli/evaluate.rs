@@ -5,9 +5,9 @@
 
 use crate::config::RigConfig;
 use crate::evaluate::{score, summary, Evaluation};
+use crate::manifest::{manifest_path, read_manifest};
 use crate::model::rule::{EnvelopeRule, RuleSettings};
 use crate::model::OnnxClassifier;
-use crate::train::dataset::{manifest_path, read_manifest};
 use crate::train::featurise::featurise_all;
 use crate::train::score::{model_outcomes, rule_labels, rule_outcomes, ModelOutcomes};
 use anyhow::{bail, Result};

@@ -2,8 +2,8 @@
 //! recordings and report whole-record figures before and after on the rest.
 
 use crate::config::RigConfig;
+use crate::manifest::{manifest_path, read_manifest};
 use crate::model::{export, OnnxClassifier};
-use crate::train::dataset::{manifest_path, read_manifest};
 use crate::train::featurise::featurise_all;
 use crate::train::finetune::{default_config, finetune};
 use anyhow::Result;

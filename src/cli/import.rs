@@ -3,7 +3,8 @@
 
 use crate::config::RigConfig;
 use crate::importers::{self, ImportOptions};
-use crate::recording::{mcap_layout, Recording, Tacho};
+use crate::recording::mcap::write_recording;
+use crate::recording::{Recording, Tacho};
 use anyhow::{Context, Result};
 use std::path::PathBuf;
 
@@ -34,7 +35,7 @@ pub fn run(args: Args) -> Result<()> {
         ..Default::default()
     };
     let rec = importers::load(&args.file, &rig, &opts)?;
-    mcap_layout::write_recording(&args.output, &rec)
+    write_recording(&args.output, &rec)
         .with_context(|| format!("writing {}", args.output.display()))?;
     println!("{}", summary_line(&rec, &args.output.display().to_string()));
     Ok(())

@@ -7,7 +7,7 @@ use crate::daemon::config::{DaemonConfig, ModelConfig, PipelineConfig};
 use crate::daemon::{self, DaemonOptions, Output};
 use crate::health::HealthPolicy;
 use crate::publish::zenoh::{ZenohArgs, ZenohSettings};
-use crate::record::RecordConfig;
+use crate::recorder::RecordConfig;
 use anyhow::{bail, Result};
 use std::path::PathBuf;
 use std::time::Duration;

@@ -2,8 +2,8 @@
 //! by recording, check the exported ONNX with tract, and write it.
 
 use crate::config::RigConfig;
+use crate::manifest::{manifest_path, read_manifest};
 use crate::model::{export, OnnxClassifier};
-use crate::train::dataset::{manifest_path, read_manifest};
 use crate::train::featurise::featurise_all;
 use crate::train::fit::{class_labels, fit};
 use crate::train::trainer::TrainConfig;

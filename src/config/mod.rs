@@ -1,10 +1,8 @@
 //! Rig configuration (TOML): machine identity, bearing geometry, acquisition, channels, speed
 //! source and feature settings. Unknown keys are rejected with their name and line.
 //!
-//! The simulator's section lives in [`simulation`]; the daemon's own file (`rigmon.toml`)
-//! belongs to the daemon (`daemon/config.rs`).
-
-pub mod simulation;
+//! The simulator's section type is the simulator's own ([`crate::sim::config`]); the daemon's
+//! own file (`rigmon.toml`) belongs to the daemon (`daemon/config.rs`).
 
 use crate::bearing::BearingGeometry;
 // The `[speed]` and `[features]` sections belong to the DSP layer; re-exported here so the
@@ -30,7 +28,7 @@ pub struct RigConfig {
     pub features: FeatureSettings,
     /// Simulator description of this rig (optional; `rigmon simulate` needs it).
     #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub simulation: Option<simulation::SimulationConfig>,
+    pub simulation: Option<crate::sim::config::SimulationConfig>,
     /// Set by `rigmon calibrate`: which calibration produced this file.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub calibration: Option<CalibrationStamp>,

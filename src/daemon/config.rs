@@ -7,7 +7,7 @@ use crate::acquire::SourceConfig;
 use crate::config::{resolve_relative, RigConfig};
 use crate::health::HealthPolicy;
 use crate::publish::zenoh::ZenohSettings;
-use crate::record::RecordConfig;
+use crate::recorder::RecordConfig;
 use anyhow::{bail, Context, Result};
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};

@@ -1,5 +1,5 @@
 //! The recording sink, built from `[recording]`: raw blocks, features and health to MCAP
-//! segments ([`crate::record`]), written on the recorder's own thread behind a bounded queue
+//! segments ([`crate::recorder`]), written on the recorder's own thread behind a bounded queue
 //! that also closes chunks on time when no message comes.
 
 use super::intake::SourceInfo;
@@ -7,8 +7,8 @@ use super::queued_sink::{QueueSettings, QueuedSink, Worker};
 use super::sink::{Sink, SinkConfig, SinkContext, SinkReport, WindowEvent};
 use crate::acquire::SampleBlock;
 use crate::config::{RigConfig, SpeedConfig};
-use crate::record::{RecordConfig, RecordEvent, RecordStats, Recorder};
-use crate::recording::mcap_layout::{ChannelInfo, RecordingInfo, TachoInfo};
+use crate::recorder::{RecordConfig, RecordEvent, RecordStats, Recorder};
+use crate::recording::mcap::{ChannelInfo, RecordingInfo, TachoInfo};
 use crate::recording::Provenance;
 use anyhow::Result;
 use std::collections::BTreeMap;

@@ -13,7 +13,7 @@ use crate::config::RigConfig;
 use crate::dsp::features::FeatureWindow;
 use crate::health::message::HealthMessage;
 use crate::publish::zenoh::PublishStats;
-use crate::record::RecordStats;
+use crate::recorder::RecordStats;
 use anyhow::Result;
 use std::sync::Arc;
 use std::time::Duration;

@@ -5,7 +5,7 @@
 
 use crate::acquire::SourceStats;
 use crate::publish::zenoh::PublishStats;
-use crate::record::RecordStats;
+use crate::recorder::RecordStats;
 use serde::{Deserialize, Serialize};
 use std::sync::atomic::Ordering;
 

@@ -118,7 +118,7 @@ pub fn load(path: &Path, rig: &RigConfig, opts: &ImportOptions) -> Result<Record
         Format::Wav => wav::load(path, rig, opts)?,
         Format::Csv => csv::load(path, rig, opts)?,
         Format::Mcap => {
-            let mut rec = crate::recording::mcap_layout::read_recording(path)?;
+            let mut rec = crate::recording::mcap::read_recording(path)?;
             if let Some(fs) = opts.sample_rate {
                 if (fs - rec.sample_rate).abs() > 1e-3 * rec.sample_rate {
                     rec.provenance.notes.push(format!(

@@ -7,7 +7,8 @@
 
 use super::baseline::{HealthyBaseline, GATE_EPS, TOP};
 use super::classifier::TrainedModel;
-use super::meta::ModelMeta;
+use super::digest::sha256_hex;
+use super::meta::{props, ModelMeta};
 use super::mlp::{Dense, Mlp};
 use super::novelty::Mahalanobis;
 use super::preprocess::{Preprocess, TINY};
@@ -440,15 +441,6 @@ pub fn write(m: &TrainedModel, path: &Path) -> Result<()> {
         .with_context(|| format!("cannot write model {}", path.display()))
 }
 
-/// `metadata_props` of a decoded model as a map.
-pub fn props(proto: &pb::ModelProto) -> BTreeMap<String, String> {
-    proto
-        .metadata_props
-        .iter()
-        .map(|e| (e.key.clone(), e.value.clone()))
-        .collect()
-}
-
 fn tensor_f32(t: &pb::TensorProto) -> Vec<f32> {
     if !t.raw_data.is_empty() {
         t.raw_data
@@ -552,6 +544,6 @@ pub fn read(path: &Path) -> Result<TrainedModel> {
     let bytes =
         std::fs::read(path).with_context(|| format!("cannot read model {}", path.display()))?;
     let mut m = from_bytes(&bytes, &path.display().to_string())?;
-    m.meta.sha256 = super::onnx::sha256_hex(&bytes);
+    m.meta.sha256 = sha256_hex(&bytes);
     Ok(m)
 }

@@ -3,6 +3,7 @@
 
 use anyhow::{bail, Context, Result};
 use std::collections::BTreeMap;
+use tract_onnx::pb;
 
 /// Metadata of a classifier model file.
 #[derive(Debug, Clone, PartialEq, Default, serde::Serialize)]
@@ -43,6 +44,15 @@ pub struct ModelMeta {
     pub trained_mean: Vec<f32>,
     /// Alignment summary (JSON text), empty when the model was never aligned.
     pub alignment: String,
+}
+
+/// `metadata_props` of a decoded model as a map.
+pub fn props(proto: &pb::ModelProto) -> BTreeMap<String, String> {
+    proto
+        .metadata_props
+        .iter()
+        .map(|e| (e.key.clone(), e.value.clone()))
+        .collect()
 }
 
 /// Floats as a comma-separated list that reads back bit for bit.

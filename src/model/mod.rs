@@ -1,12 +1,13 @@
 //! The classifier: in-memory network ([`mlp`]), in-graph normalisation ([`preprocess`]),
 //! novelty detector ([`novelty`]), the trained bundle ([`classifier`]), its metadata
-//! ([`meta`]), the ONNX writer/reader ([`export`]), tract inference ([`onnx`]) and the
-//! alignment to one machine: reference levels ([`align`]) and the healthy-baseline gate
-//! ([`baseline`]).
+//! ([`meta`]), file digests ([`digest`]), the ONNX writer/reader ([`export`]), tract
+//! inference ([`onnx`]) and the alignment to one machine: reference levels ([`align`]) and
+//! the healthy-baseline gate ([`baseline`]).
 
 pub mod align;
 pub mod baseline;
 pub mod classifier;
+pub mod digest;
 pub mod export;
 pub mod meta;
 pub mod mlp;

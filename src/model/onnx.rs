@@ -2,11 +2,12 @@
 //! by `rigmon train`, checks its metadata, and predicts class probabilities plus a novelty
 //! score for one window of raw features. The daemon, `evaluate` and `finetune` use it.
 
+use super::digest::sha256_hex;
+use super::meta::props;
 pub use super::meta::ModelMeta;
 use crate::config::RigConfig;
 use anyhow::{anyhow, bail, Context, Result};
 use prost::Message;
-use sha2::{Digest, Sha256};
 use std::path::Path;
 use std::sync::Arc;
 use tract_onnx::prelude::*;
@@ -42,14 +43,6 @@ impl std::fmt::Debug for OnnxClassifier {
     }
 }
 
-/// Lower-case hex SHA-256 of some bytes.
-pub fn sha256_hex(bytes: &[u8]) -> String {
-    Sha256::digest(bytes)
-        .iter()
-        .map(|b| format!("{b:02x}"))
-        .collect()
-}
-
 impl OnnxClassifier {
     /// Load and optimise a model file; errors name the file and what is wrong with it.
     pub fn load(path: &Path) -> Result<Self> {
@@ -63,7 +56,7 @@ impl OnnxClassifier {
         let proto = tract_onnx::pb::ModelProto::decode(bytes).with_context(|| {
             format!("{what}: not an ONNX model (protobuf decode failed); is the file truncated?")
         })?;
-        let mut meta = ModelMeta::from_props(&super::export::props(&proto), what)?;
+        let mut meta = ModelMeta::from_props(&props(&proto), what)?;
         meta.sha256 = sha256_hex(bytes);
         let n = meta.n_features;
         let plan = tract_onnx::onnx()

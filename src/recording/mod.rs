@@ -2,9 +2,13 @@
 //! and the sinks: acceleration channels on one sample clock, the tacho (analog or edges),
 //! a stored speed if the file has one, and provenance.
 //!
-//! The MCAP layout that stores a recording on disk is in [`mcap_layout`].
+//! The MCAP layout that stores a recording on disk is in [`mcap`]; a block of samples
+//! as it streams from a source is a [`SampleBlock`] ([`block`]).
 
-pub mod mcap_layout;
+pub mod block;
+pub mod mcap;
+
+pub use block::SampleBlock;
 
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;

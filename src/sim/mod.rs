@@ -8,9 +8,11 @@
 //! Hertz contact), [`defects`] (slot geometry), [`structure`] (resonances), [`profile`]
 //! (speed), [`integrate`] (the stepper), [`decimate`] (anti-aliasing), [`sensor`] (noise,
 //! electrical and shaft-order lines, units, tacho: the stage after the mechanics, see
-//! [`run_engine`]), [`scenario`], [`plan`] (datasets) and [`output`] (MCAP/WAV).
+//! [`run_engine`]), [`scenario`], [`plan`] (datasets) and [`output`] (MCAP/WAV); its
+//! `[simulation]` rig-file section is [`config`].
 
 pub mod bearing_contact;
+pub mod config;
 pub mod dataset;
 pub mod decimate;
 pub mod defects;
@@ -28,8 +30,8 @@ pub mod structure;
 pub use profile::SpeedProfile;
 pub use scenario::{label_of, Fault, Overrides, Scenario};
 
+use self::config::{SimulationConfig, SIGNALS};
 use crate::bearing::{BearingGeometry, FaultOrders};
-use crate::config::simulation::{SimulationConfig, SIGNALS};
 use crate::config::{ChannelKind, RigConfig};
 use crate::recording::Recording;
 use anyhow::{bail, Context, Result};

@@ -15,7 +15,7 @@ pub fn write(path: &Path, rec: &Recording, rig: &RigConfig) -> Result<()> {
         .map(str::to_ascii_lowercase)
         .as_deref()
     {
-        Some("mcap") => crate::recording::mcap_layout::write_recording(path, rec)
+        Some("mcap") => crate::recording::mcap::write_recording(path, rec)
             .with_context(|| format!("writing {}", path.display())),
         Some("wav") => write_wav(path, rec, rig),
         _ => bail!("output {}: use a .mcap or .wav file name", path.display()),

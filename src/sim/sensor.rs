@@ -4,9 +4,9 @@
 //! and the metadata (labels, the simulation section used).
 
 use super::{channel_signals, high_fraction, model_fault_orders, EngineRun, Fault, Scenario};
-use crate::config::simulation::{SimulationConfig, SIGNALS};
 use crate::config::{ChannelKind, RigConfig};
 use crate::recording::{Channel, Provenance, Recording, Tacho};
+use crate::sim::config::{SimulationConfig, SIGNALS};
 use anyhow::Result;
 use rand::Rng;
 use rand_distr::StandardNormal;

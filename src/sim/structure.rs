@@ -5,7 +5,7 @@
 //! internal step (semi-implicit Euler, frequency pre-warped so the discrete mode rings at
 //! exactly the configured frequency).
 
-use crate::config::simulation::ResonanceConfig;
+use crate::sim::config::ResonanceConfig;
 
 #[derive(Debug, Clone)]
 struct Mode {

@@ -3,9 +3,10 @@
 //! (`analysis::extract_recording`); files are processed in parallel and hashed for the
 //! training-data hash.
 
-use super::dataset::{ManifestEntry, RecordingFeatures};
+use super::dataset::RecordingFeatures;
 use crate::config::RigConfig;
 use crate::importers;
+use crate::manifest::ManifestEntry;
 use anyhow::{bail, Context, Result};
 use ndarray::Array2;
 use rayon::prelude::*;
@@ -32,7 +33,7 @@ pub fn featurise(entry: &ManifestEntry, rig: &RigConfig) -> Result<RecordingFeat
             entry.path.display()
         )
     })?;
-    let sha256 = crate::model::onnx::sha256_hex(&bytes);
+    let sha256 = crate::model::digest::sha256_hex(&bytes);
     drop(bytes);
     let rec = importers::load(&entry.path, rig, &entry.import_options()).with_context(|| {
         format!(

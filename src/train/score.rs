@@ -3,10 +3,11 @@
 //! ([`crate::model::rule`]) on the same recordings, so both go through the same
 //! [`crate::evaluate::score`]. `rigmon evaluate` and `rigmon adapt` share this.
 
-use super::dataset::{ManifestEntry, RecordingFeatures};
+use super::dataset::RecordingFeatures;
 use crate::config::RigConfig;
 use crate::evaluate::RecordOutcome;
 use crate::importers;
+use crate::manifest::ManifestEntry;
 use crate::model::rule::{class_map, EnvelopeRule};
 use crate::model::OnnxClassifier;
 use anyhow::{bail, Context, Result};

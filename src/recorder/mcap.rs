@@ -3,8 +3,8 @@
 //! recorder retries with a fresh segment after `RETRY` instead of giving up.
 
 use super::RecordConfig;
-use crate::acquire::SampleBlock;
-use crate::recording::mcap_layout::{RecordingInfo, RecordingWriter, WriterSettings};
+use crate::recording::mcap::{RecordingInfo, RecordingWriter, WriterSettings};
+use crate::recording::SampleBlock;
 use anyhow::{Context, Result};
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
@@ -465,7 +465,7 @@ fn utc_stamp(ns: u64) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::recording::mcap_layout::{read_recording, ChannelInfo, TachoInfo};
+    use crate::recording::mcap::{read_recording, ChannelInfo, TachoInfo};
 
     const FS: f64 = 1000.0;
 

@@ -1,6 +1,6 @@
 //! Recording sink: what the daemon saw, to MCAP with zstd chunks, rotated by size and time.
 //! One file per segment, `<stem>-<UTC stamp>.mcap`, holding
-//! - the raw samples in the rigmon layout ([`crate::recording::mcap_layout`], layout_version 1,
+//! - the raw samples in the rigmon layout ([`crate::recording::mcap`], layout_version 1,
 //!   written with the importers' streaming writer), so `rigmon replay` and every importer read
 //!   it as before;
 //! - features (`/features`) and health (`/health`) as JSON messages (schema encoding

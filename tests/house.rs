@@ -1,0 +1,459 @@
+//! House rules on the source tree itself: no two modules import each other (sibling files,
+//! or top-level modules such as `acquire` and `config`), and `config` imports nothing from
+//! the stream's runtime (`acquire`, `record`, `recorder`, `daemon`). Reads every `use` tree
+//! and every inline `crate::`/`super::` path under `src/` (comments and string literals
+//! removed) and resolves each to the module file it names.
+
+use std::collections::{BTreeMap, BTreeSet};
+use std::path::{Path, PathBuf};
+
+/// A module as its path from the crate root (`["dsp", "speed"]`); the root is `[]`.
+type Module = Vec<String>;
+
+fn rs_files(dir: &Path, out: &mut Vec<PathBuf>) {
+    let mut entries: Vec<_> = std::fs::read_dir(dir)
+        .unwrap_or_else(|e| panic!("cannot list {}: {e}", dir.display()))
+        .map(|e| e.unwrap().path())
+        .collect();
+    entries.sort();
+    for p in entries {
+        if p.is_dir() {
+            rs_files(&p, out);
+        } else if p.extension().is_some_and(|x| x == "rs") {
+            out.push(p);
+        }
+    }
+}
+
+/// The module a file defines: `a/b.rs` and `a/b/mod.rs` are `a::b`, `lib.rs` is the root.
+fn module_of(rel: &Path) -> Module {
+    let mut parts: Vec<String> = rel
+        .with_extension("")
+        .iter()
+        .map(|c| c.to_string_lossy().into_owned())
+        .collect();
+    if parts.last().is_some_and(|l| l == "mod") || parts == ["lib"] {
+        parts.pop();
+    }
+    parts
+}
+
+/// Source text with comments, string and char literals blanked out (newlines kept).
+fn code_only(src: &str) -> String {
+    let c: Vec<char> = src.chars().collect();
+    let mut out = String::with_capacity(src.len());
+    let mut i = 0;
+    let blank = |out: &mut String, ch: char| out.push(if ch == '\n' { '\n' } else { ' ' });
+    while i < c.len() {
+        let next = c.get(i + 1).copied();
+        if c[i] == '/' && next == Some('/') {
+            while i < c.len() && c[i] != '\n' {
+                i += 1;
+            }
+        } else if c[i] == '/' && next == Some('*') {
+            let mut depth = 0;
+            while i < c.len() {
+                if c[i] == '/' && c.get(i + 1) == Some(&'*') {
+                    depth += 1;
+                    i += 2;
+                } else if c[i] == '*' && c.get(i + 1) == Some(&'/') {
+                    depth -= 1;
+                    i += 2;
+                    if depth == 0 {
+                        break;
+                    }
+                } else {
+                    blank(&mut out, c[i]);
+                    i += 1;
+                }
+            }
+        } else if c[i] == 'r'
+            && (next == Some('"') || next == Some('#'))
+            && (i == 0 || !(c[i - 1].is_alphanumeric() || c[i - 1] == '_'))
+        {
+            // raw string r"..." or r#"..."#
+            let mut j = i + 1;
+            let mut hashes = 0;
+            while c.get(j) == Some(&'#') {
+                hashes += 1;
+                j += 1;
+            }
+            if c.get(j) != Some(&'"') {
+                out.push(c[i]);
+                i += 1;
+                continue;
+            }
+            j += 1;
+            'raw: while j < c.len() {
+                if c[j] == '"' && (1..=hashes).all(|k| c.get(j + k) == Some(&'#')) {
+                    j += 1 + hashes;
+                    break 'raw;
+                }
+                blank(&mut out, c[j]);
+                j += 1;
+            }
+            i = j;
+        } else if c[i] == '"' {
+            i += 1;
+            while i < c.len() && c[i] != '"' {
+                if c[i] == '\\' {
+                    i += 1;
+                }
+                if i < c.len() {
+                    blank(&mut out, c[i]);
+                }
+                i += 1;
+            }
+            i += 1;
+        } else if c[i] == '\'' && next == Some('\\') {
+            // escaped char literal '\n', '\'', '\u{..}'
+            i += 2;
+            while i < c.len() && c[i] != '\'' {
+                i += 1;
+            }
+            i += 1;
+        } else if c[i] == '\'' && c.get(i + 2) == Some(&'\'') {
+            i += 3; // plain char literal; a lifetime has no closing quote
+        } else {
+            out.push(c[i]);
+            i += 1;
+        }
+    }
+    out
+}
+
+fn is_ident(ch: char) -> bool {
+    ch.is_alphanumeric() || ch == '_'
+}
+
+/// Expand a `use` tree (`a::{b, c::{d, e}}`) into its paths; `as` renames dropped.
+fn expand(tree: &str) -> Vec<String> {
+    let mut t = String::new();
+    let mut words = tree.split_whitespace();
+    while let Some(w) = words.next() {
+        if w == "as" {
+            // drop the new name, keep the punctuation after it
+            let renamed = words.next().unwrap_or("");
+            t.push_str(renamed.trim_start_matches(is_ident));
+        } else {
+            t.push_str(w);
+        }
+    }
+    expand_tree(&t)
+}
+
+fn expand_tree(t: &str) -> Vec<String> {
+    let Some(open) = t.find('{') else {
+        return vec![t.to_string()];
+    };
+    let mut depth = 0;
+    let mut close = t.len();
+    for (k, ch) in t.char_indices().skip(open) {
+        match ch {
+            '{' => depth += 1,
+            '}' => {
+                depth -= 1;
+                if depth == 0 {
+                    close = k;
+                    break;
+                }
+            }
+            _ => {}
+        }
+    }
+    let (pre, inner, post) = (
+        &t[..open],
+        &t[open + 1..close],
+        &t[(close + 1).min(t.len())..],
+    );
+    let mut items = Vec::new();
+    let (mut depth, mut start) = (0, 0);
+    for (k, ch) in inner.char_indices() {
+        match ch {
+            '{' => depth += 1,
+            '}' => depth -= 1,
+            ',' if depth == 0 => {
+                items.push(&inner[start..k]);
+                start = k + 1;
+            }
+            _ => {}
+        }
+    }
+    items.push(&inner[start..]);
+    items
+        .into_iter()
+        .filter(|it| !it.is_empty())
+        .flat_map(|it| expand_tree(&format!("{pre}{it}{post}")))
+        .collect()
+}
+
+/// Paths a file names, each with the (possibly inline) module it is written in.
+fn paths_in(code: &str, file_module: &Module) -> Vec<(Module, String)> {
+    let c: Vec<char> = code.chars().collect();
+    let mut out = Vec::new();
+    // inline `mod name {` blocks: (name, brace depth at which it closes)
+    let mut inline: Vec<(String, usize)> = Vec::new();
+    let mut depth = 0usize;
+    let mut pending_mod: Option<String> = None;
+    let here = |inline: &Vec<(String, usize)>| {
+        let mut m = file_module.clone();
+        m.extend(inline.iter().map(|(n, _)| n.clone()));
+        m
+    };
+    let word_at = |i: usize, w: &str| {
+        let wc: Vec<char> = w.chars().collect();
+        c.len() >= i + wc.len()
+            && c[i..i + wc.len()] == wc[..]
+            && (i == 0 || !is_ident(c[i - 1]))
+            && !c.get(i + wc.len()).is_some_and(|&x| is_ident(x))
+    };
+    let mut i = 0;
+    while i < c.len() {
+        match c[i] {
+            '{' => {
+                depth += 1;
+                if let Some(name) = pending_mod.take() {
+                    inline.push((name, depth));
+                }
+                i += 1;
+                continue;
+            }
+            '}' => {
+                if inline.last().is_some_and(|(_, d)| *d == depth) {
+                    inline.pop();
+                }
+                depth = depth.saturating_sub(1);
+                i += 1;
+                continue;
+            }
+            ';' => pending_mod = None,
+            _ => {}
+        }
+        if word_at(i, "mod") {
+            let rest: String = c[i + 3..].iter().take(80).collect();
+            let name: String = rest
+                .trim_start()
+                .chars()
+                .take_while(|&x| is_ident(x))
+                .collect();
+            pending_mod = Some(name);
+            i += 3;
+        } else if word_at(i, "use") {
+            let end = (i..c.len()).find(|&k| c[k] == ';').unwrap_or(c.len());
+            let tree: String = c[i + 3..end].iter().collect();
+            for p in expand(&tree) {
+                out.push((here(&inline), p));
+            }
+            i = end;
+        } else if word_at(i, "crate") || word_at(i, "super") {
+            let mut j = i;
+            while j < c.len() && (is_ident(c[j]) || c[j] == ':') {
+                j += 1;
+            }
+            out.push((here(&inline), c[i..j].iter().collect()));
+            i = j;
+        } else {
+            i += 1;
+        }
+    }
+    out
+}
+
+/// The module file a path names (longest known prefix), or `None` for an external crate.
+fn resolve(
+    from: &Module,
+    path: &str,
+    modules: &BTreeMap<Module, PathBuf>,
+    dirs: &BTreeSet<Module>,
+) -> Option<Module> {
+    let segs: Vec<&str> = path.split("::").filter(|s| !s.is_empty()).collect();
+    let (mut full, rest): (Module, &[&str]) = match segs.first()? {
+        &"crate" => (Vec::new(), &segs[1..]),
+        &"super" | &"self" => {
+            let mut base = from.clone();
+            let mut k = 0;
+            while k < segs.len() && (segs[k] == "super" || segs[k] == "self") {
+                if segs[k] == "super" {
+                    base.pop();
+                }
+                k += 1;
+            }
+            (base, &segs[k..])
+        }
+        first => {
+            // `use child::X` inside a module directory's mod.rs
+            let mut child = from.clone();
+            child.push(first.to_string());
+            if dirs.contains(from) && modules.contains_key(&child) {
+                (from.clone(), &segs[..])
+            } else {
+                return None;
+            }
+        }
+    };
+    full.extend(rest.iter().map(|s| s.to_string()));
+    (0..=full.len())
+        .rev()
+        .map(|k| full[..k].to_vec())
+        .find(|m| modules.contains_key(m))
+}
+
+fn name(m: &Module) -> String {
+    if m.is_empty() {
+        "crate".into()
+    } else {
+        m.join("::")
+    }
+}
+
+fn is_ancestor(a: &Module, b: &Module) -> bool {
+    a.len() <= b.len() && b[..a.len()] == a[..]
+}
+
+struct Tree {
+    /// (importer, imported) module pairs with the files that wrote the import.
+    edges: BTreeMap<(Module, Module), BTreeSet<String>>,
+}
+
+fn read_tree() -> Tree {
+    let src = Path::new(env!("CARGO_MANIFEST_DIR")).join("src");
+    let mut files = Vec::new();
+    rs_files(&src, &mut files);
+    let mut modules = BTreeMap::new();
+    let mut dirs = BTreeSet::new();
+    for f in &files {
+        let rel = f.strip_prefix(&src).unwrap();
+        if rel == Path::new("main.rs") {
+            continue; // the binary is its own crate
+        }
+        let m = module_of(rel);
+        if rel.ends_with("mod.rs") || rel == Path::new("lib.rs") {
+            dirs.insert(m.clone());
+        }
+        modules.insert(m, f.clone());
+    }
+    let mut edges: BTreeMap<(Module, Module), BTreeSet<String>> = BTreeMap::new();
+    for (m, f) in &modules {
+        let text = std::fs::read_to_string(f).unwrap();
+        let rel = f.strip_prefix(&src).unwrap().display().to_string();
+        for (from, p) in paths_in(&code_only(&text), m) {
+            if let Some(t) = resolve(&from, &p, &modules, &dirs) {
+                if &t != m {
+                    edges
+                        .entry((m.clone(), t))
+                        .or_default()
+                        .insert(format!("src/{rel}: {p}"));
+                }
+            }
+        }
+    }
+    Tree { edges }
+}
+
+/// The parser finds what it must: a known import is seen, so an empty result means something.
+#[test]
+fn the_import_reader_sees_known_imports() {
+    let tree = read_tree();
+    let has = |a: &str, b: &str| {
+        let m = |s: &str| -> Module { s.split("::").map(String::from).collect() };
+        tree.edges.contains_key(&(m(a), m(b)))
+    };
+    assert!(
+        has("calibrate::views", "calibrate::modes"),
+        "use super::modes"
+    );
+    assert!(has("model::onnx", "config"), "use crate::config::RigConfig");
+    assert!(
+        has("calibrate::modes", "calibrate::stats"),
+        "inline super::stats::median"
+    );
+    assert_eq!(
+        expand("super::{a, b::{C, d as D}}"),
+        ["super::a", "super::b::C", "super::b::d"]
+    );
+    let code = code_only("let s = \"crate::x\"; // crate::y\nlet c = '\"'; crate::z::w");
+    assert!(
+        !code.contains("crate::x") && !code.contains("crate::y") && code.contains("crate::z::w")
+    );
+}
+
+/// No two modules import each other: neither two files (other than a module and its own
+/// parent, which re-exports it) nor two top-level modules.
+#[test]
+fn no_module_pair_imports_each_other() {
+    let tree = read_tree();
+    let mut circles = Vec::new();
+    for ((a, b), why) in &tree.edges {
+        if a < b && !is_ancestor(a, b) && !is_ancestor(b, a) {
+            if let Some(back) = tree.edges.get(&(b.clone(), a.clone())) {
+                circles.push(format!(
+                    "{} <-> {}: {:?} / {:?}",
+                    name(a),
+                    name(b),
+                    why,
+                    back
+                ));
+            }
+        }
+    }
+    // `config` composes the rig file from section types its components own (as
+    // `sim::config::SimulationConfig`); such a file imports nothing from `config`, so no file
+    // depends on itself through it, and the edge is not counted between top-level modules.
+    let imports_config = |m: &Module| {
+        tree.edges
+            .keys()
+            .any(|(a, b)| a == m && b.first().is_some_and(|y| y == "config"))
+    };
+    let mut top: BTreeMap<(String, String), BTreeSet<String>> = BTreeMap::new();
+    for ((a, b), why) in &tree.edges {
+        let section_type = a.first().is_some_and(|x| x == "config") && !imports_config(b);
+        if let (Some(x), Some(y)) = (a.first(), b.first()) {
+            if x != y && !section_type {
+                top.entry((x.clone(), y.clone()))
+                    .or_default()
+                    .extend(why.iter().cloned());
+            }
+        }
+    }
+    for ((x, y), why) in &top {
+        if x < y {
+            if let Some(back) = top.get(&(y.clone(), x.clone())) {
+                let first = |s: &BTreeSet<String>| s.iter().next().cloned().unwrap_or_default();
+                circles.push(format!(
+                    "top level {x} <-> {y}: e.g. {} / {} ({} and {} imports)",
+                    first(why),
+                    first(back),
+                    why.len(),
+                    back.len()
+                ));
+            }
+        }
+    }
+    assert!(
+        circles.is_empty(),
+        "modules importing each other (move the shared item down into a module both may use):\n{}",
+        circles.join("\n")
+    );
+}
+
+/// Configuration sits below the stream: `config` never imports acquisition, the recorder or
+/// the daemon (each of those owns its config type and reads `config` instead).
+#[test]
+fn config_imports_nothing_from_the_stream_runtime() {
+    let tree = read_tree();
+    let banned = ["acquire", "record", "recorder", "daemon"];
+    let found: Vec<String> = tree
+        .edges
+        .iter()
+        .filter(|((a, b), _)| {
+            a.first().is_some_and(|x| x == "config")
+                && b.first().is_some_and(|y| banned.contains(&y.as_str()))
+        })
+        .flat_map(|(_, why)| why.iter().cloned())
+        .collect();
+    assert!(
+        found.is_empty(),
+        "src/config imports from acquire/record/recorder/daemon (move the type to its owner):\n{}",
+        found.join("\n")
+    );
+}
