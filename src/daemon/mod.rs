@@ -19,6 +19,7 @@ pub mod record_sink;
 pub mod reload;
 pub mod signals;
 pub mod sink;
+pub mod sinks;
 pub mod status;
 pub mod stdout_sink;
 pub mod summary;

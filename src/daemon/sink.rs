@@ -1,13 +1,12 @@
 //! What a sink is, as vector has it: each sink is built from its own config section
 //! ([`SinkConfig::build`]) and then handed, by the pipeline, the raw blocks, each window's
-//! results, the status messages and the running config ([`Sink`]). [`Sinks`] is the set a
-//! daemon runs, in this order: stdout, Zenoh, recording.
+//! results, the status messages and the running config ([`Sink`]). The set a daemon runs is
+//! [`super::sinks::Sinks`].
 
 use super::config::DaemonConfig;
 use super::intake::SourceInfo;
 use super::queued_sink::Delivery;
 use super::status::{SinkStatus, StatusMessage};
-use super::stdout_sink::Output;
 use crate::acquire::SampleBlock;
 use crate::config::RigConfig;
 use crate::dsp::features::FeatureWindow;
@@ -68,46 +67,4 @@ pub trait Sink {
     fn report(&self, _into: &mut SinkReport) {}
     /// Drain and close (the files, the session).
     fn close(self: Box<Self>);
-}
-
-/// The sinks a daemon runs.
-pub struct Sinks(Vec<Box<dyn Sink>>);
-
-impl Sinks {
-    /// Build every sink its config turns on: stdout (`output`), `[zenoh]`, `[recording]`.
-    pub fn build(cx: &SinkContext, output: Output) -> Result<Sinks> {
-        let configs: [&dyn SinkConfig; 3] = [&output, &cx.config.zenoh, &cx.config.recording];
-        let mut sinks = Vec::new();
-        for c in configs {
-            sinks.extend(c.build(cx)?);
-        }
-        Ok(Sinks(sinks))
-    }
-
-    pub fn on_block(&mut self, block: &Arc<SampleBlock>) {
-        self.0.iter_mut().for_each(|s| s.on_block(block));
-    }
-
-    pub fn on_window(&mut self, window: &WindowEvent) {
-        self.0.iter_mut().for_each(|s| s.on_window(window));
-    }
-
-    pub fn on_status(&mut self, status: &StatusMessage) {
-        self.0.iter_mut().for_each(|s| s.on_status(status));
-    }
-
-    pub fn on_config(&mut self, config: &DaemonConfig) {
-        self.0.iter_mut().for_each(|s| s.on_config(config));
-    }
-
-    pub fn report(&self) -> SinkReport {
-        let mut r = SinkReport::default();
-        self.0.iter().for_each(|s| s.report(&mut r));
-        r
-    }
-
-    /// Close every sink, in order.
-    pub fn close(self) {
-        self.0.into_iter().for_each(|s| s.close());
-    }
 }
