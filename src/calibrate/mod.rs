@@ -19,5 +19,6 @@ pub mod plots;
 pub mod report;
 pub mod search;
 pub mod shaft_orders;
+pub mod timing;
 pub mod trace;
 pub mod views;
