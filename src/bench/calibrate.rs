@@ -44,7 +44,31 @@ fn generate(case: &str) -> Result<PathBuf> {
 
 struct Timed {
     seconds: f64,
+    /// CPU time of the process (user + system, all threads) during the run.
+    cpu_seconds: f64,
+    /// The 1-minute load average at the start and at the end of the run (other jobs on the
+    /// machine show here).
+    load: (f64, f64),
     outcome: fit::Outcome,
+}
+
+/// User + system CPU time of this process so far, s.
+fn cpu_seconds() -> f64 {
+    // SAFETY: getrusage only writes the struct it is given.
+    let mut u: libc::rusage = unsafe { std::mem::zeroed() };
+    if unsafe { libc::getrusage(libc::RUSAGE_SELF, &mut u) } != 0 {
+        return f64::NAN;
+    }
+    let t = |v: libc::timeval| v.tv_sec as f64 + v.tv_usec as f64 * 1e-6;
+    t(u.ru_utime) + t(u.ru_stime)
+}
+
+/// The 1-minute load average (NaN where /proc/loadavg is missing).
+fn load_average() -> f64 {
+    std::fs::read_to_string("/proc/loadavg")
+        .ok()
+        .and_then(|s| s.split_whitespace().next().and_then(|v| v.parse().ok()))
+        .unwrap_or(f64::NAN)
 }
 
 fn one(
@@ -53,12 +77,23 @@ fn one(
     part: &[bool],
     options: fit::Options,
 ) -> Result<Timed> {
-    let t0 = Instant::now();
+    let (l0, c0, t0) = (load_average(), cpu_seconds(), Instant::now());
     let outcome = fit::calibrate_with(rig, ops, part.to_vec(), options)?;
     Ok(Timed {
         seconds: t0.elapsed().as_secs_f64(),
+        cpu_seconds: cpu_seconds() - c0,
+        load: (l0, load_average()),
         outcome,
     })
+}
+
+/// The per-stage times of one calibration, one line.
+fn stages(o: &fit::Outcome) -> String {
+    o.timings
+        .iter()
+        .map(|t| format!("{} {:.1} s ({} calls)", t.stage, t.seconds, t.calls))
+        .collect::<Vec<_>>()
+        .join(", ")
 }
 
 fn summary(o: &fit::Outcome) -> String {
@@ -100,16 +135,24 @@ pub fn run(
     );
     let new = one(&rig, &ops, &part, fit::Options::default())?;
     eprintln!(
-        "  now:      {:.1} s  {}",
+        "  now:      {:.1} s (CPU {:.1} s, load {:.1} -> {:.1})  {}",
         new.seconds,
+        new.cpu_seconds,
+        new.load.0,
+        new.load.1,
         summary(&new.outcome)
     );
+    eprintln!("            stages: {}", stages(&new.outcome));
     let old = one(&rig, &ops, &part, fit::Options::baseline())?;
     eprintln!(
-        "  baseline: {:.1} s  {}",
+        "  baseline: {:.1} s (CPU {:.1} s, load {:.1} -> {:.1})  {}",
         old.seconds,
+        old.cpu_seconds,
+        old.load.0,
+        old.load.1,
         summary(&old.outcome)
     );
+    eprintln!("            stages: {}", stages(&old.outcome));
     let ratio = old.seconds / new.seconds;
     if opts.json {
         println!(
@@ -119,24 +162,37 @@ pub fn run(
                 "recordings": ops.len(),
                 "signal_s": signal,
                 "seconds": new.seconds,
+                "cpu_seconds": new.cpu_seconds,
+                "load_average": [new.load.0, new.load.1],
                 "baseline_seconds": old.seconds,
+                "baseline_cpu_seconds": old.cpu_seconds,
+                "baseline_load_average": [old.load.0, old.load.1],
                 "speedup": ratio,
                 "error": [new.outcome.before.total, new.outcome.after.total],
                 "baseline_error": [old.outcome.before.total, old.outcome.after.total],
                 "effects": new.outcome.accepted.iter().map(|t| &t.name).collect::<Vec<_>>(),
                 "baseline_effects": old.outcome.accepted.iter().map(|t| &t.name).collect::<Vec<_>>(),
+                "stages": new.outcome.timings,
+                "baseline_stages": old.outcome.timings,
             })
         );
     } else {
         println!("machine: {}", machine_line());
         println!(
-            "calibration of {} recordings ({:.1} s of signal, analysed whole): {:.1} s; \
-             the same calibration before (one piece per recording, serial trials, engine \
-             cache emptied when full): {:.1} s: {:.2}x faster",
+            "calibration of {} recordings ({:.1} s of signal, analysed whole): {:.1} s \
+             (CPU {:.1} s, load average {:.1} -> {:.1}); the same calibration before (one \
+             piece per recording, serial trials, engine cache emptied when full): {:.1} s \
+             (CPU {:.1} s, load average {:.1} -> {:.1}): {:.2}x faster",
             ops.len(),
             signal,
             new.seconds,
+            new.cpu_seconds,
+            new.load.0,
+            new.load.1,
             old.seconds,
+            old.cpu_seconds,
+            old.load.0,
+            old.load.1,
             ratio
         );
     }

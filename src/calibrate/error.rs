@@ -136,11 +136,39 @@ fn fault_parts(m: &Views, s: &Views) -> (f64, f64) {
     (peaks / n, ratios / n)
 }
 
+/// Whether the named component applies to a measured recording (see the module doc): a
+/// pair where it does not has it `NaN`.
+pub fn applies(name: &str, m: &Views) -> bool {
+    match name {
+        "lines" | "floor" | "impacts" => m.healthy,
+        "peaks" | "ratios" => !m.fault_peaks.is_empty(),
+        "modes" => m.mode.prominent,
+        _ => true,
+    }
+}
+
 /// Error of one measured/simulated pair.
 pub fn pair(m: &Views, s: &Views) -> ErrorParts {
-    let env = mean_abs(&m.env, &s.env);
-    let (peaks, ratios) = fault_parts(m, s);
-    let lines = if m.healthy {
+    pair_only(m, s, &NAMES)
+}
+
+/// [`pair`] for the named components only (the others `NaN`, `total` their sum): the
+/// simulated views need hold only what these read ([`super::views::Parts::for_components`]).
+/// Each computed component is the same as [`pair`]'s.
+pub fn pair_only(m: &Views, s: &Views, names: &[&str]) -> ErrorParts {
+    let want = |c: &str| names.contains(&c);
+    let nan = f64::NAN;
+    let env = if want("env") {
+        mean_abs(&m.env, &s.env)
+    } else {
+        nan
+    };
+    let (peaks, ratios) = if want("peaks") || want("ratios") {
+        fault_parts(m, s)
+    } else {
+        (nan, nan)
+    };
+    let lines = if m.healthy && want("lines") {
         m.lines
             .iter()
             .zip(&s.lines)
@@ -148,47 +176,65 @@ pub fn pair(m: &Views, s: &Views) -> ErrorParts {
             .sum::<f64>()
             / LINES_PER
     } else {
-        f64::NAN
+        nan
     };
-    let (lm, ls) = levels_db(&m.shaft, &s.shaft);
-    let orders = mean_abs(&lm[..2], &ls[..2]);
-    let harmonics = lm[2..]
-        .iter()
-        .zip(&ls[2..])
-        .map(|(a, b)| (a - b).abs())
-        .sum::<f64>()
-        / LINES_PER;
-    let bands = mean_abs(&m.bands, &s.bands);
-    let modes = match (m.mode.prominent, s.mode.prominent) {
-        (false, _) => f64::NAN,
-        (true, true) => (m.mode.hz - s.mode.hz).abs() / BAND_HZ,
-        (true, false) => MODE_MISSING_BANDS,
+    let (orders, harmonics) = if want("orders") || want("harmonics") {
+        let (lm, ls) = levels_db(&m.shaft, &s.shaft);
+        let orders = mean_abs(&lm[..2], &ls[..2]);
+        let harmonics = lm[2..]
+            .iter()
+            .zip(&ls[2..])
+            .map(|(a, b)| (a - b).abs())
+            .sum::<f64>()
+            / LINES_PER;
+        (orders, harmonics)
+    } else {
+        (nan, nan)
     };
-    let floor = if m.healthy {
+    let bands = if want("bands") {
+        mean_abs(&m.bands, &s.bands)
+    } else {
+        nan
+    };
+    let modes = match (want("modes"), m.mode.prominent, s.mode.prominent) {
+        (false, _, _) | (true, false, _) => nan,
+        (true, true, true) => (m.mode.hz - s.mode.hz).abs() / BAND_HZ,
+        (true, true, false) => MODE_MISSING_BANDS,
+    };
+    let floor = if m.healthy && want("floor") {
         (m.floor_db - s.floor_db).abs()
     } else {
-        f64::NAN
+        nan
     };
-    let n = m.speed.len().min(s.speed.len());
-    let speed = 0.5
-        * m.speed[..n]
+    let speed = if want("speed") {
+        let n = m.speed.len().min(s.speed.len());
+        0.5 * m.speed[..n]
             .iter()
             .zip(&s.speed[..n])
             .map(|(x, y)| (x - y).abs())
-            .sum::<f64>();
-    let fractional = summed_abs(&m.fractional, &s.fractional) / FRACTIONAL_PER;
-    let impacts = if m.healthy {
+            .sum::<f64>()
+    } else {
+        nan
+    };
+    let fractional = if want("fractional") {
+        summed_abs(&m.fractional, &s.fractional) / FRACTIONAL_PER
+    } else {
+        nan
+    };
+    let impacts = if m.healthy && want("impacts") {
         summed_abs(&m.impacts, &s.impacts) / IMPACTS_PER
     } else {
-        f64::NAN
+        nan
     };
+    // the pairs computed together keep only the wanted one
+    let only = |c: &str, v: f64| if want(c) { v } else { nan };
     ErrorParts {
         env,
-        peaks,
-        ratios,
+        peaks: only("peaks", peaks),
+        ratios: only("ratios", ratios),
         lines,
-        orders,
-        harmonics,
+        orders: only("orders", orders),
+        harmonics: only("harmonics", harmonics),
         bands,
         modes,
         floor,

@@ -16,7 +16,8 @@ use super::locate::{locate, Unexplained};
 use super::measured::{several_speeds, Measured};
 use super::modes::Mode;
 use super::search;
-use super::views::{self, Views};
+use super::timing::{Stage, StageTime, Timings};
+use super::views::{self, Parts, Views};
 use crate::config::{RigConfig, SpeedConfig};
 use crate::dsp::speed::SpeedTrack;
 use crate::sim::config::SimulationConfig;
@@ -121,6 +122,8 @@ pub struct Outcome {
     pub measured_views: Vec<Views>,
     pub views_before: Vec<Views>,
     pub views_after: Vec<Views>,
+    /// Where the calibration spent its time ([`Timings`]).
+    pub timings: Vec<StageTime>,
 }
 
 /// How the calibration runs. [`Options::default`] is the normal way; [`Options::baseline`]
@@ -136,6 +139,9 @@ pub struct Options {
     pub parallel_trials: bool,
     /// Least-recently-used engine cache (else emptied whenever it is full).
     pub engine_lru: bool,
+    /// While an effect's parameters are searched, simulate and compare only what its own
+    /// components read ([`Twin::error_of`]; else every view of every recording).
+    pub own_views: bool,
 }
 
 impl Default for Options {
@@ -144,6 +150,7 @@ impl Default for Options {
             segmented: true,
             parallel_trials: true,
             engine_lru: true,
+            own_views: true,
         }
     }
 }
@@ -155,6 +162,7 @@ impl Options {
             segmented: false,
             parallel_trials: false,
             engine_lru: false,
+            own_views: false,
         }
     }
 }
@@ -204,12 +212,16 @@ pub struct Twin<'a> {
     pub measured: Vec<Views>,
     /// Views by (simulation section, operating point).
     views: Mutex<HashMap<(String, usize), Arc<Views>>>,
+    /// Views with only some groups computed, by (section, operating point, groups).
+    partial: Mutex<HashMap<(String, usize, Parts), Arc<Views>>>,
     /// Engine runs by (engine part of the section, operating point): effects that change
     /// only the sensor stage reuse them. Bounded (see [`ENGINE_CACHE_PER_OP`]).
     engines: Mutex<EngineCache>,
     /// Factor from the classifier channel's unit to m/s^2.
     pub unit_to_m_s2: f64,
     pub options: Options,
+    /// Time per stage.
+    pub timings: Timings,
 }
 
 /// Engine runs kept per operating point: every trial of a round keeps its own base run and
@@ -255,14 +267,17 @@ impl<'a> Twin<'a> {
     }
 
     pub fn with_options(rig: &'a RigConfig, ops: &'a [Measured], options: Options) -> Result<Self> {
+        let timings = Timings::default();
         let measured = ops
             .par_iter()
             .map(|m| {
-                let v = if options.segmented {
-                    views::compute(&m.recording, rig, &m.faults)
-                } else {
-                    whole_piece(&m.recording, rig, &m.faults)
-                };
+                let v = timings.time(Stage::MeasuredViews, || {
+                    if options.segmented {
+                        views::compute(&m.recording, rig, &m.faults)
+                    } else {
+                        whole_piece(&m.recording, rig, &m.faults)
+                    }
+                });
                 v.with_context(|| format!("views of {}", m.name))
             })
             .collect::<Result<Vec<_>>>()?;
@@ -282,6 +297,7 @@ impl<'a> Twin<'a> {
             measured,
             unit_to_m_s2,
             views: Mutex::new(HashMap::new()),
+            partial: Mutex::new(HashMap::new()),
             engines: Mutex::new(EngineCache {
                 runs: HashMap::new(),
                 clock: 0,
@@ -289,14 +305,38 @@ impl<'a> Twin<'a> {
                 lru: options.engine_lru,
             }),
             options,
+            timings,
         })
     }
 
     /// Views of the simulated twin of operating point `i`.
     pub fn simulated(&self, sim: &SimulationConfig, i: usize) -> Result<Arc<Views>> {
+        self.simulated_parts(sim, i, Parts::ALL)
+    }
+
+    /// The groups `parts` of the views of the simulated twin of operating point `i` (all of
+    /// them when the full views are cached already, or in the baseline); with none, the
+    /// twin is not simulated at all (its `speed` and `mode` come from the section).
+    pub fn simulated_parts(
+        &self,
+        sim: &SimulationConfig,
+        i: usize,
+        parts: Parts,
+    ) -> Result<Arc<Views>> {
         let key = (serde_json::to_string(sim)?, i);
         if let Some(v) = self.views.lock().expect("cache").get(&key) {
             return Ok(v.clone());
+        }
+        let parts = if self.options.segmented {
+            parts
+        } else {
+            Parts::ALL
+        };
+        let partial_key = (key.0.clone(), i, parts);
+        if parts != Parts::ALL {
+            if let Some(v) = self.partial.lock().expect("cache").get(&partial_key) {
+                return Ok(v.clone());
+            }
         }
         let m = &self.ops[i];
         let mut s = sim.clone();
@@ -308,32 +348,50 @@ impl<'a> Twin<'a> {
             dur
         };
         let sc = Scenario::constant(&m.faults, m.rpm, twin_s, 1000 + i as u64);
-        let engine_key = (serde_json::to_string(&s.engine_part())?, i);
-        let cached = self.engines.lock().expect("cache").get(&engine_key);
-        let run = match cached {
-            Some(r) => r,
-            None => {
-                let r = Arc::new(
-                    run_engine(self.rig, &s, &sc)
-                        .with_context(|| format!("simulating the twin of {}", m.name))?,
-                );
-                self.engines
-                    .lock()
-                    .expect("cache")
-                    .insert(engine_key, r.clone());
-                r
-            }
+        let rec = if parts.is_empty() {
+            None
+        } else {
+            let engine_key = (serde_json::to_string(&s.engine_part())?, i);
+            let cached = self.engines.lock().expect("cache").get(&engine_key);
+            let run = match cached {
+                Some(r) => r,
+                None => {
+                    let r = Arc::new(
+                        self.timings
+                            .time(Stage::Engine, || run_engine(self.rig, &s, &sc))
+                            .with_context(|| format!("simulating the twin of {}", m.name))?,
+                    );
+                    self.engines
+                        .lock()
+                        .expect("cache")
+                        .insert(engine_key, r.clone());
+                    r
+                }
+            };
+            Some(self.timings.time(Stage::Sensor, || {
+                sensor::finish(self.rig, &sc.overrides.apply(&s), &sc, &run)
+            })?)
         };
-        let rec = sensor::finish(self.rig, &sc.overrides.apply(&s), &sc, &run)?;
-        let mut v = if self.options.segmented {
-            let mut v = views::compute_segment(&rec, self.rig, &m.faults)?;
+        let mut v = self.timings.time(Stage::SimViews, || -> Result<Views> {
+            if !self.options.segmented {
+                let rec = rec.as_ref().expect("the baseline computes every view");
+                return whole_piece(rec, self.rig, &m.faults);
+            }
+            let mut v = match &rec {
+                Some(rec) => views::compute_parts(rec, self.rig, &m.faults, parts)?,
+                None => Views {
+                    rpm: m.rpm,
+                    healthy: m.faults.is_empty(),
+                    seconds: twin_s,
+                    segments: 1,
+                    ..Views::default()
+                },
+            };
             let track = twin_speed_track(self.rig, &s, m.rpm, dur)?;
             v.speed = views::speed_view(&track, dur, track.mean_rpm(0.0, dur));
             v.seconds = dur;
-            v
-        } else {
-            whole_piece(&rec, self.rig, &m.faults)?
-        };
+            Ok(v)
+        })?;
         // the simulated side of `modes` is the model's dominant mode (see `error`)
         if let Some(hz) = dominant_resonance_hz(self.rig, &s) {
             v.mode = Mode {
@@ -342,15 +400,54 @@ impl<'a> Twin<'a> {
             };
         }
         let v = Arc::new(v);
-        self.views.lock().expect("cache").insert(key, v.clone());
+        if parts == Parts::ALL {
+            self.views.lock().expect("cache").insert(key, v.clone());
+        } else {
+            self.partial
+                .lock()
+                .expect("cache")
+                .insert(partial_key, v.clone());
+        }
         Ok(v)
+    }
+
+    /// The sum of the named components of the mean error over the operating points `idx`
+    /// (`error(sim, idx)?.of(own)`), computing only what they read: the view groups they
+    /// need ([`Parts::for_components`]), on the recordings they apply to. The same number
+    /// as the full [`Twin::error`] gives; in the baseline, that is what it runs.
+    pub fn error_of(&self, sim: &SimulationConfig, idx: &[usize], own: &[&str]) -> Result<f64> {
+        if !self.options.own_views {
+            return Ok(self.error(sim, idx)?.of(own));
+        }
+        let mode_from_spectrum = dominant_resonance_hz(self.rig, sim).is_none();
+        let parts = Parts::for_components(own, mode_from_spectrum);
+        let applying: Vec<usize> = idx
+            .iter()
+            .copied()
+            .filter(|&i| own.iter().any(|c| error::applies(c, &self.measured[i])))
+            .collect();
+        let pairs = applying
+            .par_iter()
+            .map(|&i| {
+                let s = self.simulated_parts(sim, i, parts)?;
+                Ok(self.timings.time(Stage::Error, || {
+                    error::pair_only(&self.measured[i], &s, own)
+                }))
+            })
+            .collect::<Result<Vec<_>>>()?;
+        Ok(error::mean(&pairs).of(own))
     }
 
     /// Mean error over the operating points `idx`.
     pub fn error(&self, sim: &SimulationConfig, idx: &[usize]) -> Result<ErrorParts> {
         let parts = idx
             .par_iter()
-            .map(|&i| Ok(error::pair(&self.measured[i], &*self.simulated(sim, i)?)))
+            .map(|&i| {
+                let s = self.simulated(sim, i)?;
+                Ok(self
+                    .timings
+                    .time(Stage::Error, || error::pair(&self.measured[i], &s)))
+            })
             .collect::<Result<Vec<_>>>()?;
         Ok(error::mean(&parts))
     }
@@ -407,10 +504,12 @@ fn search_effect(
     let own = effect.components();
     let mut failure = None;
     let start = start.map_or_else(|| effect.start(base, cx), <[f64]>::to_vec);
-    let found = search::minimize(&effect.params(cx), &start, &mut |x| match twin
-        .error(&effect.apply(base, x, cx), fit)
-    {
-        Ok(e) => e.of(own),
+    let found = search::minimize(&effect.params(cx), &start, &mut |x| match twin.error_of(
+        &effect.apply(base, x, cx),
+        fit,
+        own,
+    ) {
+        Ok(e) => e,
         Err(e) => {
             failure.get_or_insert(e);
             f64::INFINITY
@@ -644,6 +743,7 @@ pub fn calibrate_with(
         measured_views: twin.measured.clone(),
         views_before,
         views_after,
+        timings: twin.timings.totals(),
     })
 }
 

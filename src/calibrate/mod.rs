@@ -20,5 +20,6 @@ pub mod report;
 pub mod search;
 pub mod shaft_orders;
 pub mod stats;
+pub mod timing;
 pub mod trace;
 pub mod views;

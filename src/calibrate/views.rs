@@ -265,9 +265,79 @@ pub fn speed_view(track: &SpeedTrack, dur: f64, rpm: f64) -> Vec<f64> {
         .collect()
 }
 
+/// Which groups of views to compute. A measured recording gets all of them; while an
+/// effect's parameters are searched, its simulated twins need only the groups its own error
+/// components read ([`Parts::for_components`]), so the others are not computed.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub struct Parts {
+    /// `env`, `env_db`, `fault_peaks` (the envelope order spectrum).
+    pub env: bool,
+    /// `lines`, `bands`, `band_lo_hz`, `floor_db`, `mode` (the Welch spectrum).
+    pub spectrum: bool,
+    /// `shaft` (the shaft-order lines).
+    pub shaft: bool,
+    /// `fractional`.
+    pub fractional: bool,
+    /// `impacts`.
+    pub impacts: bool,
+}
+
+impl Parts {
+    pub const ALL: Parts = Parts {
+        env: true,
+        spectrum: true,
+        shaft: true,
+        fractional: true,
+        impacts: true,
+    };
+    pub const NONE: Parts = Parts {
+        env: false,
+        spectrum: false,
+        shaft: false,
+        fractional: false,
+        impacts: false,
+    };
+
+    /// The groups the simulated side of the named error components reads
+    /// ([`super::error`]). `speed` reads none (a twin's comes from its speed profile), nor
+    /// does `modes` (the model's dominant mode) unless `mode_from_spectrum` (a model
+    /// without structural modes: the twin's own dominant band).
+    pub fn for_components(names: &[&str], mode_from_spectrum: bool) -> Parts {
+        let mut p = Parts::NONE;
+        for n in names {
+            match *n {
+                "env" | "peaks" | "ratios" => p.env = true,
+                "lines" | "bands" | "floor" => p.spectrum = true,
+                "modes" => p.spectrum |= mode_from_spectrum,
+                "orders" | "harmonics" => p.shaft = true,
+                "fractional" => p.fractional = true,
+                "impacts" => p.impacts = true,
+                _ => {}
+            }
+        }
+        p
+    }
+
+    /// Nothing to compute from the signal.
+    pub fn is_empty(&self) -> bool {
+        *self == Parts::NONE
+    }
+}
+
 /// Compute the views of one segment (the whole of `rec`); `speed` is left empty (see
 /// [`speed_view`]).
 pub fn compute_segment(rec: &Recording, rig: &RigConfig, faults: &[Fault]) -> Result<Views> {
+    compute_parts(rec, rig, faults, Parts::ALL)
+}
+
+/// [`compute_segment`] for the groups in `parts` only; the other fields stay empty (0 for
+/// `floor_db`, a default `mode`). Each computed group is the same as [`compute_segment`]'s.
+pub fn compute_parts(
+    rec: &Recording,
+    rig: &RigConfig,
+    faults: &[Fault],
+    parts: Parts,
+) -> Result<Views> {
     let ch = rig
         .classifier_channel()
         .and_then(|c| rec.channel(&c.name))
@@ -285,12 +355,43 @@ pub fn compute_segment(rec: &Recording, rig: &RigConfig, faults: &[Fault]) -> Re
     let track = crate::analysis::whole_recording(rec, rig)?;
     let dur = rec.duration_s();
     let rpm = track.mean_rpm(0.0, dur);
+    let mut v = Views {
+        rpm,
+        healthy: faults.is_empty(),
+        seconds: dur,
+        segments: 1,
+        ..Views::default()
+    };
+    if parts.env {
+        (v.env, v.env_db, v.fault_peaks) = envelope_views(&ch.samples, fs, &track, rig, faults)?;
+    }
+    if parts.spectrum {
+        spectrum_views(&ch.samples, fs, &mut v);
+    }
+    if parts.shaft {
+        v.shaft = shaft_orders::measure(&ch.samples, fs, &track);
+    }
+    if parts.fractional {
+        v.fractional = fractional_orders::measure(&ch.samples, fs, &track);
+    }
+    if parts.impacts {
+        v.impacts = impacts::measure(&ch.samples, fs, BAND_MIN_HZ);
+    }
+    Ok(v)
+}
 
-    // envelope order spectrum
+/// `env`, `env_db` and the located fault peaks, from the envelope order spectrum.
+fn envelope_views(
+    x: &[f32],
+    fs: f64,
+    track: &SpeedTrack,
+    rig: &RigConfig,
+    faults: &[Fault],
+) -> Result<(Vec<f64>, Vec<f64>, Vec<FaultPeak>)> {
     let whole = whole_recording(
-        &ch.samples,
+        x,
         fs,
-        &track,
+        track,
         rig.features.lowpass_hz.min(0.45 * fs),
         ENV_MAX_ORDER.max(fault_peaks::MAX_ORDER) + 0.5,
     )?;
@@ -322,13 +423,18 @@ pub fn compute_segment(rec: &Recording, rig: &RigConfig, faults: &[Fault]) -> Re
         .iter()
         .filter_map(|f| fault_peaks::locate(&spec, *f, &nominal))
         .collect();
+    Ok((env, env_db, fault_peaks))
+}
 
+/// `lines`, `bands` (with `band_lo_hz`), `floor_db` and the measured `mode`, from the Welch
+/// spectrum of `x`, into `v`.
+fn spectrum_views(x: &[f32], fs: f64, v: &mut Views) {
     // Welch amplitude and power spectra, 1 Hz bins
-    let nseg = (fs.round() as usize).min(ch.samples.len());
-    let (amplitude_hz, power) = welch(&ch.samples, nseg);
+    let nseg = (fs.round() as usize).min(x.len());
+    let (amplitude_hz, power) = welch(x, nseg);
     let df = fs / nseg as f64;
     let hz_bin = |hz: f64| ((hz / df).round() as usize).min(amplitude_hz.len() - 1);
-    let lines = (LINES_MIN_HZ..=LINES_MAX_HZ)
+    v.lines = (LINES_MIN_HZ..=LINES_MAX_HZ)
         .map(|hz| {
             let k = hz_bin(hz as f64);
             let (a, b) = (hz_bin(hz as f64 - 25.0), hz_bin(hz as f64 + 25.0));
@@ -337,7 +443,7 @@ pub fn compute_segment(rec: &Recording, rig: &RigConfig, faults: &[Fault]) -> Re
         })
         .collect();
     let band_hi = 0.4 * fs;
-    let floor_db = 20.0
+    v.floor_db = 20.0
         * quantile(
             &amplitude_hz[hz_bin(BAND_MIN_HZ)..=hz_bin(band_hi)],
             FLOOR_QUANTILE,
@@ -353,30 +459,13 @@ pub fn compute_segment(rec: &Recording, rig: &RigConfig, faults: &[Fault]) -> Re
         band_lo_hz.push(lo);
         lo += BAND_HZ;
     }
-    let mode = modes::dominant(&bands, &band_lo_hz, BAND_HZ);
+    v.mode = modes::dominant(&bands, &band_lo_hz, BAND_HZ);
     let top = bands.iter().copied().fold(f64::MIN, f64::max);
     bands
         .iter_mut()
         .for_each(|b| *b = (*b - top + BAND_RANGE_DB).max(0.0));
-
-    Ok(Views {
-        rpm,
-        env,
-        lines,
-        bands,
-        band_lo_hz,
-        speed: Vec::new(),
-        env_db,
-        healthy: faults.is_empty(),
-        fault_peaks,
-        shaft: shaft_orders::measure(&ch.samples, fs, &track),
-        mode,
-        floor_db,
-        fractional: fractional_orders::measure(&ch.samples, fs, &track),
-        impacts: impacts::measure(&ch.samples, fs, BAND_MIN_HZ),
-        seconds: dur,
-        segments: 1,
-    })
+    v.bands = bands;
+    v.band_lo_hz = band_lo_hz;
 }
 
 fn threshold(db: f64) -> f64 {

@@ -48,7 +48,18 @@ pub fn run(a: Args) -> Result<()> {
             if *p { "fit" } else { "held out" }
         );
     }
+    let t0 = std::time::Instant::now();
     let outcome = fit::calibrate(&rig, &ops, part)?;
+    eprintln!(
+        "calibrated in {:.1} s; time per stage (summed over threads): {}",
+        t0.elapsed().as_secs_f64(),
+        outcome
+            .timings
+            .iter()
+            .map(|t| format!("{} {:.1} s ({} calls)", t.stage, t.seconds, t.calls))
+            .collect::<Vec<_>>()
+            .join(", ")
+    );
     let id = report::calibration_id(&outcome, &ops);
     std::fs::create_dir_all(&a.report)
         .with_context(|| format!("cannot create report folder {}", a.report.display()))?;
