@@ -20,7 +20,7 @@ fn repo() -> PathBuf {
 enum TachoForm {
     Analog,
     Edges,
-    /// None (fixed and estimated speed: the daemon records no tacho channel for those).
+    /// None.
     None,
 }
 
@@ -231,6 +231,10 @@ fn edges_features_are_bit_identical_in_training_and_serving() {
 fn fixed_features_are_bit_identical_in_training_and_serving() {
     let rec = recording(&Synthetic::default(), 0.0, TachoForm::None, None);
     assert_identical("fixed", "source = \"fixed\"\nrpm = 600.0\n", &rec, "fixed");
+    // The recorder keeps the analog tacho the source delivers though `[speed]` ignores it.
+    let rec = recording(&Synthetic::default(), 0.0, TachoForm::Analog, None);
+    let speed = "source = \"fixed\"\nrpm = 600.0\n";
+    assert_identical("fixed-analog", speed, &rec, "fixed");
 }
 
 #[test]
@@ -251,7 +255,8 @@ fn estimate_features_are_bit_identical_in_training_and_serving() {
         seconds: 6.0,
         ..Synthetic::default()
     };
-    let rec = recording(&syn, 0.5, TachoForm::None, None);
+    // With an analog tacho in the recording, which the recorder keeps.
+    let rec = recording(&syn, 0.5, TachoForm::Analog, None);
     assert_identical(
         "estimate",
         "source = \"estimate\"\nmin_rpm = 1200.0\nmax_rpm = 3000.0\n",

@@ -2,14 +2,15 @@
 //! envelope order spectrum features, velocity RMS), then the classifier, the health state
 //! machine, fault-band amplitudes and the ISO 20816-3 velocity advisory.
 
-use crate::analysis::{AnalysisStage, SpeedSource, WindowError, WindowView};
+use crate::analysis::{AnalysisStage, SpeedSource, WindowAnalysis, WindowError, WindowView};
 use crate::bearing::FaultOrders;
 use crate::config::RigConfig;
 use crate::dsp::features::FeatureWindow;
+use crate::dsp::quality::Quality;
 use crate::health::message::{
     FaultBands, HealthMessage, ModelInfo, QualityReport, WindowTimes, SCHEMA, SCHEMA_VERSION,
 };
-use crate::health::{HealthPolicy, HealthStateMachine, UnknownReason, WindowVerdict};
+use crate::health::{HealthPolicy, HealthStateMachine, Smoothed, UnknownReason, WindowVerdict};
 use crate::model::onnx::OnnxClassifier;
 use anyhow::{Context, Result};
 use std::collections::BTreeMap;
@@ -126,104 +127,9 @@ impl Analyzer {
     pub fn analyze(&mut self, view: &WindowView) -> WindowOutput {
         self.seq += 1;
         let analysis = self.stage.analyse(view);
-        let mut quality = QualityReport {
-            ok: true,
-            ..Default::default()
-        };
-        if analysis.lost_samples > 0 {
-            quality.dropout_samples = analysis.lost_samples;
-            quality.flag("dropout");
-        }
-        if analysis.nan_samples > 0 {
-            quality.nan_samples += analysis.nan_samples;
-            quality.flag("nan");
-        }
-        let mut bad_classifier = analysis.classifier_nan;
         let labels = self.model.meta().labels.clone();
-        let mut features = None;
-        let mut probs: Vec<f32> = Vec::new();
-        let mut novelty = f32::NAN;
-        let mut rpm = None;
-        let mut speed_source = analysis.speed_source.to_string();
-        match analysis.features {
-            Err(WindowError::NoSpeed(e)) => {
-                quality.flag("no_speed");
-                tracing::debug!(
-                    "window {:.1}-{:.1} s: no speed: {e:#}",
-                    view.t_start,
-                    view.t_end
-                );
-                bad_classifier = true;
-            }
-            Err(WindowError::Features(e)) => {
-                if analysis.tacho_lost {
-                    quality.flag("tacho_lost");
-                }
-                self.errors += 1;
-                quality.flag("features_failed");
-                tracing::warn!(
-                    "window {:.1}-{:.1} s: features failed: {e:#}",
-                    view.t_start,
-                    view.t_end
-                );
-                bad_classifier = true;
-            }
-            Ok(fw) => {
-                if analysis.tacho_lost {
-                    quality.flag("tacho_lost");
-                    bad_classifier = true;
-                }
-                rpm = Some(fw.rpm).filter(|r| r.is_finite());
-                speed_source = fw.speed_source.clone();
-                let q = &fw.quality;
-                let cls = &self.names[self.classifier];
-                for (flag, list) in [
-                    ("clipping", &q.clipped),
-                    ("flat", &q.flat),
-                    ("dropout", &q.dropout),
-                    ("nan", &q.non_finite),
-                ] {
-                    if !list.is_empty() {
-                        quality.flag(flag);
-                        if list.contains(cls) {
-                            bad_classifier = true;
-                        }
-                    }
-                }
-                if !q.dc_offset.is_empty() {
-                    // Advisory: the envelope features ignore DC.
-                    quality.flag("dc_offset");
-                }
-                quality.flat_channels = q.flat.clone();
-                quality.clipped_samples = q.clipped.len() as u32;
-                quality.missing_tacho_pulses = q.missing_pulses;
-                if q.missing_pulses > 0 {
-                    quality.flag("missing_tacho_pulses");
-                }
-                if q.speed_out_of_range {
-                    quality.flag("speed_out_of_range");
-                    bad_classifier = true;
-                }
-                quality.dsp = serde_json::to_value(q).unwrap_or_default();
-                match self.model.predict(fw.classifier_features(&self.rig)) {
-                    Ok(p) => {
-                        probs = p.probs;
-                        novelty = p.novelty;
-                    }
-                    Err(e) => {
-                        self.errors += 1;
-                        tracing::warn!(
-                            "window {:.1}-{:.1} s: inference failed: {e:#}",
-                            view.t_start,
-                            view.t_end
-                        );
-                        bad_classifier = true;
-                    }
-                }
-                features = Some(fw);
-            }
-        }
-
+        let mut c = self.classify(view, analysis);
+        let features = c.features.take();
         let threshold = self
             .health
             .policy()
@@ -232,21 +138,139 @@ impl Analyzer {
         let smoothed = self.health.update(&WindowVerdict {
             t_end: view.t_end,
             labels: &labels,
-            probs: &probs,
-            novelty: if novelty.is_nan() { 0.0 } else { novelty },
+            probs: &c.probs,
+            novelty: if c.novelty.is_nan() { 0.0 } else { c.novelty },
             novelty_threshold: threshold,
-            bad_quality: bad_classifier,
+            bad_quality: c.bad_classifier,
         });
+        let health = self.message(view, c, features.as_ref(), labels, smoothed, threshold);
+        WindowOutput { features, health }
+    }
+
+    /// Quality checks, features and the classifier's probabilities for one window.
+    fn classify(&mut self, view: &WindowView, analysis: WindowAnalysis) -> Classified {
+        let mut c = Classified {
+            features: None,
+            quality: stream_quality(&analysis),
+            bad_classifier: analysis.classifier_nan,
+            probs: Vec::new(),
+            novelty: f32::NAN,
+            rpm: None,
+            speed_source: analysis.speed_source.to_string(),
+            velocity: analysis.velocity_mm_s,
+        };
+        match analysis.features {
+            Err(WindowError::NoSpeed(e)) => {
+                c.quality.flag("no_speed");
+                tracing::debug!(
+                    "window {:.1}-{:.1} s: no speed: {e:#}",
+                    view.t_start,
+                    view.t_end
+                );
+                c.bad_classifier = true;
+            }
+            Err(WindowError::Features(e)) => {
+                if analysis.tacho_lost {
+                    c.quality.flag("tacho_lost");
+                }
+                self.errors += 1;
+                c.quality.flag("features_failed");
+                tracing::warn!(
+                    "window {:.1}-{:.1} s: features failed: {e:#}",
+                    view.t_start,
+                    view.t_end
+                );
+                c.bad_classifier = true;
+            }
+            Ok(fw) => {
+                if analysis.tacho_lost {
+                    c.quality.flag("tacho_lost");
+                    c.bad_classifier = true;
+                }
+                c.rpm = Some(fw.rpm).filter(|r| r.is_finite());
+                c.speed_source = fw.speed_source.clone();
+                if self.dsp_quality(&fw.quality, &mut c.quality) {
+                    c.bad_classifier = true;
+                }
+                self.infer(view, &fw, &mut c);
+                c.features = Some(fw);
+            }
+        }
+        c
+    }
+
+    /// Flag the feature pipeline's quality findings; true when they make the classifier
+    /// channel unusable.
+    fn dsp_quality(&self, q: &Quality, quality: &mut QualityReport) -> bool {
+        let mut bad_classifier = false;
+        let cls = &self.names[self.classifier];
+        for (flag, list) in [
+            ("clipping", &q.clipped),
+            ("flat", &q.flat),
+            ("dropout", &q.dropout),
+            ("nan", &q.non_finite),
+        ] {
+            if !list.is_empty() {
+                quality.flag(flag);
+                if list.contains(cls) {
+                    bad_classifier = true;
+                }
+            }
+        }
+        if !q.dc_offset.is_empty() {
+            // Advisory: the envelope features ignore DC.
+            quality.flag("dc_offset");
+        }
+        quality.flat_channels = q.flat.clone();
+        quality.clipped_samples = q.clipped.len() as u32;
+        quality.missing_tacho_pulses = q.missing_pulses;
+        if q.missing_pulses > 0 {
+            quality.flag("missing_tacho_pulses");
+        }
+        if q.speed_out_of_range {
+            quality.flag("speed_out_of_range");
+            bad_classifier = true;
+        }
+        quality.dsp = serde_json::to_value(q).unwrap_or_default();
+        bad_classifier
+    }
+
+    /// Run the classifier on the window's features.
+    fn infer(&mut self, view: &WindowView, fw: &FeatureWindow, c: &mut Classified) {
+        match self.model.predict(fw.classifier_features(&self.rig)) {
+            Ok(p) => {
+                c.probs = p.probs;
+                c.novelty = p.novelty;
+            }
+            Err(e) => {
+                self.errors += 1;
+                tracing::warn!(
+                    "window {:.1}-{:.1} s: inference failed: {e:#}",
+                    view.t_start,
+                    view.t_end
+                );
+                c.bad_classifier = true;
+            }
+        }
+    }
+
+    /// The health message for one window: the classification, the smoothed state, the fault
+    /// bands and the ISO 20816-3 velocity advisory.
+    fn message(
+        &self,
+        view: &WindowView,
+        c: Classified,
+        features: Option<&FeatureWindow>,
+        labels: Vec<String>,
+        smoothed: Smoothed,
+        threshold: f32,
+    ) -> HealthMessage {
+        let fault_bands = features.map(|fw| self.fault_bands(fw)).unwrap_or_default();
         // None when the window has non-finite samples or the unit is not an acceleration.
-        let velocity = analysis.velocity_mm_s;
+        let velocity = c.velocity;
         let zone = velocity.and_then(|v| self.health.policy().iso20816.zone(v));
-        let fault_bands = features
-            .as_ref()
-            .map(|fw| self.fault_bands(fw))
-            .unwrap_or_default();
-        let meta = self.model.meta();
         let ns = |t: f64| self.start_time_ns.saturating_add((t * 1e9).round() as u64);
-        let health = HealthMessage {
+        HealthMessage {
             schema: SCHEMA.into(),
             schema_version: SCHEMA_VERSION,
             rig: self.rig.machine.id.clone(),
@@ -260,16 +284,16 @@ impl Analyzer {
                 end_ns: ns(view.t_end),
             },
             publish_time_ns: now_ns(),
-            rpm,
-            speed_source,
-            quality,
+            rpm: c.rpm,
+            speed_source: c.speed_source,
+            quality: c.quality,
             probabilities: labels
                 .iter()
                 .cloned()
-                .zip(probs.iter().copied())
+                .zip(c.probs.iter().copied())
                 .collect::<BTreeMap<_, _>>(),
             window_state: smoothed.window_state,
-            unknown_reason: smoothed.unknown_reason.or(if probs.is_empty() {
+            unknown_reason: smoothed.unknown_reason.or(if c.probs.is_empty() {
                 Some(UnknownReason::BadQuality)
             } else {
                 None
@@ -278,27 +302,33 @@ impl Analyzer {
             state_since_s: smoothed.since_s,
             state_changed: smoothed.changed,
             confidence: smoothed.confidence,
-            novelty: if novelty.is_finite() { novelty } else { 0.0 },
+            novelty: if c.novelty.is_finite() {
+                c.novelty
+            } else {
+                0.0
+            },
             novelty_threshold: threshold,
             fault_bands,
             velocity_rms_mm_s: velocity,
             iso_zone: zone,
             model: ModelInfo {
                 id: self.model_id.clone(),
-                sha256: meta.sha256.clone(),
+                sha256: self.model.meta().sha256.clone(),
                 labels,
             },
-            calibration_id: self
-                .rig
-                .calibration
-                .as_ref()
-                .map(|c| c.id.clone())
-                .or_else(|| {
-                    Some(meta.calibration_id.clone()).filter(|c| !c.is_empty() && c != "none")
-                }),
+            calibration_id: self.calibration_id(),
             software_version: env!("CARGO_PKG_VERSION").to_string(),
-        };
-        WindowOutput { features, health }
+        }
+    }
+
+    /// The rig's calibration, else the model's (unless it has none).
+    fn calibration_id(&self) -> Option<String> {
+        let meta = self.model.meta();
+        self.rig
+            .calibration
+            .as_ref()
+            .map(|c| c.id.clone())
+            .or_else(|| Some(meta.calibration_id.clone()).filter(|c| !c.is_empty() && c != "none"))
     }
 
     /// Bin RMS at harmonics 1..3 of BPFO, BPFI and 2xBSF in the classifier channel.
@@ -346,6 +376,38 @@ impl Analyzer {
     pub fn sample_rate(&self) -> f64 {
         self.sample_rate
     }
+}
+
+/// What the classifier made of one window.
+struct Classified {
+    features: Option<FeatureWindow>,
+    quality: QualityReport,
+    /// The classifier channel's data cannot be trusted (or no probabilities came).
+    bad_classifier: bool,
+    probs: Vec<f32>,
+    /// NaN when the classifier did not run.
+    novelty: f32,
+    rpm: Option<f64>,
+    speed_source: String,
+    /// Broadband velocity RMS of the classifier channel, mm/s.
+    velocity: Option<f64>,
+}
+
+/// The stream's own quality findings: samples lost on the sample clock, non-finite samples.
+fn stream_quality(analysis: &WindowAnalysis) -> QualityReport {
+    let mut quality = QualityReport {
+        ok: true,
+        ..Default::default()
+    };
+    if analysis.lost_samples > 0 {
+        quality.dropout_samples = analysis.lost_samples;
+        quality.flag("dropout");
+    }
+    if analysis.nan_samples > 0 {
+        quality.nan_samples += analysis.nan_samples;
+        quality.flag("nan");
+    }
+    quality
 }
 
 /// Wall clock, ns since the Unix epoch.
