@@ -696,3 +696,49 @@ fn manifest_sample_rate_column_reaches_the_importers() {
     );
     assert!(e.contains("--sample-rate"), "{e}");
 }
+
+#[test]
+fn calibration_reads_only_the_span_a_manifest_row_names() {
+    let dir = tempfile::tempdir().unwrap();
+    let de = rig("cwru-de.toml");
+    let file = shared_data().join("cwru/97_Normal_0.mat");
+    let labels = dir.path().join("labels.csv");
+    let p = file.display();
+    std::fs::write(
+        &labels,
+        format!("path,label,start_s,end_s\n{p},healthy,,\n{p},healthy,0,2.5\n{p},healthy,2.5,\n"),
+    )
+    .unwrap();
+    let load = |max_s: f64| {
+        rigmon::calibrate::measured::load(&de, std::slice::from_ref(&labels), max_s).unwrap()
+    };
+    let m = load(f64::INFINITY);
+    let fs = m[0].recording.sample_rate;
+    let whole = m[0].recording.len();
+    let at = (2.5 * fs) as usize;
+    let lens: Vec<usize> = m.iter().map(|r| r.recording.len()).collect();
+    assert_eq!(lens, vec![whole, at, whole - at], "fs {fs}");
+    // The first half's samples are the whole file's first samples, the second half's start at 2.5 s.
+    let ch = |k: usize| &m[k].recording.channels[0].samples;
+    assert_eq!(ch(1)[..], ch(0)[..at]);
+    assert_eq!(ch(2)[..100], ch(0)[at..at + 100]);
+    // --seconds still caps each part.
+    let one = load(1.0);
+    let lens: Vec<usize> = one.iter().map(|r| r.recording.len()).collect();
+    assert_eq!(lens, vec![fs as usize; 3]);
+    // A span past the end of the file is an error that names the file and the fix.
+    std::fs::write(
+        &labels,
+        format!("path,label,start_s,end_s\n{p},healthy,60,\n"),
+    )
+    .unwrap();
+    let e = format!(
+        "{:#}",
+        rigmon::calibrate::measured::load(&de, std::slice::from_ref(&labels), f64::INFINITY)
+            .unwrap_err()
+    );
+    assert!(
+        e.contains("97_Normal_0.mat") && e.contains("widen the span"),
+        "{e}"
+    );
+}

@@ -37,23 +37,24 @@ pub struct Measured {
 /// Load measured recordings: one `labels.csv` (or a folder holding one) or recording files.
 /// Each is cut to at most `max_seconds` (`f64::INFINITY`: whole).
 pub fn load(rig: &RigConfig, inputs: &[PathBuf], max_seconds: f64) -> Result<Vec<Measured>> {
-    let mut files: Vec<(PathBuf, Option<String>, ImportOptions)> = Vec::new();
+    // (path, label, import options, the manifest row's start_s/end_s)
+    let mut files: Vec<(PathBuf, Option<String>, ImportOptions, Option<(f64, f64)>)> = Vec::new();
     for p in inputs {
         let is_manifest = p.is_dir() || p.extension().is_some_and(|e| e == "csv") && is_manifest(p);
         if is_manifest {
             for e in read_manifest(&manifest_path(p))? {
                 let opts = e.import_options();
-                files.push((e.path, Some(e.label), opts));
+                files.push((e.path, Some(e.label), opts, e.span));
             }
         } else {
-            files.push((p.clone(), None, ImportOptions::default()));
+            files.push((p.clone(), None, ImportOptions::default(), None));
         }
     }
     if files.is_empty() {
         bail!("no measured recordings given; pass --measured <labels.csv> or recording files");
     }
     let mut out = Vec::new();
-    for (path, label, opts) in files {
+    for (path, label, opts, span) in files {
         let mut rec = importers::load(&path, rig, &opts)
             .with_context(|| format!("loading measured recording {}", path.display()))?;
         let label = label
@@ -61,7 +62,16 @@ pub fn load(rig: &RigConfig, inputs: &[PathBuf], max_seconds: f64) -> Result<Vec
             .unwrap_or_else(|| "healthy".into());
         let faults =
             Fault::parse_list(&label).with_context(|| format!("label of {}", path.display()))?;
-        cut(&mut rec, 0.0, max_seconds);
+        // A manifest row may name part of its file (`start_s`/`end_s`): only that part is
+        // analysed, and at most `max_seconds` of it.
+        let (start_s, end_s) = span.unwrap_or((0.0, f64::INFINITY));
+        cut(&mut rec, start_s, (end_s - start_s).min(max_seconds));
+        if rec.len() == 0 {
+            bail!(
+                "{}: nothing left between start_s {start_s} and end_s {end_s}; the recording is shorter, widen the span in the manifest",
+                path.display()
+            );
+        }
         let rpm = mean_rpm(&rec, rig).with_context(|| format!("speed of {}", path.display()))?;
         out.push(Measured {
             name: path.file_name().map_or_else(
