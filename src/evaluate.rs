@@ -2,9 +2,14 @@
 //! whole-record accuracy (majority vote of the windows), balanced accuracy (mean recall over
 //! the classes present), confusion matrices, the unknown (novelty) rate and the alarm counts
 //! (missed alarms: a faulty record called healthy; false alarms: a healthy record called
-//! faulty). Pure arithmetic on
-//! per-window predictions, so training, fine-tuning and `rigmon evaluate` share it.
+//! faulty). Pure arithmetic on per-window predictions, so training, fine-tuning and
+//! `rigmon evaluate` share it. For a model file the record also carries what the daemon would
+//! say ([`daemon_outcome`]: the windows through the same health state machine): a faulty
+//! record the daemon leaves `healthy` or `unknown` is a missed alarm even when the majority
+//! vote names its fault, so `evaluate` and `rigmon run` cannot disagree.
 
+use crate::health::{HealthPolicy, HealthStateMachine, WindowVerdict, UNKNOWN};
+use anyhow::Result;
 use serde::Serialize;
 
 /// Per-window outcomes of one labelled recording.
@@ -19,6 +24,63 @@ pub struct RecordOutcome {
     pub unknown: Vec<bool>,
     /// Mean rpm of the recording (reported only).
     pub rpm: f64,
+    /// What the daemon's health state machine makes of the windows (None when the outcomes
+    /// do not come from a model file, e.g. the rule baseline).
+    pub daemon: Option<DaemonOutcome>,
+}
+
+/// One window as the daemon's health state machine sees it.
+#[derive(Debug, Clone)]
+pub struct WindowEvidence {
+    pub probs: Vec<f32>,
+    pub novelty: f32,
+    /// Beyond the machine's healthy baseline (None: the model is not aligned).
+    pub beyond_baseline: Option<bool>,
+}
+
+/// A record's windows run through the daemon's health state machine.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct DaemonOutcome {
+    /// The smoothed state after the record's last window.
+    pub state: String,
+    /// Windows whose window state is `unknown`.
+    pub unknown_windows: usize,
+    /// Windows kept as a fault although novel or doubtful (`alarm_despite` in the message).
+    pub alarm_despite_windows: usize,
+}
+
+/// Feed a record's windows (ending at `window_s + i * hop_s` s) to a fresh
+/// [`HealthStateMachine`] with `policy`, as `rigmon replay` would with that `[health]`.
+pub fn daemon_outcome(
+    labels: &[String],
+    windows: &[WindowEvidence],
+    novelty_threshold: f32,
+    window_s: f64,
+    hop_s: f64,
+    policy: &HealthPolicy,
+) -> Result<DaemonOutcome> {
+    let mut sm = HealthStateMachine::new(policy.clone(), labels)?;
+    let threshold = policy.novelty_threshold.unwrap_or(novelty_threshold);
+    let mut out = DaemonOutcome {
+        state: UNKNOWN.to_string(),
+        unknown_windows: 0,
+        alarm_despite_windows: 0,
+    };
+    for (i, w) in windows.iter().enumerate() {
+        let s = sm.update(&WindowVerdict {
+            t_end: window_s + hop_s * i as f64,
+            labels,
+            probs: &w.probs,
+            novelty: if w.novelty.is_nan() { 0.0 } else { w.novelty },
+            novelty_threshold: threshold,
+            bad_quality: false,
+            beyond_baseline: w.beyond_baseline,
+        });
+        out.unknown_windows += usize::from(s.unknown_reason.is_some());
+        out.alarm_despite_windows += usize::from(s.alarm_despite.is_some());
+        out.state = s.state;
+    }
+    Ok(out)
 }
 
 /// A confusion matrix: `matrix[true][predicted]`.
@@ -81,6 +143,16 @@ pub struct RecordResult {
     /// Windows per predicted class (in label order).
     pub votes: Vec<usize>,
     pub rpm: f64,
+    /// The daemon's smoothed state after the record's last window (default `[health]`
+    /// policy); null for the rule baseline.
+    pub state: Option<String>,
+    /// Fraction of windows the daemon calls `unknown` (any reason), and of windows it keeps
+    /// as a fault although novel or doubtful; null for the rule baseline.
+    pub daemon_unknown_rate: Option<f64>,
+    pub alarm_despite_rate: Option<f64>,
+    /// Counted in `missed_alarms` / `false_alarms` (majority vote or daemon state).
+    pub missed_alarm: bool,
+    pub false_alarm: bool,
 }
 
 /// The whole report.
@@ -99,11 +171,19 @@ pub struct Evaluation {
     pub window_balanced_accuracy: f64,
     /// Fraction of windows flagged unknown by the novelty score.
     pub unknown_rate: f64,
-    /// Faulty records (any label but `healthy`) called healthy. Calling a fault another
-    /// fault is wrong but still an alarm, so it is not counted here.
+    /// Faulty records (any label but `healthy`) called healthy by the majority vote, or left
+    /// `healthy` or `unknown` by the daemon's state machine (no alarm for the user). Calling a
+    /// fault another fault is wrong but still an alarm, so it is not counted here.
     pub missed_alarms: usize,
-    /// Healthy records called anything but healthy.
+    /// Healthy records called anything but healthy by the majority vote, or put in a fault
+    /// state by the daemon.
     pub false_alarms: usize,
+    /// The same from the majority vote alone (what `missed_alarms` / `false_alarms` counted
+    /// before the daemon's state was scored).
+    pub majority_missed_alarms: usize,
+    pub majority_false_alarms: usize,
+    /// Records whose daemon state ends `unknown` (faulty ones are also missed alarms).
+    pub unknown_states: usize,
     /// The same per window.
     pub window_missed_alarms: usize,
     pub window_false_alarms: usize,
@@ -141,12 +221,35 @@ pub fn alarms(cm: &Confusion) -> (usize, usize) {
     (missed, false_)
 }
 
+/// (missed, false) alarm of one record: the majority vote `pred` or the daemon's state says
+/// healthy (or `unknown`) for a faulty record, or names a fault for a healthy one. Both false
+/// when there is no `healthy` class.
+fn record_alarms(
+    labels: &[String],
+    label: usize,
+    pred: usize,
+    daemon: Option<&DaemonOutcome>,
+) -> (bool, bool) {
+    let Some(h) = labels.iter().position(|l| l == "healthy") else {
+        return (false, false);
+    };
+    let state = daemon.map(|d| d.state.as_str());
+    if label == h {
+        let daemon_fault = state.is_some_and(|s| s != UNKNOWN && s != labels[h]);
+        (false, pred != h || daemon_fault)
+    } else {
+        let daemon_silent = state.is_some_and(|s| s == UNKNOWN || s == labels[h]);
+        (pred == h || daemon_silent, false)
+    }
+}
+
 /// Score per-window outcomes of labelled recordings.
 pub fn score(labels: &[String], outcomes: &[RecordOutcome]) -> Evaluation {
     let k = labels.len();
     let mut rec_cm = Confusion::new(labels);
     let mut win_cm = Confusion::new(labels);
     let (mut n_unknown, mut n_windows) = (0usize, 0usize);
+    let (mut n_missed, mut n_false, mut n_unknown_states) = (0usize, 0usize, 0usize);
     let mut records = Vec::new();
     for o in outcomes {
         for &p in &o.predicted {
@@ -158,6 +261,10 @@ pub fn score(labels: &[String], outcomes: &[RecordOutcome]) -> Evaluation {
         n_unknown += unk;
         n_windows += o.predicted.len();
         let n = o.predicted.len().max(1) as f64;
+        let (missed_alarm, false_alarm) = record_alarms(labels, o.label, pred, o.daemon.as_ref());
+        n_missed += usize::from(missed_alarm);
+        n_false += usize::from(false_alarm);
+        n_unknown_states += usize::from(o.daemon.as_ref().is_some_and(|d| d.state == UNKNOWN));
         records.push(RecordResult {
             path: o.path.clone(),
             label: labels[o.label].clone(),
@@ -168,9 +275,17 @@ pub fn score(labels: &[String], outcomes: &[RecordOutcome]) -> Evaluation {
             unknown_rate: unk as f64 / n,
             votes,
             rpm: o.rpm,
+            state: o.daemon.as_ref().map(|d| d.state.clone()),
+            daemon_unknown_rate: o.daemon.as_ref().map(|d| d.unknown_windows as f64 / n),
+            alarm_despite_rate: o
+                .daemon
+                .as_ref()
+                .map(|d| d.alarm_despite_windows as f64 / n),
+            missed_alarm,
+            false_alarm,
         });
     }
-    let (missed_alarms, false_alarms) = alarms(&rec_cm);
+    let (majority_missed_alarms, majority_false_alarms) = alarms(&rec_cm);
     let (window_missed_alarms, window_false_alarms) = alarms(&win_cm);
     Evaluation {
         labels: labels.to_vec(),
@@ -185,8 +300,11 @@ pub fn score(labels: &[String], outcomes: &[RecordOutcome]) -> Evaluation {
         } else {
             n_unknown as f64 / n_windows as f64
         },
-        missed_alarms,
-        false_alarms,
+        missed_alarms: n_missed,
+        false_alarms: n_false,
+        majority_missed_alarms,
+        majority_false_alarms,
+        unknown_states: n_unknown_states,
         window_missed_alarms,
         window_false_alarms,
         confusion: rec_cm,
@@ -219,6 +337,24 @@ pub fn summary(e: &Evaluation) -> String {
         "missed alarms (faulty record called healthy): {}   false alarms (healthy record called faulty): {}   (windows: {} / {})\n",
         e.missed_alarms, e.false_alarms, e.window_missed_alarms, e.window_false_alarms
     );
+    if e.records.iter().any(|r| r.state.is_some()) {
+        s += &format!(
+            "daemon states (default [health]): {} record(s) end unknown; majority vote alone: {} missed, {} false alarms\n",
+            e.unknown_states, e.majority_missed_alarms, e.majority_false_alarms
+        );
+        for r in e
+            .records
+            .iter()
+            .filter(|r| r.state.as_deref() != Some(&r.predicted))
+        {
+            s += &format!(
+                "  {}: majority {}, daemon state {}\n",
+                r.path,
+                r.predicted,
+                r.state.as_deref().unwrap_or("-")
+            );
+        }
+    }
     for (title, cm) in [
         ("whole-record confusion", &e.confusion),
         ("window confusion", &e.window_confusion),
@@ -258,6 +394,7 @@ mod tests {
             unknown: vec![false; predicted.len()],
             predicted,
             rpm: 0.0,
+            daemon: None,
         };
         let outcomes = vec![
             o(0, vec![0, 0, 1]), // healthy, right by majority
@@ -288,6 +425,7 @@ mod tests {
             unknown: vec![false; predicted.len()],
             predicted,
             rpm: 0.0,
+            daemon: None,
         };
         let outcomes = vec![
             o(0, vec![2, 2, 0]), // healthy called inner: false alarm
@@ -309,9 +447,75 @@ mod tests {
             predicted: vec![2, 2],
             unknown: vec![true, false],
             rpm: 0.0,
+            daemon: None,
         };
         let e = score(&labels(), &[o]);
         assert_eq!(e.balanced_accuracy, 1.0);
         assert_eq!(e.unknown_rate, 0.5);
+    }
+
+    #[test]
+    fn a_faulty_record_the_daemon_leaves_unknown_is_a_missed_alarm() {
+        let labels = labels();
+        // 19 windows the network is sure are outer race, all novel (beyond the training set).
+        let novel_or = |beyond| {
+            (0..19)
+                .map(|_| WindowEvidence {
+                    probs: vec![0.0, 0.6, 0.4],
+                    novelty: 20.0,
+                    beyond_baseline: beyond,
+                })
+                .collect::<Vec<_>>()
+        };
+        let policy = HealthPolicy::default();
+        // Not aligned (no baseline) and only 0.6 sure: the daemon says unknown.
+        let silent = daemon_outcome(&labels, &novel_or(None), 10.0, 1.0, 0.5, &policy).unwrap();
+        assert_eq!(silent.state, "unknown");
+        assert_eq!(silent.unknown_windows, 19);
+        // Beyond the machine's healthy baseline: an alarm, flagged.
+        let alarm =
+            daemon_outcome(&labels, &novel_or(Some(true)), 10.0, 1.0, 0.5, &policy).unwrap();
+        assert_eq!(alarm.state, "outer_race");
+        assert_eq!(
+            (alarm.unknown_windows, alarm.alarm_despite_windows),
+            (0, 19)
+        );
+        let healthy = daemon_outcome(
+            &labels,
+            &vec![
+                WindowEvidence {
+                    probs: vec![0.9, 0.05, 0.05],
+                    novelty: 2.0,
+                    beyond_baseline: Some(false),
+                };
+                6
+            ],
+            10.0,
+            1.0,
+            0.5,
+            &policy,
+        )
+        .unwrap();
+        let rec = |label, daemon| RecordOutcome {
+            path: "x".into(),
+            label,
+            predicted: vec![if label == 0 { 0 } else { 1 }; 19],
+            unknown: vec![true; 19],
+            rpm: 0.0,
+            daemon: Some(daemon),
+        };
+        let e = score(&labels, &[rec(1, silent), rec(1, alarm), rec(0, healthy)]);
+        // The votes say outer race for both faulty records; the daemon stays silent on one.
+        assert_eq!(e.record_accuracy, 1.0);
+        assert_eq!((e.majority_missed_alarms, e.majority_false_alarms), (0, 0));
+        assert_eq!(
+            (e.missed_alarms, e.false_alarms, e.unknown_states),
+            (1, 0, 1)
+        );
+        assert!(e.records[0].missed_alarm && !e.records[1].missed_alarm);
+        assert_eq!(e.records[1].state.as_deref(), Some("outer_race"));
+        assert_eq!(e.records[2].state.as_deref(), Some("healthy"));
+        assert_eq!(e.records[1].alarm_despite_rate, Some(1.0));
+        assert!(summary(&e).contains("daemon state unknown"));
     }
 }

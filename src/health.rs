@@ -2,7 +2,13 @@
 //!
 //! Each window gets a *window state*: the classifier's label, or `unknown` when the data
 //! quality is bad, the window is novel (out of the training distribution) or the top
-//! probability is below `min_confidence`. The *smoothed state* changes only when one state
+//! probability is below `min_confidence`. A window that is clearly not healthy is never
+//! `unknown` for novelty or low confidence: when it stands beyond the machine's healthy
+//! baseline (an aligned model's gate, [`crate::model::baseline`]) or the classifier gives a
+//! fault class at least `novel_alarm_confidence`, it keeps its fault class and carries the
+//! reason it would otherwise have been unknown in `alarm_despite`. Faults on a real machine
+//! are often stronger than anything simulated, so a distance-to-training-set test calls them
+//! novel; answering `unknown` there would hide the alarm. The *smoothed state* changes only when one state
 //! wins at least `k` of the last `n` window states (k-of-n voting) and has kept winning for
 //! `dwell_s` seconds of signal (dwell time). Going to `unknown` uses `unknown_dwell_s`
 //! (default 0: stop claiming a state as soon as the votes say the data cannot be trusted).
@@ -39,6 +45,10 @@ pub struct HealthPolicy {
     /// A window whose top class probability is below this is `unknown`.
     #[serde(default = "default_min_conf")]
     pub min_confidence: f32,
+    /// A novel window whose top class is a fault with at least this probability keeps its
+    /// fault class (an alarm flagged `alarm_despite = novelty`) instead of becoming `unknown`.
+    #[serde(default = "default_novel_alarm_conf")]
+    pub novel_alarm_confidence: f32,
     /// Override the model's novelty threshold (None = use the model's own).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub novelty_threshold: Option<f32>,
@@ -59,6 +69,9 @@ fn default_dwell() -> f64 {
 fn default_min_conf() -> f32 {
     0.5
 }
+fn default_novel_alarm_conf() -> f32 {
+    0.9
+}
 
 impl Default for HealthPolicy {
     fn default() -> Self {
@@ -68,6 +81,7 @@ impl Default for HealthPolicy {
             dwell_s: default_dwell(),
             unknown_dwell_s: 0.0,
             min_confidence: default_min_conf(),
+            novel_alarm_confidence: default_novel_alarm_conf(),
             novelty_threshold: None,
             iso20816: iso20816::ZoneConfig::default(),
         }
@@ -101,6 +115,12 @@ impl HealthPolicy {
                 self.min_confidence
             );
         }
+        if !(0.0..=1.0).contains(&self.novel_alarm_confidence) {
+            bail!(
+                "health.novel_alarm_confidence = {}: must be in 0..=1",
+                self.novel_alarm_confidence
+            );
+        }
         self.iso20816.validate()
     }
 }
@@ -118,6 +138,9 @@ pub struct WindowVerdict<'a> {
     pub novelty_threshold: f32,
     /// True when the data quality forbids a verdict (NaN, dropout, clipping, lost tacho).
     pub bad_quality: bool,
+    /// The window stands beyond the machine's healthy baseline (None: the model carries no
+    /// baseline, i.e. it is not aligned to a machine).
+    pub beyond_baseline: Option<bool>,
 }
 
 /// Why a window is `unknown` (None when it has a class).
@@ -129,12 +152,26 @@ pub enum UnknownReason {
     LowConfidence,
 }
 
+impl UnknownReason {
+    /// The name used in JSON (`bad_quality`, `novelty`, `low_confidence`).
+    pub fn as_str(self) -> &'static str {
+        match self {
+            UnknownReason::BadQuality => "bad_quality",
+            UnknownReason::Novelty => "novelty",
+            UnknownReason::LowConfidence => "low_confidence",
+        }
+    }
+}
+
 /// The state machine's answer for one window.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Smoothed {
     /// This window's own state.
     pub window_state: String,
     pub unknown_reason: Option<UnknownReason>,
+    /// The window kept its fault class although it would be `unknown` for this reason
+    /// (novelty or low confidence): it is clearly not healthy.
+    pub alarm_despite: Option<UnknownReason>,
     /// The smoothed state after this window.
     pub state: String,
     /// Mean probability of the smoothed state over the vote history (for `unknown`: the
@@ -219,15 +256,7 @@ impl HealthStateMachine {
             (0usize, f32::NEG_INFINITY),
             |best, (i, p)| if p > best.1 { (i, p) } else { best },
         );
-        let reason = if v.bad_quality || v.probs.is_empty() || !top_p.is_finite() {
-            Some(UnknownReason::BadQuality)
-        } else if !v.novelty.is_finite() || v.novelty > v.novelty_threshold {
-            Some(UnknownReason::Novelty)
-        } else if top_p < self.policy.min_confidence {
-            Some(UnknownReason::LowConfidence)
-        } else {
-            None
-        };
+        let (reason, alarm_despite) = self.judge(v, top, top_p);
         let vote = match reason {
             Some(_) => 0,
             None => self.intern(&v.labels[top.min(v.labels.len().saturating_sub(1))]),
@@ -276,10 +305,44 @@ impl HealthStateMachine {
         Smoothed {
             window_state: self.names[vote].clone(),
             unknown_reason: reason,
+            alarm_despite,
             state: self.names[self.state].clone(),
             confidence: self.confidence(v.labels),
             changed,
             since_s: self.since_s,
+        }
+    }
+
+    /// Why the window is `unknown` (None: it has a class), and, when a clearly faulty window
+    /// keeps its fault class, the reason it would otherwise have been `unknown`.
+    fn judge(
+        &self,
+        v: &WindowVerdict,
+        top: usize,
+        top_p: f32,
+    ) -> (Option<UnknownReason>, Option<UnknownReason>) {
+        if v.bad_quality || v.probs.is_empty() || !top_p.is_finite() {
+            return (Some(UnknownReason::BadQuality), None);
+        }
+        let doubt = if !v.novelty.is_finite() || v.novelty > v.novelty_threshold {
+            Some(UnknownReason::Novelty)
+        } else if top_p < self.policy.min_confidence {
+            Some(UnknownReason::LowConfidence)
+        } else {
+            None
+        };
+        let Some(doubt) = doubt else {
+            return (None, None);
+        };
+        let fault = v.labels.get(top).is_some_and(|l| l != "healthy");
+        // Beyond the healthy baseline the gate has already zeroed `healthy`: every class
+        // left is a fault, so the window is an alarm whatever the network's doubt.
+        let clearly_faulty = fault
+            && (v.beyond_baseline == Some(true) || top_p >= self.policy.novel_alarm_confidence);
+        if clearly_faulty {
+            (None, Some(doubt))
+        } else {
+            (Some(doubt), None)
         }
     }
 
@@ -349,6 +412,7 @@ mod tests {
                     novelty: if *s == "novel" { 5.0 } else { 0.1 },
                     novelty_threshold: 1.0,
                     bad_quality: *s == "nan",
+                    beyond_baseline: None,
                 })
             })
             .collect()
@@ -486,9 +550,70 @@ mod tests {
             novelty: 0.0,
             novelty_threshold: 1.0,
             bad_quality: false,
+            beyond_baseline: None,
         });
         assert_eq!(s.window_state, "unknown");
         assert_eq!(s.unknown_reason, Some(UnknownReason::LowConfidence));
+    }
+
+    /// Feed `n` windows of one verdict; returns the last answer.
+    fn feed(probs: &[f32], novelty: f32, beyond: Option<bool>, n: usize) -> Smoothed {
+        let labels = labels();
+        let mut sm = HealthStateMachine::new(HealthPolicy::default(), &labels).unwrap();
+        let mut last = None;
+        for i in 0..n {
+            last = Some(sm.update(&WindowVerdict {
+                t_end: 1.0 + 0.5 * i as f64,
+                labels: &labels,
+                probs,
+                novelty,
+                novelty_threshold: 10.0,
+                bad_quality: false,
+                beyond_baseline: beyond,
+            }));
+        }
+        last.unwrap()
+    }
+
+    #[test]
+    fn novel_windows_beyond_the_healthy_baseline_raise_their_fault() {
+        // The gate closed (healthy = 0) and the network is sure of outer_race, but the window
+        // is further from the simulated training set than anything seen: an alarm, not unknown.
+        let s = feed(&[0.0, 1.0, 0.0, 0.0], 20.0, Some(true), 6);
+        assert_eq!(
+            (s.window_state.as_str(), s.state.as_str()),
+            ("outer_race", "outer_race")
+        );
+        assert_eq!(s.unknown_reason, None);
+        assert_eq!(s.alarm_despite, Some(UnknownReason::Novelty));
+        // Beyond the baseline, faults split between two classes are still an alarm.
+        let s = feed(&[0.0, 0.45, 0.4, 0.15], 5.0, Some(true), 6);
+        assert_eq!(s.state, "outer_race");
+        assert_eq!(s.alarm_despite, Some(UnknownReason::LowConfidence));
+        // Without a baseline a confident novel fault is an alarm, a doubtful one is unknown.
+        assert_eq!(
+            feed(&[0.02, 0.95, 0.02, 0.01], 20.0, None, 6).state,
+            "outer_race"
+        );
+        let s = feed(&[0.2, 0.6, 0.1, 0.1], 20.0, None, 6);
+        assert_eq!(s.state, "unknown");
+        assert_eq!(s.unknown_reason, Some(UnknownReason::Novelty));
+    }
+
+    #[test]
+    fn novel_windows_near_healthy_stay_unknown() {
+        // Inside the healthy baseline a novel window is never called healthy nor a fault.
+        let s = feed(&[0.95, 0.03, 0.01, 0.01], 20.0, Some(false), 6);
+        assert_eq!(s.state, "unknown");
+        assert_eq!(s.unknown_reason, Some(UnknownReason::Novelty));
+        let s = feed(&[0.05, 0.92, 0.02, 0.01], 20.0, Some(false), 6);
+        assert_eq!(
+            s.state, "outer_race",
+            "a confident fault is an alarm on its own"
+        );
+        // A healthy, familiar window stays healthy and carries no flag.
+        let s = feed(&[0.97, 0.01, 0.01, 0.01], 2.0, Some(false), 6);
+        assert_eq!((s.state.as_str(), s.alarm_despite), ("healthy", None));
     }
 
     #[test]
@@ -521,6 +646,7 @@ mod tests {
                 novelty: 0.0,
                 novelty_threshold: 1.0,
                 bad_quality: false,
+                beyond_baseline: None,
             });
         }
         assert_eq!(sm.state(), "ball");

@@ -289,8 +289,8 @@ fn score_set(
     let pb = file_bar(progress, entries.len(), "score");
     let recs = featurise_all(&entries, rig, &pb)?;
     pb.finish_and_clear();
-    let b = model_outcomes(before, &recs)?;
-    let a = model_outcomes(after, &recs)?;
+    let b = model_outcomes(before, &recs, rig)?;
+    let a = model_outcomes(after, &recs, rig)?;
     let labels = after.meta().labels.clone();
     let kept: Vec<ManifestEntry> = entries
         .iter()

@@ -75,7 +75,7 @@ pub fn run(args: Args) -> Result<()> {
         let clf = OnnxClassifier::load(path)?;
         clf.check_rig(&rig)?;
         let recs = featurise_all(&entries, &rig, &ProgressBar::hidden())?;
-        let mo = model_outcomes(&clf, &recs)?;
+        let mo = model_outcomes(&clf, &recs, &rig)?;
         let ev = score(&clf.meta().labels, &mo.outcomes);
         scored = Some((path.clone(), clf, mo, ev));
     }

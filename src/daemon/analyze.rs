@@ -142,6 +142,7 @@ impl Analyzer {
             novelty: if c.novelty.is_nan() { 0.0 } else { c.novelty },
             novelty_threshold: threshold,
             bad_quality: c.bad_classifier,
+            beyond_baseline: c.beyond_baseline,
         });
         let health = self.message(view, c, features.as_ref(), labels, smoothed, threshold);
         WindowOutput { features, health }
@@ -155,6 +156,8 @@ impl Analyzer {
             bad_classifier: analysis.classifier_nan,
             probs: Vec::new(),
             novelty: f32::NAN,
+            baseline_distance: None,
+            beyond_baseline: None,
             rpm: None,
             speed_source: analysis.speed_source.to_string(),
             velocity: analysis.velocity_mm_s,
@@ -241,6 +244,8 @@ impl Analyzer {
             Ok(p) => {
                 c.probs = p.probs;
                 c.novelty = p.novelty;
+                c.baseline_distance = p.baseline_distance;
+                c.beyond_baseline = p.beyond_baseline;
             }
             Err(e) => {
                 self.errors += 1;
@@ -298,6 +303,7 @@ impl Analyzer {
             } else {
                 None
             }),
+            alarm_despite: smoothed.alarm_despite,
             state: smoothed.state,
             state_since_s: smoothed.since_s,
             state_changed: smoothed.changed,
@@ -308,6 +314,8 @@ impl Analyzer {
                 0.0
             },
             novelty_threshold: threshold,
+            baseline_distance: c.baseline_distance,
+            beyond_baseline: c.beyond_baseline,
             fault_bands,
             velocity_rms_mm_s: velocity,
             iso_zone: zone,
@@ -387,6 +395,10 @@ struct Classified {
     probs: Vec<f32>,
     /// NaN when the classifier did not run.
     novelty: f32,
+    /// Distance from the machine's healthy baseline and whether it is beyond it (aligned
+    /// models only).
+    baseline_distance: Option<f32>,
+    beyond_baseline: Option<bool>,
     rpm: Option<f64>,
     speed_source: String,
     /// Broadband velocity RMS of the classifier channel, mm/s.

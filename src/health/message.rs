@@ -38,6 +38,11 @@ pub struct HealthMessage {
     pub window_state: String,
     /// Why the window is `unknown`, when it is.
     pub unknown_reason: Option<UnknownReason>,
+    /// The window keeps its fault class (an alarm) although it would be `unknown` for this
+    /// reason (`novelty`, `low_confidence`): it stands beyond the machine's healthy baseline
+    /// or the classifier is sure of a fault. Absent otherwise (added in schema version 1).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub alarm_despite: Option<UnknownReason>,
     /// The smoothed state (k-of-n voting with dwell time).
     pub state: String,
     /// Window-end time (s, sample clock) at which `state` was entered.
@@ -49,6 +54,12 @@ pub struct HealthMessage {
     /// Novelty score of the window and the threshold above which it counts as novel.
     pub novelty: f32,
     pub novelty_threshold: f32,
+    /// Distance from the machine's healthy baseline and whether it exceeds the baseline's
+    /// threshold (aligned models only; absent otherwise).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub baseline_distance: Option<f32>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub beyond_baseline: Option<bool>,
     pub fault_bands: FaultBands,
     /// Broadband velocity RMS 10-1000 Hz of the classifier channel, mm/s.
     pub velocity_rms_mm_s: Option<f64>,
@@ -142,6 +153,9 @@ impl HealthMessage {
             self.confidence * 100.0,
             self.window_state
         );
+        if let Some(r) = self.alarm_despite {
+            let _ = write!(s, " (alarm despite {})", r.as_str());
+        }
         s.push_str("  p[");
         for (i, label) in self.model.labels.iter().enumerate() {
             let p = self.probabilities.get(label).copied().unwrap_or(f32::NAN);
@@ -218,12 +232,15 @@ mod tests {
             .into(),
             window_state: "outer_race".into(),
             unknown_reason: None,
+            alarm_despite: Some(UnknownReason::Novelty),
             state: "outer_race".into(),
             state_since_s: 2.0,
             state_changed: false,
             confidence: 0.9,
             novelty: 0.2,
             novelty_threshold: 1.0,
+            baseline_distance: Some(7.5),
+            beyond_baseline: Some(true),
             fault_bands: FaultBands::default(),
             velocity_rms_mm_s: Some(1.9),
             iso_zone: Some(Zone::B),
@@ -260,5 +277,25 @@ mod tests {
         q.flag("nan");
         assert_eq!(q.flags, ["nan"]);
         assert!(!q.ok);
+        assert!(line.contains("alarm despite novelty"), "{line}");
+    }
+
+    #[test]
+    fn messages_without_the_optional_alarm_fields_still_read() {
+        // A message written before `alarm_despite` / `baseline_*` existed, or by an unaligned
+        // model, carries none of them: they are optional, absent when empty.
+        let mut m = sample();
+        m.alarm_despite = None;
+        m.baseline_distance = None;
+        m.beyond_baseline = None;
+        let text = serde_json::to_string(&m).unwrap();
+        for key in ["alarm_despite", "baseline_distance", "beyond_baseline"] {
+            assert!(!text.contains(key), "{key} in {text}");
+        }
+        let back: HealthMessage = serde_json::from_str(&text).unwrap();
+        assert_eq!(back, m);
+        let with = serde_json::to_value(sample()).unwrap();
+        assert_eq!(with["alarm_despite"], "novelty");
+        assert_eq!(with["beyond_baseline"], true);
     }
 }

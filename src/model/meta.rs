@@ -75,6 +75,16 @@ fn floats_from_text(s: &str, key: &str, what: &str) -> Result<Vec<f32>> {
 }
 
 impl ModelMeta {
+    /// The healthy-baseline threshold of an aligned model (from `alignment`), None when the
+    /// model was never aligned.
+    pub fn baseline_threshold(&self) -> Option<f32> {
+        serde_json::from_str::<serde_json::Value>(&self.alignment)
+            .ok()?
+            .get("baseline_threshold")?
+            .as_f64()
+            .map(|v| v as f32)
+    }
+
     /// As ONNX `metadata_props` entries (key, value), in a stable order.
     pub fn to_props(&self) -> Vec<(String, String)> {
         let mut v = vec![

@@ -27,6 +27,12 @@ pub struct Prediction {
     pub novelty: f32,
     /// `novelty > meta().novelty_threshold`: the window is unlike the training data.
     pub unknown: bool,
+    /// Distance from the machine's healthy baseline (aligned models only: the graph's third
+    /// output `baseline_distance`).
+    pub baseline_distance: Option<f32>,
+    /// `baseline_distance` above the aligned model's threshold: the window is not healthy
+    /// for this machine (None for a model that is not aligned).
+    pub beyond_baseline: Option<bool>,
 }
 
 /// A classifier loaded from an ONNX file, ready to run one window at a time.
@@ -135,7 +141,21 @@ impl OnnxClassifier {
             )
             .0;
         let label = self.meta.labels.get(class).cloned().unwrap_or_default();
+        let baseline_distance = match out.get(2) {
+            Some(t) => t
+                .to_plain_array_view::<f32>()
+                .map_err(|e| anyhow!("{e:#}"))?
+                .iter()
+                .next()
+                .copied(),
+            None => None,
+        };
+        let beyond_baseline = baseline_distance
+            .zip(self.meta.baseline_threshold())
+            .map(|(d, t)| d.is_nan() || d > t);
         Ok(Prediction {
+            baseline_distance,
+            beyond_baseline,
             unknown: novelty.is_nan() || novelty > self.meta.novelty_threshold,
             probs,
             class,

@@ -89,6 +89,7 @@ pub fn score_records(
                     .map(|&s| s.is_nan() || s > model.novelty.threshold)
                     .collect(),
                 rpm: r.rpm,
+                daemon: None,
             })
         })
         .collect();

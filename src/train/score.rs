@@ -5,7 +5,8 @@
 
 use super::dataset::RecordingFeatures;
 use crate::config::RigConfig;
-use crate::evaluate::RecordOutcome;
+use crate::evaluate::{daemon_outcome, RecordOutcome, WindowEvidence};
+use crate::health::HealthPolicy;
 use crate::importers;
 use crate::manifest::ManifestEntry;
 use crate::model::rule::{class_map, EnvelopeRule};
@@ -32,8 +33,13 @@ pub fn finetune_hashes(meta: &crate::model::ModelMeta) -> Vec<String> {
         .unwrap_or_default()
 }
 
-/// Run the model on every window of every recording it may be scored on.
-pub fn model_outcomes(clf: &OnnxClassifier, recs: &[RecordingFeatures]) -> Result<ModelOutcomes> {
+/// Run the model on every window of every recording it may be scored on, and the windows
+/// through the daemon's health state machine (default `[health]`, windows of `rig`).
+pub fn model_outcomes(
+    clf: &OnnxClassifier,
+    recs: &[RecordingFeatures],
+    rig: &RigConfig,
+) -> Result<ModelOutcomes> {
     let meta = clf.meta();
     let used = finetune_hashes(meta);
     let mut out = ModelOutcomes::default();
@@ -46,18 +52,32 @@ pub fn model_outcomes(clf: &OnnxClassifier, recs: &[RecordingFeatures]) -> Resul
             out.skipped.push(r.path_text.clone());
             continue;
         };
-        let (mut predicted, mut unknown) = (Vec::new(), Vec::new());
+        let (mut predicted, mut unknown, mut evidence) = (Vec::new(), Vec::new(), Vec::new());
         for row in r.windows.rows() {
             let p = clf.predict(&row.to_vec())?;
             predicted.push(p.class);
             unknown.push(p.unknown);
+            evidence.push(WindowEvidence {
+                probs: p.probs,
+                novelty: p.novelty,
+                beyond_baseline: p.beyond_baseline,
+            });
         }
+        let daemon = daemon_outcome(
+            &meta.labels,
+            &evidence,
+            meta.novelty_threshold,
+            rig.features.window_s,
+            rig.features.hop_s,
+            &HealthPolicy::default(),
+        )?;
         out.outcomes.push(RecordOutcome {
             path: r.path_text.clone(),
             label,
             predicted,
             unknown,
             rpm: r.rpm,
+            daemon: Some(daemon),
         });
     }
     Ok(out)
@@ -120,6 +140,7 @@ pub fn rule_outcomes(
                 predicted: v.iter().map(|w| map[w.class]).collect(),
                 unknown: vec![false; v.len()],
                 rpm: v.iter().map(|w| w.rpm).sum::<f64>() / n,
+                daemon: None,
             })
         })
         .collect()
