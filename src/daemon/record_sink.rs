@@ -6,7 +6,7 @@ use super::intake::SourceInfo;
 use super::queued_sink::{QueueSettings, QueuedSink, Worker};
 use super::sink::{Sink, SinkConfig, SinkContext, SinkReport, WindowEvent};
 use crate::acquire::SampleBlock;
-use crate::config::{ChannelKind, RigConfig, SpeedConfig};
+use crate::config::{ChannelConfig, ChannelKind, RigConfig, SpeedConfig};
 use crate::recorder::{RecordConfig, RecordEvent, RecordStats, Recorder};
 use crate::recording::mcap::{ChannelInfo, RecordingInfo, TachoInfo};
 use crate::recording::Provenance;
@@ -110,7 +110,7 @@ impl SinkConfig for RecordConfig {
             return Ok(None);
         }
         let info = recording_info(cx.rig, cx.source, cx.start_ns);
-        let unit = tacho_unit(cx.rig);
+        let unit = tacho_unit(&cx.rig.speed, &cx.rig.channels);
         let recorder = SourceTachoRecorder::new(self.clone(), info, &cx.rig.machine.id, unit)?;
         let settings = QueueSettings {
             thread: "rigmon-record",
@@ -132,7 +132,7 @@ impl SinkConfig for RecordConfig {
 fn recording_info(rig: &RigConfig, source: &SourceInfo, start_ns: u64) -> RecordingInfo {
     let tacho = match &rig.speed {
         SpeedConfig::Tacho { .. } => TachoInfo::Analog {
-            unit: tacho_unit(rig),
+            unit: tacho_unit(&rig.speed, &rig.channels),
         },
         SpeedConfig::Edges { .. } => TachoInfo::Edges,
         _ => TachoInfo::None,
@@ -161,13 +161,13 @@ fn recording_info(rig: &RigConfig, source: &SourceInfo, start_ns: u64) -> Record
 
 /// The unit of the rig's analog tacho: `[speed]`'s tacho channel's, else the first channel of
 /// kind tacho, else volts.
-fn tacho_unit(rig: &RigConfig) -> String {
-    let named = match &rig.speed {
-        SpeedConfig::Tacho { channel, .. } => rig.channels.iter().find(|c| &c.name == channel),
+fn tacho_unit(speed: &SpeedConfig, channels: &[ChannelConfig]) -> String {
+    let named = match speed {
+        SpeedConfig::Tacho { channel, .. } => channels.iter().find(|c| &c.name == channel),
         _ => None,
     };
     named
-        .or_else(|| rig.channels.iter().find(|c| c.kind == ChannelKind::Tacho))
+        .or_else(|| channels.iter().find(|c| c.kind == ChannelKind::Tacho))
         .map(|c| c.unit.clone())
         .unwrap_or_else(|| "V".into())
 }

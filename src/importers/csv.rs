@@ -275,7 +275,7 @@ pub fn load(path: &Path, rig: &RigConfig, opts: &ImportOptions) -> Result<Record
         }
         None => None,
     };
-    let (sample_rate, note) = resolve_sample_rate(path, file_rate, rig, opts)?;
+    let (sample_rate, note) = resolve_sample_rate(path, file_rate, &rig.acquisition, opts)?;
     // Build channels in rig order.
     let mut channels = Vec::new();
     let mut tacho = None;
