@@ -285,6 +285,10 @@ mod imp {
             self.plan.describe.clone()
         }
 
+        fn analog_tacho(&self) -> bool {
+            self.plan.analog_tacho
+        }
+
         fn sample_rate(&self) -> f64 {
             self.plan.sample_rate as f64
         }

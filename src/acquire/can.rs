@@ -163,6 +163,10 @@ mod imp {
             )
         }
 
+        fn analog_tacho(&self) -> bool {
+            self.layout.analog_tacho
+        }
+
         fn sample_rate(&self) -> f64 {
             self.fs
         }

@@ -80,6 +80,9 @@ pub trait Source: Send {
     fn describe(&self) -> String;
     /// Sample rate the source delivers, Hz.
     fn sample_rate(&self) -> f64;
+    /// Whether its blocks carry an analog tacho (`SampleBlock::tacho_analog`), known before
+    /// the first block so that what records them is made right once.
+    fn analog_tacho(&self) -> bool;
     /// Run until done or stopped.
     fn run(
         self: Box<Self>,

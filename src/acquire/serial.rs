@@ -220,6 +220,10 @@ impl Source for SerialSource {
         )
     }
 
+    fn analog_tacho(&self) -> bool {
+        self.layout.analog_tacho
+    }
+
     fn sample_rate(&self) -> f64 {
         self.fs
     }

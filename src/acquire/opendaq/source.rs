@@ -271,6 +271,10 @@ impl Source for OpendaqSource {
         )
     }
 
+    fn analog_tacho(&self) -> bool {
+        self.layout.analog_tacho
+    }
+
     fn sample_rate(&self) -> f64 {
         self.fs
     }
