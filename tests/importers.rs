@@ -896,6 +896,81 @@ fn csv_errors_name_line_column_channel_and_sample() {
     );
 }
 
+/// Quoted fields (a header name holding the delimiter, quoted numbers, a side-data cell with a
+/// comma), CRLF line ends and a byte-order mark are read as CSV means them; ragged rows and an
+/// unclosed quote are errors naming the file, the line and what to do.
+#[test]
+fn csv_quoted_fields_crlf_and_bom_are_read() {
+    let dir = tempfile::tempdir().unwrap();
+    let rig = rig("lut-rig.toml");
+    // A quoted side-data header holding a comma, quoted numeric cells, a quoted side-data cell
+    // holding a comma, a doubled quote; CRLF line ends; a BOM before the time column's name.
+    let text = "\u{feff}time,\"vertical\",\"temperature, degC\",axial\r\n\
+                # a comment, with \"quotes\r\n\
+                0,\"1.5\",\"41,5\",2\r\n\
+                \r\n\
+                0.001,\"-2.5e-1\",\"n/a, \"\"off\"\"\",3\r\n\
+                0.002, \"4\" ,42,\"5\"\r\n";
+    let p = write(dir.path(), "quoted.csv", text.as_bytes());
+    let r = importers::load(&p, &rig, &no_opts()).unwrap();
+    assert_eq!(
+        r.sample_rate, 1000.0,
+        "the BOM must not hide the time column"
+    );
+    assert_eq!(r.channel("vertical").unwrap().samples, [1.5, -0.25, 4.0]);
+    assert_eq!(r.channel("axial").unwrap().samples, [2.0, 3.0, 5.0]);
+    let w: Vec<&String> = r
+        .provenance
+        .notes
+        .iter()
+        .filter(|n| n.starts_with(importers::WARNING))
+        .collect();
+    assert_eq!(w.len(), 1, "{:?}", r.provenance.notes);
+    assert_mentions(w[0], &["line 1", "3 \"temperature, degC\""]);
+    // A semicolon file whose quoted header name holds a comma: the delimiter is `;`.
+    let p = write(
+        dir.path(),
+        "semi.csv",
+        b"\"speed, rpm\";vertical\n1500;\"0,5\"\n1500;1\n",
+    );
+    assert_mentions(
+        &err_of(importers::load(&p, &rig, &no_opts())),
+        &[
+            "semi.csv",
+            "line 2",
+            "column 2",
+            "\"vertical\"",
+            "\"0,5\" is not a number",
+        ],
+    );
+    // Ragged rows (a comma outside quotes adds a cell) and the line they are on, CRLF counted.
+    let p = write(
+        dir.path(),
+        "ragged.csv",
+        b"vertical,axial\r\n1,2\r\n# note\r\n3,4,5\r\n",
+    );
+    assert_mentions(
+        &err_of(importers::load(&p, &rig, &no_opts())),
+        &["ragged.csv", "line 4", "3 values", "2 columns", "quote"],
+    );
+    // A quote opened and never closed swallows the rest of the file: said so, with its line.
+    let p = write(dir.path(), "open.csv", b"vertical,axial\n1,2\n\"3,4\n5,6\n");
+    assert_mentions(
+        &err_of(importers::load(&p, &rig, &no_opts())),
+        &["open.csv", "line 3", "column 1", "not closed"],
+    );
+    // Only a BOM and comments: empty.
+    let p = write(
+        dir.path(),
+        "bom.csv",
+        "\u{feff}# nothing\r\n\r\n".as_bytes(),
+    );
+    assert_mentions(
+        &err_of(importers::load(&p, &rig, &no_opts())),
+        &["bom.csv", "empty"],
+    );
+}
+
 // ------------------------------------------------------------- bad input in general
 
 #[test]

@@ -59,7 +59,7 @@ impl AudioSourceConfig {
 
     /// The checks of [`AudioSourceConfig::build`] that need no device.
     pub fn plan(&self, rig: &RigConfig) -> Result<AudioPlan> {
-        let fs = live_sample_rate(self.sample_rate_hz, rig, "audio")?;
+        let fs = live_sample_rate(self.sample_rate_hz, &rig.acquisition, "audio")?;
         if fs.fract() != 0.0 || fs > 768_000.0 {
             bail!(
                 "audio source: sample rate {fs} Hz: sound cards run at whole rates up to 768000 Hz"
@@ -71,7 +71,7 @@ impl AudioSourceConfig {
                 self.block_ms
             );
         }
-        let layout = RigLayout::from_rig(rig);
+        let layout = RigLayout::new(&rig.channels, &rig.speed);
         for name in self.map.keys() {
             if !layout.names.contains(name) {
                 bail!("audio source: map names {name:?}, which is not a channel of rig {}; its channels are {}", rig.machine.id, layout.describe());
@@ -283,6 +283,10 @@ mod imp {
     impl Source for AudioSource {
         fn describe(&self) -> String {
             self.plan.describe.clone()
+        }
+
+        fn analog_tacho(&self) -> bool {
+            self.plan.analog_tacho
         }
 
         fn sample_rate(&self) -> f64 {

@@ -61,7 +61,7 @@ impl CanSourceConfig {
     /// Check the settings against the rig and open the interface once, so a machine without
     /// SocketCAN or a misspelt interface is reported at start.
     pub fn build(&self, rig: &RigConfig) -> Result<Box<dyn Source>> {
-        let fs = live_sample_rate(self.sample_rate_hz, rig, "can")?;
+        let fs = live_sample_rate(self.sample_rate_hz, &rig.acquisition, "can")?;
         let name = &self.interface;
         if fs > 65_535.0 || fs.fract() != 0.0 {
             bail!("can source {name}: the CAN layout carries whole sample rates up to 65535 Hz; {fs} Hz does not fit");
@@ -69,7 +69,7 @@ impl CanSourceConfig {
         if self.base_id > MAX_BASE_ID {
             bail!("can source {name}: base_id = {:#x} leaves no room for the layout's IDs in 11 bits (at most {MAX_BASE_ID:#x})", self.base_id);
         }
-        let layout = RigLayout::from_rig(rig);
+        let layout = RigLayout::new(&rig.channels, &rig.speed);
         if layout.device_channels() > MAX_CAN_CHANNELS {
             bail!("can source {name}: the rig has {} channels; the CAN layout carries at most {MAX_CAN_CHANNELS}", layout.device_channels());
         }
@@ -161,6 +161,10 @@ mod imp {
                 self.fs,
                 self.layout.describe()
             )
+        }
+
+        fn analog_tacho(&self) -> bool {
+            self.layout.analog_tacho
         }
 
         fn sample_rate(&self) -> f64 {

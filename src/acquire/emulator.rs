@@ -79,7 +79,7 @@ pub struct SerialEmulator {
 
 impl SerialEmulator {
     pub fn new(replay: FileReplay, rig: &RigConfig, opts: EmulatorOptions) -> Result<Self> {
-        let layout = RigLayout::from_rig(rig);
+        let layout = RigLayout::new(&rig.channels, &rig.speed);
         let rec = replay.recording();
         let fs = rec.sample_rate;
         if opts.frame_samples == 0 || opts.frame_samples > super::serial_protocol::MAX_SAMPLES {

@@ -331,6 +331,10 @@ impl Source for FileReplay {
         )
     }
 
+    fn analog_tacho(&self) -> bool {
+        matches!(self.rec.tacho, Some(Tacho::Analog { .. }))
+    }
+
     fn sample_rate(&self) -> f64 {
         self.rec.sample_rate
     }

@@ -3,7 +3,7 @@
 //! analog tacho of a [`SampleBlock`](super::SampleBlock), applying each channel's
 //! `sensitivity`.
 
-use crate::config::{ChannelKind, RigConfig, SpeedConfig};
+use crate::config::{ChannelConfig, ChannelKind, SpeedConfig};
 
 /// Where one device channel goes.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -28,19 +28,18 @@ pub struct RigLayout {
 }
 
 impl RigLayout {
-    pub fn from_rig(rig: &RigConfig) -> Self {
-        let tacho_name = match &rig.speed {
+    /// The layout of the rig's `channels`; `speed` says which tacho channel is the one in use.
+    pub fn new(channels: &[ChannelConfig], speed: &SpeedConfig) -> Self {
+        let tacho_name = match speed {
             SpeedConfig::Tacho { channel, .. } => Some(channel.as_str()),
-            _ => rig
-                .channels
+            _ => channels
                 .iter()
                 .find(|c| c.kind == ChannelKind::Tacho)
                 .map(|c| c.name.as_str()),
         };
         let mut n_accel = 0;
         let mut analog_tacho = false;
-        let slots = rig
-            .channels
+        let slots = channels
             .iter()
             .map(|c| match c.kind {
                 ChannelKind::Acceleration => {
@@ -56,8 +55,8 @@ impl RigLayout {
             .collect();
         RigLayout {
             slots,
-            sensitivity: rig.channels.iter().map(|c| c.sensitivity as f32).collect(),
-            names: rig.channels.iter().map(|c| c.name.clone()).collect(),
+            sensitivity: channels.iter().map(|c| c.sensitivity as f32).collect(),
+            names: channels.iter().map(|c| c.name.clone()).collect(),
             n_accel,
             analog_tacho,
         }
@@ -118,6 +117,7 @@ impl RigLayout {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::config::RigConfig;
     use std::path::Path;
 
     #[test]
@@ -125,7 +125,7 @@ mod tests {
         let rig =
             RigConfig::load(&Path::new(env!("CARGO_MANIFEST_DIR")).join("config/lut-rig.toml"))
                 .unwrap();
-        let l = RigLayout::from_rig(&rig);
+        let l = RigLayout::new(&rig.channels, &rig.speed);
         assert_eq!(
             l.slots,
             [Slot::Accel(0), Slot::Accel(1), Slot::Accel(2), Slot::Tacho]
@@ -146,7 +146,7 @@ mod tests {
         let rig =
             RigConfig::parse(&text.replacen("unit = \"g\"", "unit = \"g\"\nsensitivity = 0.5", 1))
                 .unwrap();
-        let l = RigLayout::from_rig(&rig);
+        let l = RigLayout::new(&rig.channels, &rig.speed);
         assert!(!l.analog_tacho);
         let dev = l.join(&[vec![1.0, 2.0], vec![3.0, 4.0], vec![]], None, 2);
         assert_eq!(dev, [vec![2.0, 4.0], vec![3.0, 4.0], vec![0.0, 0.0]]);

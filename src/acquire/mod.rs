@@ -17,7 +17,7 @@ pub mod opendaq;
 pub mod serial;
 pub mod serial_protocol;
 
-use crate::config::RigConfig;
+use crate::config::{Acquisition, RigConfig};
 use serde::{Deserialize, Serialize};
 use std::path::Path;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
@@ -80,6 +80,9 @@ pub trait Source: Send {
     fn describe(&self) -> String;
     /// Sample rate the source delivers, Hz.
     fn sample_rate(&self) -> f64;
+    /// Whether its blocks carry an analog tacho (`SampleBlock::tacho_analog`), known before
+    /// the first block so that what records them is made right once.
+    fn analog_tacho(&self) -> bool;
     /// Run until done or stopped.
     fn run(
         self: Box<Self>,
@@ -159,8 +162,12 @@ impl SourceConfig {
 
 /// Sample rate a live source runs at: the source's own setting, else the rig's
 /// `acquisition.sample_rate_hz`; an error naming both places when neither is set.
-pub fn live_sample_rate(own: Option<f64>, rig: &RigConfig, kind: &str) -> anyhow::Result<f64> {
-    let fs = own.or(rig.acquisition.sample_rate_hz).ok_or_else(|| {
+pub fn live_sample_rate(
+    own: Option<f64>,
+    acquisition: &Acquisition,
+    kind: &str,
+) -> anyhow::Result<f64> {
+    let fs = own.or(acquisition.sample_rate_hz).ok_or_else(|| {
         anyhow::anyhow!(
             "{kind} source: no sample rate; set `sample_rate_hz` in the [source] section or `acquisition.sample_rate_hz` in the rig file"
         )

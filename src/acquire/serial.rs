@@ -70,7 +70,7 @@ impl SerialSourceConfig {
 
     /// Like [`SerialSourceConfig::build`], with the concrete type.
     pub fn source(&self, rig: &RigConfig) -> Result<SerialSource> {
-        let fs = live_sample_rate(self.sample_rate_hz, rig, "serial")?;
+        let fs = live_sample_rate(self.sample_rate_hz, &rig.acquisition, "serial")?;
         if self.port.trim().is_empty() {
             bail!("serial source: `port` is empty; give the device path, e.g. /dev/ttyUSB0");
         }
@@ -89,7 +89,7 @@ impl SerialSourceConfig {
         if self.baud == 0 {
             bail!("serial source: baud must be positive");
         }
-        let layout = RigLayout::from_rig(rig);
+        let layout = RigLayout::new(&rig.channels, &rig.speed);
         Ok(SerialSource {
             cfg: self.clone(),
             fs,
@@ -218,6 +218,10 @@ impl Source for SerialSource {
             self.fs,
             self.layout.describe()
         )
+    }
+
+    fn analog_tacho(&self) -> bool {
+        self.layout.analog_tacho
     }
 
     fn sample_rate(&self) -> f64 {

@@ -111,6 +111,10 @@ impl Source for LoadSource {
         format!("load generator {CHANNELS} ch x {SAMPLE_RATE} Hz + analog tacho")
     }
 
+    fn analog_tacho(&self) -> bool {
+        true
+    }
+
     fn sample_rate(&self) -> f64 {
         SAMPLE_RATE
     }

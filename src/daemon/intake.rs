@@ -20,6 +20,8 @@ pub struct SourceInfo {
     pub absent: Vec<String>,
     /// The speed the source knows up front (a recording's stored rpm).
     pub nominal_rpm: Option<f64>,
+    /// Its blocks carry an analog tacho.
+    pub analog_tacho: bool,
 }
 
 impl SourceInfo {
@@ -29,6 +31,7 @@ impl SourceInfo {
             sample_rate: source.sample_rate(),
             absent: source.absent_channels(),
             nominal_rpm: source.nominal_rpm(),
+            analog_tacho: source.analog_tacho(),
         }
     }
 }

@@ -6,7 +6,7 @@ use super::intake::SourceInfo;
 use super::queued_sink::{QueueSettings, QueuedSink, Worker};
 use super::sink::{Sink, SinkConfig, SinkContext, SinkReport, WindowEvent};
 use crate::acquire::SampleBlock;
-use crate::config::{ChannelKind, RigConfig, SpeedConfig};
+use crate::config::{ChannelConfig, ChannelKind, RigConfig, SpeedConfig};
 use crate::recorder::{RecordConfig, RecordEvent, RecordStats, Recorder};
 use crate::recording::mcap::{ChannelInfo, RecordingInfo, TachoInfo};
 use crate::recording::Provenance;
@@ -15,93 +15,31 @@ use std::collections::BTreeMap;
 use std::sync::Arc;
 use std::time::Duration;
 
-/// The recorder, whose recording's tacho follows what the source delivers: the rig's `[speed]`
-/// says what the daemon computes speed from, not what the source carries (a recording replayed
-/// with `source = "fixed"` may still hold an analog tacho), and the recorder keeps it all.
-pub struct SourceTachoRecorder {
-    recorder: Recorder,
-    /// Until the first event: what it takes to make the recorder again when the first block
-    /// carries an analog tacho the recording info did not declare.
-    pending: Option<Remake>,
-}
-
-struct Remake {
-    cfg: RecordConfig,
-    info: RecordingInfo,
-    stem: String,
-    /// The analog tacho's unit: the rig's tacho channel's, else volts.
-    analog_unit: String,
-}
-
-impl SourceTachoRecorder {
-    fn new(
-        cfg: RecordConfig,
-        info: RecordingInfo,
-        stem: &str,
-        analog_unit: String,
-    ) -> Result<Self> {
-        let recorder = Recorder::new(cfg.clone(), info.clone(), stem)?;
-        Ok(SourceTachoRecorder {
-            recorder,
-            pending: Some(Remake {
-                cfg,
-                info,
-                stem: stem.to_string(),
-                analog_unit,
-            }),
-        })
-    }
-
-    /// At the first event (the pipeline hands blocks to sinks before their windows): when it
-    /// is a block with an analog tacho and the info declared none, declare it.
-    fn settle(&mut self, first: &RecordEvent) {
-        let Some(remake) = self.pending.take() else {
-            return;
-        };
-        let RecordEvent::Block(b) = first else {
-            return;
-        };
-        if b.tacho_analog.is_none() || matches!(remake.info.tacho, TachoInfo::Analog { .. }) {
-            return;
-        }
-        let mut info = remake.info;
-        info.tacho = TachoInfo::Analog {
-            unit: remake.analog_unit,
-        };
-        match Recorder::new(remake.cfg, info, &remake.stem) {
-            Ok(r) => self.recorder = r,
-            Err(e) => tracing::warn!(
-                "recording: cannot declare the source's analog tacho ({e:#}); its samples will fail to record"
-            ),
-        }
-    }
-}
-
-impl Worker for SourceTachoRecorder {
+/// The recorder on its own thread.
+impl Worker for Recorder {
     type Msg = RecordEvent;
     type Stats = RecordStats;
 
     fn work(&mut self, msg: RecordEvent) {
-        self.settle(&msg);
-        self.recorder.handle(msg);
+        self.handle(msg);
     }
 
     fn idle(&mut self) {
-        self.recorder.tick();
+        self.tick();
     }
 
     fn snapshot(&self, into: &mut RecordStats) {
-        into.clone_from(self.recorder.stats());
+        into.clone_from(self.stats());
     }
 
     fn wind_up(self) -> RecordStats {
-        self.recorder.finish()
+        self.finish()
     }
 }
 
 /// The recorder behind its queue.
 pub struct RecordSink {
-    queue: QueuedSink<SourceTachoRecorder>,
+    queue: QueuedSink<Recorder>,
 }
 
 impl SinkConfig for RecordConfig {
@@ -110,8 +48,7 @@ impl SinkConfig for RecordConfig {
             return Ok(None);
         }
         let info = recording_info(cx.rig, cx.source, cx.start_ns);
-        let unit = tacho_unit(cx.rig);
-        let recorder = SourceTachoRecorder::new(self.clone(), info, &cx.rig.machine.id, unit)?;
+        let recorder = Recorder::new(self.clone(), info, &cx.rig.machine.id)?;
         let settings = QueueSettings {
             thread: "rigmon-record",
             capacity: cx.config.pipeline.sink_queue,
@@ -128,11 +65,16 @@ impl SinkConfig for RecordConfig {
 }
 
 /// What the raw layout says about the recording: the rig's acceleration channels, its tacho
-/// and the source's rate and nominal speed.
+/// and the source's rate and nominal speed. The tacho follows what the source delivers as
+/// well as the rig's `[speed]` (which says what the daemon computes speed from): a recording
+/// replayed with `source = "fixed"` may still hold an analog tacho, and the recorder keeps it.
 fn recording_info(rig: &RigConfig, source: &SourceInfo, start_ns: u64) -> RecordingInfo {
     let tacho = match &rig.speed {
         SpeedConfig::Tacho { .. } => TachoInfo::Analog {
-            unit: tacho_unit(rig),
+            unit: tacho_unit(&rig.speed, &rig.channels),
+        },
+        _ if source.analog_tacho => TachoInfo::Analog {
+            unit: tacho_unit(&rig.speed, &rig.channels),
         },
         SpeedConfig::Edges { .. } => TachoInfo::Edges,
         _ => TachoInfo::None,
@@ -161,13 +103,13 @@ fn recording_info(rig: &RigConfig, source: &SourceInfo, start_ns: u64) -> Record
 
 /// The unit of the rig's analog tacho: `[speed]`'s tacho channel's, else the first channel of
 /// kind tacho, else volts.
-fn tacho_unit(rig: &RigConfig) -> String {
-    let named = match &rig.speed {
-        SpeedConfig::Tacho { channel, .. } => rig.channels.iter().find(|c| &c.name == channel),
+fn tacho_unit(speed: &SpeedConfig, channels: &[ChannelConfig]) -> String {
+    let named = match speed {
+        SpeedConfig::Tacho { channel, .. } => channels.iter().find(|c| &c.name == channel),
         _ => None,
     };
     named
-        .or_else(|| rig.channels.iter().find(|c| c.kind == ChannelKind::Tacho))
+        .or_else(|| channels.iter().find(|c| c.kind == ChannelKind::Tacho))
         .map(|c| c.unit.clone())
         .unwrap_or_else(|| "V".into())
 }

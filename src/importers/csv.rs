@@ -3,9 +3,11 @@
 //! Columns are matched to the rig's channels by name (acceleration and tacho); an optional time
 //! column (`time`, `t`, `time_s`, `t_s`, `seconds`; in seconds) gives the sample rate, which must
 //! be uniform. Without one the rig's (or `--sample-rate`'s) rate is used. The delimiter is `,`,
-//! `;` or tab (taken from the header). Lines starting with `#` and blank lines are skipped.
-//! Values are multiplied by the channel's `sensitivity`. Columns that name no rig channel are
-//! side data: skipped with a warning in the provenance (their values are not read).
+//! `;` or tab (taken from the header, outside quotes). Fields are split by the `csv` crate:
+//! quoted fields may hold the delimiter and doubled quotes; LF and CRLF line ends and a UTF-8
+//! byte-order mark are accepted. Lines starting with `#` and blank lines are skipped. Values are
+//! multiplied by the channel's `sensitivity`. Columns that name no rig channel are side data:
+//! skipped with a warning in the provenance (their values are not read).
 
 use super::{check_classifier_channel, resolve_sample_rate, ImportOptions, WARNING};
 use crate::config::{ChannelKind, RigConfig};
@@ -17,31 +19,133 @@ use std::path::Path;
 /// Header names accepted for the time column.
 pub const TIME_COLUMNS: [&str; 5] = ["time", "t", "time_s", "t_s", "seconds"];
 
+/// A line the reader skips: blank, or a comment (`#` after optional whitespace).
+fn skipped_line(line: &str) -> bool {
+    let t = line.trim_start();
+    t.is_empty() || t.starts_with('#')
+}
+
+/// The delimiter the header line uses: the first of `,`, `;`, tab found outside quotes
+/// (`,` when there is none: a one-column file).
+fn sniff_delimiter(header: &str) -> u8 {
+    let (mut quoted, mut seen) = (false, [false; 3]);
+    for c in header.chars() {
+        match c {
+            '"' => quoted = !quoted,
+            ',' if !quoted => seen[0] = true,
+            ';' if !quoted => seen[1] = true,
+            '\t' if !quoted => seen[2] = true,
+            _ => {}
+        }
+    }
+    match seen {
+        [true, _, _] => b',',
+        [_, true, _] => b';',
+        [_, _, true] => b'\t',
+        _ => b',',
+    }
+}
+
+/// The 1-based line each record starts on. The `csv` reader reports byte offsets that lie
+/// before the blank and comment lines it skipped; this walks from there to the record's first
+/// byte and counts the line ends on the way (monotonically, so the whole file costs one pass).
+struct Lines<'a> {
+    text: &'a [u8],
+    at: usize,
+    line: u64,
+}
+
+impl Lines<'_> {
+    fn start_of(&mut self, from: u64) -> u64 {
+        let mut i = (from as usize).max(self.at).min(self.text.len());
+        self.line += self.text[self.at..i]
+            .iter()
+            .filter(|&&b| b == b'\n')
+            .count() as u64;
+        // Skip what csv-core skips before a record: line ends and `#` comment lines.
+        while i < self.text.len() {
+            match self.text[i] {
+                b'\n' => self.line += 1,
+                b'\r' => {}
+                b'#' => {
+                    while i < self.text.len() && self.text[i] != b'\n' {
+                        i += 1;
+                    }
+                    continue;
+                }
+                _ => break,
+            }
+            i += 1;
+        }
+        self.at = i;
+        self.line
+    }
+}
+
+/// A cell's text: trimmed, and unquoted when whitespace before the opening quote kept the
+/// `csv` reader from taking it as a quoted field (`1, "2"`).
+fn cell(field: &str) -> &str {
+    let f = field.trim();
+    match f.len() >= 2 && f.starts_with('"') && f.ends_with('"') {
+        true => f[1..f.len() - 1].trim(),
+        false => f,
+    }
+}
+
 /// Read a CSV file into a [`Recording`].
 pub fn load(path: &Path, rig: &RigConfig, opts: &ImportOptions) -> Result<Recording> {
     let p = path.display();
     let text =
         std::fs::read_to_string(path).with_context(|| format!("{p}: cannot read as UTF-8 text"))?;
-    let mut lines = text
-        .lines()
-        .enumerate()
-        .filter(|(_, l)| !l.trim().is_empty() && !l.trim_start().starts_with('#'));
-    let Some((header_idx, header)) = lines.next() else {
+    let text = text.strip_prefix('\u{feff}').unwrap_or(&text);
+    let Some(header_line) = text.lines().find(|l| !skipped_line(l)) else {
         bail!("{p}: the file is empty (no header line)");
     };
-    let delim = if header.contains(',') {
-        ','
-    } else if header.contains(';') {
-        ';'
-    } else if header.contains('\t') {
-        '\t'
-    } else {
-        ','
+    let delim = sniff_delimiter(header_line);
+    let mut reader = ::csv::ReaderBuilder::new()
+        .has_headers(false)
+        .flexible(true)
+        .delimiter(delim)
+        .comment(Some(b'#'))
+        .from_reader(text.as_bytes());
+    let mut lines = Lines {
+        text: text.as_bytes(),
+        at: 0,
+        line: 1,
     };
-    let names: Vec<String> = header
-        .split(delim)
-        .map(|s| s.trim().trim_matches('"').to_string())
-        .collect();
+    let mut record = ::csv::StringRecord::new();
+    // The next record that is not a blank or indented-comment line, and its line number.
+    let mut next = |record: &mut ::csv::StringRecord| -> Result<Option<u64>> {
+        loop {
+            let from = reader.position().byte();
+            if !reader
+                .read_record(record)
+                .with_context(|| format!("{p}: cannot read as CSV"))?
+            {
+                return Ok(None);
+            }
+            let line = lines.start_of(from);
+            let blank = record.len() == 1 && record[0].trim().is_empty();
+            if !(blank
+                || record
+                    .get(0)
+                    .is_some_and(|f| f.trim_start().starts_with('#')))
+            {
+                return Ok(Some(line));
+            }
+        }
+    };
+    let Some(header_no) = next(&mut record)? else {
+        bail!("{p}: the file is empty (no header line)");
+    };
+    let names: Vec<String> = record.iter().map(|s| cell(s).to_string()).collect();
+    if let Some(c) = names.iter().position(|n| n.contains('\n')) {
+        bail!(
+            "{p}: line {header_no}, column {}: the header's quoted name runs over several lines \
+             (a `\"` not closed?); close the quote on the header line",
+            c + 1
+        );
+    }
     // Map columns.
     let mut time_col = None;
     let mut map: Vec<Option<usize>> = Vec::with_capacity(names.len()); // column -> rig channel index
@@ -51,7 +155,7 @@ pub fn load(path: &Path, rig: &RigConfig, opts: &ImportOptions) -> Result<Record
             if let Some(tc) = time_col {
                 bail!(
                     "{p}: line {}: two time columns ({:?} and {name:?})",
-                    header_idx + 1,
+                    header_no,
                     names[tc]
                 );
             }
@@ -66,10 +170,7 @@ pub fn load(path: &Path, rig: &RigConfig, opts: &ImportOptions) -> Result<Record
         {
             Some(k) => {
                 if map.contains(&Some(k)) {
-                    bail!(
-                        "{p}: line {}: column {name:?} appears twice",
-                        header_idx + 1
-                    );
+                    bail!("{p}: line {}: column {name:?} appears twice", header_no);
                 }
                 map.push(Some(k));
             }
@@ -82,7 +183,7 @@ pub fn load(path: &Path, rig: &RigConfig, opts: &ImportOptions) -> Result<Record
     if map.iter().all(Option::is_none) {
         bail!(
             "{p}: line {}: the header names no channel (expected some of {:?})",
-            header_idx + 1,
+            header_no,
             rig.channel_names()
         );
     }
@@ -95,7 +196,7 @@ pub fn load(path: &Path, rig: &RigConfig, opts: &ImportOptions) -> Result<Record
         notes.push(format!(
             "{WARNING}line {}: column(s) {} name no rig channel (the rig's channels are {:?}, plus an optional \
              time column {:?}); skipped",
-            header_idx + 1,
+            header_no,
             list.join(", "),
             rig.channel_names(),
             TIME_COLUMNS
@@ -103,36 +204,39 @@ pub fn load(path: &Path, rig: &RigConfig, opts: &ImportOptions) -> Result<Record
     }
     // Parse rows.
     let mut cols: Vec<Vec<f64>> = vec![Vec::new(); names.len()];
-    for (idx, line) in lines {
-        let mut n = 0;
-        for (c, field) in line.split(delim).enumerate() {
+    while let Some(line) = next(&mut record)? {
+        for (c, field) in record.iter().enumerate() {
             if c >= names.len() {
                 bail!(
-                    "{p}: line {}: more than the {} columns the header names",
-                    idx + 1,
-                    names.len()
+                    "{p}: line {line}: {} values but the header names {} columns; quote cells \
+                     that contain the delimiter {:?}",
+                    record.len(),
+                    names.len(),
+                    delim as char
                 );
             }
-            n += 1;
             if skipped.contains(&c) {
                 cols[c].push(0.0); // side data: not read
                 continue;
             }
-            let f = field.trim().trim_matches('"');
+            let f = cell(field);
             let v: f64 = f.parse().map_err(|_| {
+                let what = match f.contains('\n') {
+                    true => "a quoted cell runs over several lines (a `\"` not closed?)".into(),
+                    false => format!("{f:?} is not a number"),
+                };
                 anyhow::anyhow!(
-                    "{p}: line {}, column {} ({:?}): {f:?} is not a number",
-                    idx + 1,
+                    "{p}: line {line}, column {} ({:?}): {what}",
                     c + 1,
                     names[c]
                 )
             })?;
             cols[c].push(v);
         }
-        if n < names.len() {
+        if record.len() < names.len() {
             bail!(
-                "{p}: line {}: {n} values but the header names {} columns (truncated file?)",
-                idx + 1,
+                "{p}: line {line}: {} values but the header names {} columns (truncated file?)",
+                record.len(),
                 names.len()
             );
         }
@@ -171,7 +275,7 @@ pub fn load(path: &Path, rig: &RigConfig, opts: &ImportOptions) -> Result<Record
         }
         None => None,
     };
-    let (sample_rate, note) = resolve_sample_rate(path, file_rate, rig, opts)?;
+    let (sample_rate, note) = resolve_sample_rate(path, file_rate, &rig.acquisition, opts)?;
     // Build channels in rig order.
     let mut channels = Vec::new();
     let mut tacho = None;

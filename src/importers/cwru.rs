@@ -359,7 +359,7 @@ pub fn from_mat(
     // Sample rate.
     let entry = catalogue(number);
     let file_rate = entry.map(|e| (e.sample_rate, format!("CWRU catalogue (record {number})")));
-    let (sample_rate, note) = resolve_sample_rate(path, file_rate, rig, opts).map_err(|e| {
+    let (sample_rate, note) = resolve_sample_rate(path, file_rate, &rig.acquisition, opts).map_err(|e| {
         if entry.is_none()
             && opts.sample_rate.is_none()
             && opts.declared_sample_rate.is_none()

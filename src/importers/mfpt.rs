@@ -92,7 +92,7 @@ pub fn from_mat(
     let (sample_rate, note) = resolve_sample_rate(
         path,
         sr.map(|f| (f, "field bearing.sr".to_string())),
-        rig,
+        &rig.acquisition,
         opts,
     )?;
     notes.push(note);

@@ -14,7 +14,7 @@ pub mod mat5;
 pub mod mfpt;
 pub mod wav;
 
-use crate::config::RigConfig;
+use crate::config::{Acquisition, RigConfig};
 use crate::recording::{Recording, Tacho};
 use anyhow::{bail, Context, Result};
 use std::path::Path;
@@ -206,7 +206,7 @@ fn rates_differ(a: f64, b: f64) -> bool {
 pub fn resolve_sample_rate(
     path: &Path,
     file_rate: Option<(f64, String)>,
-    rig: &RigConfig,
+    acquisition: &Acquisition,
     opts: &ImportOptions,
 ) -> Result<(f64, String)> {
     if let Some(fs) = opts.sample_rate {
@@ -240,7 +240,7 @@ pub fn resolve_sample_rate(
             None => Ok((*d, format!("sample rate {d} Hz from {place}"))),
         };
     }
-    let rig_rate = rig.acquisition.sample_rate_hz;
+    let rig_rate = acquisition.sample_rate_hz;
     match (file_rate, rig_rate) {
         (Some((f, what)), Some(g)) => {
             if rates_differ(f, g) {

@@ -80,7 +80,7 @@ pub fn load(path: &Path, rig: &RigConfig, opts: &ImportOptions) -> Result<Record
     let (sample_rate, note) = resolve_sample_rate(
         path,
         Some((spec.sample_rate as f64, "WAV header".to_string())),
-        rig,
+        &rig.acquisition,
         opts,
     )?;
     let mut channels = Vec::new();

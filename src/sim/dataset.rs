@@ -4,7 +4,7 @@
 //! read).
 
 use super::plan::{calibrated_keys, Plan, PlannedRun};
-use crate::config::RigConfig;
+use crate::config::{CalibrationStamp, RigConfig};
 use anyhow::{Context, Result};
 use indicatif::{ProgressBar, ProgressStyle};
 use rayon::prelude::*;
@@ -33,11 +33,11 @@ pub enum CalibratedDraws {
 /// keep their fitted values ([`CalibratedDraws::Fixed`]) or the plan's ranges are centred on
 /// them ([`CalibratedDraws::Spread`]). Logs what it changed.
 fn apply_calibration(
-    rig: &RigConfig,
+    stamp: Option<&CalibrationStamp>,
     plan: &Plan,
     calibrated: CalibratedDraws,
 ) -> Result<Vec<PlannedRun>> {
-    let Some(stamp) = &rig.calibration else {
+    let Some(stamp) = stamp else {
         return plan.expand();
     };
     let mut plan = plan.clone();
@@ -84,7 +84,7 @@ pub fn generate(
     calibrated: CalibratedDraws,
 ) -> Result<DatasetSummary> {
     super::rig_simulation(rig)?;
-    let runs = apply_calibration(rig, plan, calibrated)?;
+    let runs = apply_calibration(rig.calibration.as_ref(), plan, calibrated)?;
     std::fs::create_dir_all(dir)
         .with_context(|| format!("cannot create output directory {}", dir.display()))?;
     let pool = rayon::ThreadPoolBuilder::new()

@@ -32,7 +32,7 @@ pub use scenario::{label_of, Fault, Overrides, Scenario};
 
 use self::config::{SimulationConfig, SIGNALS};
 use crate::bearing::{BearingGeometry, FaultOrders};
-use crate::config::{ChannelKind, RigConfig};
+use crate::config::{Acquisition, ChannelConfig, ChannelKind, RigConfig};
 use crate::recording::Recording;
 use anyhow::{bail, Context, Result};
 use bearing_contact::BallBearing;
@@ -54,23 +54,23 @@ pub fn rig_simulation(rig: &RigConfig) -> Result<&SimulationConfig> {
 }
 
 /// Contact angle the simulator uses for this rig (degrees).
-pub fn contact_angle_deg(rig: &RigConfig, sim: &SimulationConfig) -> f64 {
+pub fn contact_angle_deg(bearing: &BearingGeometry, sim: &SimulationConfig) -> f64 {
     sim.bearing
         .contact_angle_deg
-        .unwrap_or(rig.bearing.contact_angle_deg)
+        .unwrap_or(bearing.contact_angle_deg)
 }
 
 /// The theoretical fault orders with the model's own contact angle (no slip).
 pub fn model_fault_orders(rig: &RigConfig, sim: &SimulationConfig) -> FaultOrders {
     rig.bearing
-        .with_contact_angle(contact_angle_deg(rig, sim))
+        .with_contact_angle(contact_angle_deg(&rig.bearing, sim))
         .fault_orders()
 }
 
 /// Output sample rate for this rig.
-pub fn sample_rate(rig: &RigConfig, sim: &SimulationConfig) -> f64 {
+pub fn sample_rate(acquisition: &Acquisition, sim: &SimulationConfig) -> f64 {
     sim.sample_rate_hz
-        .or(rig.acquisition.sample_rate_hz)
+        .or(acquisition.sample_rate_hz)
         .unwrap_or(10_000.0)
 }
 
@@ -120,7 +120,7 @@ pub fn bending_modes(
     let bearing = BallBearing::new(
         &rig.bearing,
         &sim.bearing,
-        contact_angle_deg(rig, sim),
+        contact_angle_deg(&rig.bearing, sim),
         &sim.defect,
         Default::default(),
     );
@@ -166,14 +166,14 @@ pub struct EngineRun {
 }
 
 /// Acceleration channels that map to a simulated signal, in rig order: (channel, signal
-/// index, scale from m/s^2 to the channel's unit).
+/// index, scale from m/s^2 to the channel's unit). `rig_id` names the rig in the error.
 fn channel_signals<'a>(
-    rig: &'a RigConfig,
+    channels: &'a [ChannelConfig],
+    rig_id: &str,
     sim: &SimulationConfig,
-) -> Result<Vec<(&'a crate::config::ChannelConfig, usize, f64)>> {
+) -> Result<Vec<(&'a ChannelConfig, usize, f64)>> {
     let mut chans = Vec::new();
-    for c in rig
-        .channels
+    for c in channels
         .iter()
         .filter(|c| c.kind == ChannelKind::Acceleration)
     {
@@ -187,8 +187,7 @@ fn channel_signals<'a>(
     }
     if chans.is_empty() {
         bail!(
-            "rig {:?}: none of the acceleration channels maps to a simulated signal; set [simulation.channel_map] (signals: {SIGNALS:?})",
-            rig.machine.id
+            "rig {rig_id:?}: none of the acceleration channels maps to a simulated signal; set [simulation.channel_map] (signals: {SIGNALS:?})"
         );
     }
     Ok(chans)
@@ -209,7 +208,7 @@ pub fn run_engine(
         );
     }
     scenario.profile.validate(scenario.seconds)?;
-    let fs = sample_rate(rig, &sim);
+    let fs = sample_rate(&rig.acquisition, &sim);
     let n_out = (scenario.seconds * fs).round() as usize;
     if n_out < 16 {
         bail!(
@@ -217,10 +216,10 @@ pub fn run_engine(
             scenario.seconds
         );
     }
-    let alpha = contact_angle_deg(rig, &sim);
+    let alpha = contact_angle_deg(&rig.bearing, &sim);
     let geom: BearingGeometry = rig.bearing;
 
-    let chans = channel_signals(rig, &sim)?;
+    let chans = channel_signals(&rig.channels, &rig.machine.id, &sim)?;
     let want: Vec<usize> = chans.iter().map(|c| c.1).collect();
 
     let rotor = RotorModel::build(&sim)?;

@@ -2,7 +2,7 @@
 //! the rig file's channel order (float32; acceleration in the channel's unit, the tacho in
 //! volts) so any audio or analysis tool can read it.
 
-use crate::config::{ChannelKind, RigConfig};
+use crate::config::{ChannelConfig, ChannelKind, RigConfig};
 use crate::recording::{Recording, Tacho};
 use anyhow::{bail, Context, Result};
 use std::path::Path;
@@ -17,15 +17,16 @@ pub fn write(path: &Path, rec: &Recording, rig: &RigConfig) -> Result<()> {
     {
         Some("mcap") => crate::recording::mcap::write_recording(path, rec)
             .with_context(|| format!("writing {}", path.display())),
-        Some("wav") => write_wav(path, rec, rig),
+        Some("wav") => write_wav(path, rec, &rig.channels),
         _ => bail!("output {}: use a .mcap or .wav file name", path.display()),
     }
 }
 
-/// WAV (IEEE float32) with one channel per rig channel, in the rig file's order.
-pub fn write_wav(path: &Path, rec: &Recording, rig: &RigConfig) -> Result<()> {
+/// WAV (IEEE float32) with one channel per rig channel (`channels`, the rig file's
+/// `[[channels]]`), in the rig file's order.
+pub fn write_wav(path: &Path, rec: &Recording, channels: &[ChannelConfig]) -> Result<()> {
     let mut cols: Vec<&[f32]> = Vec::new();
-    for c in &rig.channels {
+    for c in channels {
         match c.kind {
             ChannelKind::Acceleration => match rec.channels.iter().find(|x| x.name == c.name) {
                 Some(ch) => cols.push(&ch.samples),

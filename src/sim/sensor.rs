@@ -22,7 +22,7 @@ pub fn finish(
 ) -> Result<Recording> {
     let (out, fs, n_out, alpha, k) = (&run.out, run.fs, run.n_out, run.alpha, run.oversampling);
     let mut rng = run.rng.clone();
-    let chans = channel_signals(rig, sim)?;
+    let chans = channel_signals(&rig.channels, &rig.machine.id, sim)?;
     // Sensor noise, units.
     let mut channels = Vec::with_capacity(chans.len());
     let adc = sim.structure.adc_resolution_m_s2;

@@ -134,12 +134,12 @@ impl OpendaqSourceConfig {
                 self.max_lag_ms
             );
         }
-        let layout = RigLayout::from_rig(rig);
+        let layout = RigLayout::new(&rig.channels, &rig.speed);
         let timeout = Duration::from_millis(self.timeout_ms);
         let fs = match server_rate(&endpoint, self.signals.values(), timeout) {
             Ok(fs) => fs,
             Err(e) => {
-                let fs = match crate::acquire::live_sample_rate(self.sample_rate_hz, rig, "opendaq") {
+                let fs = match crate::acquire::live_sample_rate(self.sample_rate_hz, &rig.acquisition, "opendaq") {
                     Ok(fs) => fs,
                     Err(_) => return Err(e.context(
                         "opendaq source: the server cannot tell the sample rate now; set `sample_rate_hz` in [source] to start without it",
@@ -269,6 +269,10 @@ impl Source for OpendaqSource {
                 .collect::<Vec<_>>()
                 .join(", ")
         )
+    }
+
+    fn analog_tacho(&self) -> bool {
+        self.layout.analog_tacho
     }
 
     fn sample_rate(&self) -> f64 {
