@@ -510,19 +510,20 @@ fn cwru_healthy_record_calibrates() {
     );
 }
 
-/// A speed fluctuation slower than the old 2 s of analysis could show (period 4 s, 4 %
-/// deep): analysed whole (10 s recordings, two and a half periods), `speed_fluctuation` is
-/// named first with its depth and its period within 20 %, and the report says how much of
-/// each recording was analysed.
-#[test]
-fn a_slow_speed_fluctuation_is_fitted_from_the_whole_recording() {
-    let run = calibrate_long("slow_speed_fluctuation", "10");
+/// `case` generated and analysed whole at 20 s (the length of issue 15's held-out
+/// recordings): `speed_fluctuation` is named first with its depth and its period within 20 %,
+/// the error at least halves, and the report says how much of each recording was analysed.
+/// At 20 s the speed view's line is 0.1 Hz wide on a 0.005 Hz grid: a search over the whole
+/// period range (7 log points over 0.2-5 s) lands nowhere near it; the search around the line
+/// the measured speed spectra show finds it.
+fn speed_fluctuation_fitted_at_20_s(case: &str) {
+    let run = calibrate_long(case, "20");
     let r = &run.report;
     check_shape(r);
     let effects = r["effects"].as_array().unwrap();
     assert!(
         !effects.is_empty() && effects[0]["name"] == "speed_fluctuation",
-        "slow fluctuation: effects {}",
+        "{case}: effects {}",
         r["effects"]
     );
     for key in ["fraction", "period_s"] {
@@ -530,23 +531,38 @@ fn a_slow_speed_fluctuation_is_fitted_from_the_whole_recording() {
         let truth = num(&run.truth["params"][key], key);
         assert!(
             (fitted - truth).abs() <= 0.2 * truth,
-            "slow fluctuation: {key} fitted {fitted}, truth {truth} (more than 20 % off)"
+            "{case}: {key} fitted {fitted}, truth {truth} (more than 20 % off)"
         );
     }
     let (before, after) = (num(&r["error_before"], ""), num(&r["error_after"], ""));
     assert!(
         after <= 0.5 * before,
-        "error {before} -> {after} did not halve"
+        "{case}: error {before} -> {after} did not halve"
     );
     for rec in r["recordings"].as_array().unwrap() {
         let s = num(&rec["seconds"], "recordings[].seconds");
         assert!(
-            (s - 10.0).abs() < 0.01,
+            (s - 20.0).abs() < 0.01,
             "analysed {s} s of {}",
             rec["recording"]
         );
-        assert_eq!(rec["segments"], 5, "{rec}");
+        assert_eq!(rec["segments"], 10, "{rec}");
     }
+}
+
+/// A speed fluctuation slower than the old 2 s of analysis could show (period 4 s, 4 %
+/// deep), five periods in 20 s recordings analysed whole.
+#[test]
+fn a_slow_speed_fluctuation_is_fitted_from_the_whole_recording() {
+    speed_fluctuation_fitted_at_20_s("slow_speed_fluctuation");
+}
+
+/// The 0.8 s, 4 % fluctuation on 20 s recordings: its 1.25 Hz line needs the period right to
+/// a few percent, which the search over the whole period range did not get (nothing was
+/// accepted, docs/calibration-speed.md).
+#[test]
+fn a_speed_fluctuation_is_fitted_on_20_s_recordings() {
+    speed_fluctuation_fitted_at_20_s("speed_fluctuation");
 }
 
 /// A sub-synchronous line locked to the shaft (0.46x, as fluid-film whirl) is no catalog

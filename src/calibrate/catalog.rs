@@ -8,10 +8,11 @@
 //! | `resonance` | `hz` 800-0.4 fs (log), `damping` 0.01-0.12 (log) | `structure.resonances[0]` |
 //! | `unbalance` | `line1_m_s2` 0.001-10 (log), `exponent` 0-6 (two speeds or more; else 2), `line2_m_s2` 0.0001-10 (log): the 1x and 2x lines added to the rotor's own response | `shaft_lines` at the highest measured speed |
 //! | `line_interference` | `line_hz` {50, 60}, `amplitude_m_s2` 0.01-3 (log) | `structure.line_hz`, `line_amplitudes_m_s2` |
-//! | `speed_fluctuation` | `fraction` 0.002-0.1 (log), `period_s` 0.2-5 (log) | `speed_fluctuation.fraction`, `.period_s` |
+//! | `speed_fluctuation` | `period_s` 0.2-5 (log), `fraction` 0.002-0.1 (log); around a measured speed line ([`Context::speed_line`]): `period_s` over its frequency +- one resolution step (1 / the shortest length), `fraction` over its depth / 2-x2 (log), within those bounds, starting there | `speed_fluctuation.period_s`, `.fraction` |
 //! | `looseness` | `harmonics_m_s2` 0.0005-3 (log), `slope` -2-3, `highest_order` {5, 10, 20, 30} | `shaft_lines` orders 3..highest: `harmonics_m_s2` (k / k_mid)^`slope`, k_mid the geometric mean order |
 //! | `noise` | `noise_rms_m_s2` 0.003-3 (log) | `structure.noise_rms_m_s2` |
 
+use super::speed_line::SpeedLine;
 use crate::sim::config::{ShaftLinesConfig, SimulationConfig, SpeedFluctuationConfig};
 use serde::Serialize;
 
@@ -57,12 +58,52 @@ pub struct Param {
 
 /// What the measured data fix about the search: the lowest sample rate (bounds the
 /// resonance), the highest speed (reference of the shaft lines) and whether there are
-/// recordings at two or more distinct speeds (only then can a growth with speed be fitted).
+/// recordings at two or more distinct speeds (only then can a growth with speed be fitted),
+/// and the speed-fluctuation line the fit part's speed spectra show, if any.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Context {
     pub fs: f64,
     pub max_rpm: f64,
     pub several_speeds: bool,
+    /// The line of the measured speed spectra ([`super::speed_line::find`]):
+    /// `speed_fluctuation` is searched around it (on a long recording the line is too narrow
+    /// for a search over the whole period range to land on).
+    pub speed_line: Option<SpeedLine>,
+}
+
+/// Bounds of `speed_fluctuation`'s `period_s`, s...
+pub const PERIOD_S: (f64, f64) = (0.2, 5.0);
+/// ... and of its `fraction`.
+pub const FRACTION: (f64, f64) = (0.002, 0.1);
+
+/// Log range `lo`-`hi` clamped to `bounds`, or the whole `bounds` when nothing is left.
+fn log_within(lo: f64, hi: f64, bounds: (f64, f64)) -> (f64, f64) {
+    let (a, b) = (lo.max(bounds.0), hi.min(bounds.1));
+    if a.is_finite() && b.is_finite() && a > 0.0 && b > a * 1.0001 {
+        (a, b)
+    } else {
+        bounds
+    }
+}
+
+/// `speed_fluctuation`'s (period_s, fraction) ranges: around the measured line when there
+/// is one (the period over the line's frequency +- one resolution step, the fraction over
+/// its depth / 2 to x 2), within [`PERIOD_S`] and [`FRACTION`]; else those bounds.
+pub fn fluctuation_ranges(cx: &Context) -> ((f64, f64), (f64, f64)) {
+    match cx.speed_line {
+        Some(l) => {
+            let hi_hz = l.hz + l.resolution_hz;
+            let lo_hz = l.hz - l.resolution_hz;
+            let period = if lo_hz > 0.0 {
+                log_within(1.0 / hi_hz, 1.0 / lo_hz, PERIOD_S)
+            } else {
+                log_within(1.0 / hi_hz, PERIOD_S.1, PERIOD_S)
+            };
+            let fraction = log_within(0.5 * l.fraction, 2.0 * l.fraction, FRACTION);
+            (period, fraction)
+        }
+        None => (PERIOD_S, FRACTION),
+    }
 }
 
 /// Exponent of the shaft lines when one speed cannot fix it: the unbalance force's speed^2.
@@ -119,10 +160,13 @@ impl Effect {
                 p("line_hz", Range::Choice(vec![50.0, 60.0])),
                 p("amplitude_m_s2", Range::Log(0.01, 3.0)),
             ],
-            Effect::SpeedFluctuation => vec![
-                p("period_s", Range::Log(0.2, 5.0)),
-                p("fraction", Range::Log(0.002, 0.1)),
-            ],
+            Effect::SpeedFluctuation => {
+                let (period, fraction) = fluctuation_ranges(cx);
+                vec![
+                    p("period_s", Range::Log(period.0, period.1)),
+                    p("fraction", Range::Log(fraction.0, fraction.1)),
+                ]
+            }
             Effect::Looseness => vec![
                 p("harmonics_m_s2", Range::Log(0.0005, 3.0)),
                 p("slope", Range::Linear(-2.0, 3.0)),
@@ -150,7 +194,17 @@ impl Effect {
                 v
             }
             Effect::LineInterference => vec![50.0, 0.1],
-            Effect::SpeedFluctuation => vec![1.0, 0.01],
+            Effect::SpeedFluctuation => {
+                let (period, fraction) = fluctuation_ranges(cx);
+                match cx.speed_line {
+                    // the line's period and depth, within the ranges
+                    Some(l) => vec![
+                        (1.0 / l.hz).clamp(period.0, period.1),
+                        l.fraction.clamp(fraction.0, fraction.1),
+                    ],
+                    None => vec![1.0, 0.01],
+                }
+            }
             Effect::Looseness => vec![0.01, 0.0, 10.0],
             Effect::Noise => vec![sim.structure.noise_rms_m_s2],
         }

@@ -16,6 +16,7 @@ use super::locate::{locate, Unexplained};
 use super::measured::{several_speeds, Measured};
 use super::modes::Mode;
 use super::search;
+use super::speed_line;
 use super::timing::{Stage, StageTime, Timings};
 use super::views::{self, Parts, Views};
 use crate::config::{RigConfig, SpeedConfig};
@@ -565,7 +566,7 @@ pub fn calibrate(rig: &RigConfig, ops: &[Measured], fit_part: Vec<bool>) -> Resu
 }
 
 /// Longest `speed_fluctuation` period the catalog searches, s.
-pub const LONGEST_PERIOD_S: f64 = 5.0;
+pub const LONGEST_PERIOD_S: f64 = catalog::PERIOD_S.1;
 
 /// [`calibrate`] with explicit [`Options`].
 pub fn calibrate_with(
@@ -592,7 +593,19 @@ pub fn calibrate_with(
     let all: Vec<usize> = (0..ops.len()).collect();
     let fit: Vec<usize> = all.iter().copied().filter(|&i| fit_part[i]).collect();
     let held: Vec<usize> = all.iter().copied().filter(|&i| !fit_part[i]).collect();
-    let cx = context(ops);
+    let cx = catalog::Context {
+        speed_line: speed_line::find(&fit.iter().map(|&i| &twin.measured[i]).collect::<Vec<_>>()),
+        ..context(ops)
+    };
+    if let Some(l) = cx.speed_line {
+        tracing::info!(
+            "the measured speed spectra show a line at {:.4} Hz ({:.3} s), {:.2} % deep: \
+             speed_fluctuation is searched around it",
+            l.hz,
+            1.0 / l.hz,
+            100.0 * l.fraction
+        );
+    }
     if let Some(i) = crate::sim::dominant_resonance(rig, &base).filter(|&i| i > 0) {
         tracing::warn!(
             "the classifier channel sees most of resonances[{i}] ({:.0} Hz), but the `resonance` \
@@ -747,7 +760,8 @@ pub fn calibrate_with(
     })
 }
 
-/// The search context the measured operating points fix.
+/// The search context the measured operating points fix, without a speed line (the
+/// calibration adds the one its fit part's speed views show, [`speed_line::find`]).
 pub fn context(ops: &[Measured]) -> catalog::Context {
     let fs = ops
         .iter()
@@ -758,6 +772,7 @@ pub fn context(ops: &[Measured]) -> catalog::Context {
         fs,
         max_rpm: rpm.iter().copied().fold(0.0, f64::max),
         several_speeds: several_speeds(&rpm),
+        speed_line: None,
     }
 }
 

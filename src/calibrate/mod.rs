@@ -4,7 +4,8 @@
 //! [`fractional_orders`], [`impacts`], [`modes`], with order [`stats`]) with one scalar
 //! error of named components ([`error`]), locate the residual ([`locate`]) and name its
 //! usual causes ([`trace`]), attribute it greedily to catalog effects ([`catalog`],
-//! [`search`], [`fit`]) confirmed on a held-out part, and report ([`report`], [`plots`]).
+//! [`search`], [`fit`]; a speed fluctuation around the line the measured speed spectra show,
+//! [`speed_line`]) confirmed on a held-out part, and report ([`report`], [`plots`]).
 
 pub mod catalog;
 pub mod error;
@@ -19,6 +20,7 @@ pub mod plots;
 pub mod report;
 pub mod search;
 pub mod shaft_orders;
+pub mod speed_line;
 pub mod stats;
 pub mod timing;
 pub mod trace;
