@@ -399,6 +399,39 @@ fn mfpt_struct_compressed_big_endian_round_trips() {
     assert_mentions(&e, &["nogs.mat", "missing variable", "gs"]);
 }
 
+/// The shipped MFPT rig file (`config/mfpt.toml`, from the data set's sheet) gives the
+/// published fault frequencies at 25 Hz (BPFO 81.125 Hz, BPFI 118.875 Hz), and an MFPT file
+/// imports onto its one channel at the file's own rate and speed.
+#[test]
+fn the_mfpt_rig_file_matches_the_published_fault_frequencies() {
+    let rig = rig("mfpt.toml");
+    let hz = rig.bearing.fault_orders().at_hz(25.0);
+    assert!((hz.bpfo - 81.125).abs() < 0.05, "BPFO {} Hz", hz.bpfo);
+    assert!((hz.bpfi - 118.875).abs() < 0.05, "BPFI {} Hz", hz.bpfi);
+    let dir = tempfile::tempdir().unwrap();
+    let gs = signal(3000, 3.0);
+    let m = Mat { be: false };
+    let bearing = m.structure(
+        "bearing",
+        &[
+            ("sr", m.double("", 1, 1, &[97656.0])),
+            ("gs", m.double("", 3000, 1, &gs)),
+            ("load", m.double("", 1, 1, &[270.0])),
+            ("rate", m.double("", 1, 1, &[25.0])),
+        ],
+    );
+    let p = write(
+        dir.path(),
+        "baseline_2.mat",
+        &m.file(&[m.compressed(&bearing)]),
+    );
+    let rec = importers::load(&p, &rig, &no_opts()).unwrap();
+    assert_eq!((rec.sample_rate, rec.rpm), (97656.0, Some(1500.0)));
+    assert_eq!(rec.channels.len(), 1);
+    assert_eq!(rec.channels[0].name, "accel");
+    assert_eq!(rec.channels[0].samples, as_f32(&gs));
+}
+
 /// The public MFPT set's variable-load files store `bearing.load` as text ('25', '100', '300')
 /// next to numeric sr/rate: they import, with the load read from the text. Side data that still
 /// cannot be read (load "heavy", rate as a 1x2 vector, rate 0) is a warning kept as text in the

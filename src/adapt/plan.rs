@@ -21,8 +21,12 @@ pub const RPM_BELOW: f64 = 0.06;
 pub const CONTACT_ANGLE_DEG: [f64; 2] = [3.0, 10.0];
 /// Axial preload range of the derived plan, N (`cwru-preload.toml`'s).
 pub const PRELOAD_N: [f64; 2] = [50.0, 400.0];
-/// Static radial load range of the derived plan, N.
+/// Static radial load range of the derived plan, N; its top is raised to
+/// [`RADIAL_LOAD_ABOVE_RIG`] x the rig file's own `radial_load_n` where that is higher (a rig
+/// file that states a heavy load, such as the MFPT rig's 1,200 N, is simulated around it).
 pub const RADIAL_LOAD_N: [f64; 2] = [0.0, 400.0];
+/// How far above the rig file's radial load the derived plan draws.
+pub const RADIAL_LOAD_ABOVE_RIG: f64 = 1.5;
 
 /// What the measured recordings say about the operating range.
 #[derive(Debug, Clone, Serialize)]
@@ -88,7 +92,10 @@ pub fn derive(
         // simulator leaves an outer-race defect away from the load zone silent
         contact_angle_deg: Some(CONTACT_ANGLE_DEG),
         preload_n: Some(PRELOAD_N),
-        radial_load_n: Some(RADIAL_LOAD_N),
+        radial_load_n: Some([
+            RADIAL_LOAD_N[0],
+            RADIAL_LOAD_N[1].max(RADIAL_LOAD_ABOVE_RIG * sim.bearing.radial_load_n),
+        ]),
         unbalance_scale: Some([0.3, 3.0]),
         noise_rms_m_s2: Some([0.1, 1.0]),
         resonance_hz: Some([(0.5 * top_hz).min(2000.0), top_hz]),
@@ -173,5 +180,25 @@ mod tests {
         }));
         let r = MeasuredRange::of(&[(1796.0, 48_000.0, "ball".into())]).unwrap();
         assert_eq!(derive(&rig, &r, 10, 2.0).unwrap().cases.len(), 4);
+    }
+
+    #[test]
+    fn the_radial_load_range_covers_the_rig_files_own_load() {
+        let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("config");
+        let r = MeasuredRange::of(&[(1500.0, 97_656.0, "healthy".into())]).unwrap();
+        // the CWRU rig keeps the simulator's default 60 N: the default range
+        let de = RigConfig::load(&dir.join("cwru-de.toml")).unwrap();
+        assert_eq!(
+            derive(&de, &r, 10, 2.0).unwrap().random.radial_load_n,
+            Some(RADIAL_LOAD_N)
+        );
+        // the MFPT rig states 1,200 N (270 lbs): drawn up to 1.5x that
+        let mfpt = RigConfig::load(&dir.join("mfpt.toml")).unwrap();
+        let [lo, hi] = derive(&mfpt, &r, 10, 2.0)
+            .unwrap()
+            .random
+            .radial_load_n
+            .unwrap();
+        assert_eq!((lo, hi), (0.0, 1800.0));
     }
 }
