@@ -1,7 +1,8 @@
 //! PNG of a fast kurtogram: one row per level (0 at the top, the 1/3 levels between the
 //! binary ones), each band a cell from its low to its high frequency, coloured by the kurtosis
-//! of its complex envelope (negative values drawn as 0, as in Antoni's figures), the best band
-//! outlined in red (the caller names it in the title), and a colour bar.
+//! of its complex envelope (negative values drawn as 0, as in Antoni's figures; the scale runs
+//! to the highest value, at least 1), the best band outlined in red (the caller names it in
+//! the title), and a colour bar.
 
 use crate::dsp::kurtogram::{KurtogramBand, KurtogramRow};
 use crate::plots::ensure_font;
@@ -19,6 +20,10 @@ pub struct KurtogramPlot<'a> {
     /// Right end of the frequency axis (the grid's top), Hz.
     pub top_hz: f64,
 }
+
+/// The colour scale runs to the highest kurtosis, but at least to this: a kurtogram of noise
+/// (every band near 0) stays dark instead of showing its largest fluctuation in yellow.
+const MIN_SCALE: f64 = 1.0;
 
 /// Dark blue through teal and green to yellow (viridis' anchors).
 const RAMP: [(f64, f64, f64); 5] = [
@@ -59,7 +64,7 @@ pub fn draw_kurtogram(path: &Path, plot: &KurtogramPlot) -> Result<()> {
         .flat_map(|r| r.kurtosis.iter().copied())
         .filter(|k| k.is_finite())
         .fold(0.0, f64::max)
-        .max(1e-6);
+        .max(MIN_SCALE);
     // row r (0 = level 0) is segment n - 1 - r: level 0 on top
     let seg = |r: usize| (n - 1 - r) as i32;
     let mut chart = ChartBuilder::on(&left)
