@@ -142,7 +142,15 @@ fn inspect(args: Args) -> Result<()> {
         ] {
             bands.push(
                 band_ratios(&ch.samples, rec.sample_rate, &rig, &speed, choice, &rule)
-                    .with_context(|| format!("{}: {} envelope", what(), choice.name()))?,
+                    .with_context(|| {
+                        format!(
+                            "{}: {} envelope (--kurtogram-levels {}, --kurtogram-max-hz {:?})",
+                            what(),
+                            choice.name(),
+                            settings.levels,
+                            settings.max_hz
+                        )
+                    })?,
             );
         }
         let doc = serde_json::json!({
