@@ -424,3 +424,27 @@ fn steady_state_windows_allocate_only_their_output() {
     assert!(made <= 1 + 2 * 3 + 1, "{made} allocations for one window");
     assert_eq!(out.features.len(), 3);
 }
+
+#[test]
+fn the_kurtogram_of_a_window_allocates_nothing() {
+    use rigmon::dsp::kurtogram::{Kurtogram, KurtogramSettings};
+    let x = Synthetic {
+        sample_rate: 12_000.0,
+        seconds: 3.0,
+        ..Synthetic::default()
+    }
+    .generate()
+    .vibration;
+    let settings = KurtogramSettings {
+        levels: 6,
+        max_hz: Some(5000.0),
+    };
+    let mut k = Kurtogram::new(12_000, 12_000.0, settings).unwrap();
+    k.compute(&x[..12_000]).unwrap();
+    let before = alloc_count::count();
+    k.compute(&x[12_000..24_000]).unwrap();
+    let best = k.best();
+    let made = alloc_count::count() - before;
+    assert_eq!(made, 0, "{made} allocations for one window's kurtogram");
+    assert!(best.hi_hz <= 5000.0, "{best:?}");
+}

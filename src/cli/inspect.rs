@@ -1,12 +1,24 @@
 //! `rigmon inspect <recording> --rig <toml> --png out.png`: the whole-recording envelope order
 //! spectrum of one channel, drawn with fault-order markers, plus the top peaks and the fault
 //! orders nearest to them as text.
+//!
+//! `--kurtogram k.png`: the channel's fast kurtogram (`dsp::kurtogram`) as a heat map, its best
+//! band printed (centre, bandwidth, level, kurtosis); `--png` then draws the envelope order
+//! spectrum of that band under the fixed low-pass one. `--json`: one JSON document instead of
+//! the text: the kurtogram (best band and grid) and the rule's statistic per fault family under
+//! the three envelope bands of `model::band_ratios` (fixed low-pass, kurtogram band per window,
+//! kurtogram band per record), per window and summarised; `docs/study/kurtogram_bands.py` runs
+//! it over the development records.
 
 use crate::config::RigConfig;
-use crate::dsp::order_spectrum::whole_recording;
+use crate::dsp::kurtogram::{self, level_label, KurtogramBand, KurtogramSettings};
+use crate::dsp::order_spectrum::{whole_recording_band, WholeSpectrum};
 use crate::dsp::SpeedTrack;
 use crate::importers::{self, ImportOptions};
-use crate::plots::spectrum::{draw_order_spectrum, Marker, SpectrumPlot};
+use crate::model::band_ratios::{band_ratios, BandChoice};
+use crate::model::rule::{EnvelopeRule, RuleSettings};
+use crate::plots::kurtogram::{draw_kurtogram, KurtogramPlot};
+use crate::plots::spectrum::{draw_order_spectra, Marker, SpectrumPlot};
 use anyhow::{Context, Result};
 use std::io::Write;
 use std::path::PathBuf;
@@ -37,6 +49,22 @@ pub struct Args {
     /// How many peaks to list.
     #[arg(long, default_value_t = 8)]
     pub peaks: usize,
+    /// Draw the channel's fast kurtogram here (PNG) and print its best band; with --png, the
+    /// envelope order spectrum of that band is drawn under the low-pass one.
+    #[arg(long, value_name = "PNG")]
+    pub kurtogram: Option<PathBuf>,
+    /// Depth of the kurtogram: the narrowest bands are (top frequency) / 2^N wide. The
+    /// per-window kurtogram of --json needs 2^(N+7) samples per feature window.
+    #[arg(long, default_value_t = 6, value_name = "N")]
+    pub kurtogram_levels: usize,
+    /// Highest frequency the kurtogram searches, Hz (default: Nyquist). Recordings at
+    /// different rates are searched on the same grid when given the same value.
+    #[arg(long, value_name = "HZ")]
+    pub kurtogram_max_hz: Option<f64>,
+    /// Print one JSON document instead of the text: the kurtogram and the rule's ratio per
+    /// fault family under the fixed low-pass and kurtogram-chosen envelope bands.
+    #[arg(long)]
+    pub json: bool,
 }
 
 pub fn run(args: Args) -> Result<()> {
@@ -76,6 +104,7 @@ fn inspect(args: Args) -> Result<()> {
             args.recording.display()
         )
     })?;
+    let what = || format!("{}: channel {:?}", args.recording.display(), ch.name);
     let speed = match args.rpm {
         Some(rpm) => SpeedTrack::fixed(rpm)?,
         None => crate::analysis::whole_recording(&rec, &rig)?,
@@ -85,15 +114,198 @@ fn inspect(args: Args) -> Result<()> {
         .max_order
         .unwrap_or((3.0 * fo.bpfi + 1.5).ceil())
         .min(rig.features.max_order);
-    let spec = whole_recording(
-        &ch.samples,
-        rec.sample_rate,
-        &speed,
-        rig.features.lowpass_hz,
-        max_order,
-    )
-    .with_context(|| format!("{}: channel {:?}", args.recording.display(), ch.name))?;
+    let lowpass = (0.0, rig.features.lowpass_hz.min(rec.sample_rate / 2.0));
+    let spec = whole_recording_band(&ch.samples, rec.sample_rate, &speed, lowpass, max_order)
+        .with_context(what)?;
+    let settings = KurtogramSettings {
+        levels: args.kurtogram_levels,
+        max_hz: args.kurtogram_max_hz,
+    };
+    let record_kurtogram = if args.kurtogram.is_some() || args.json {
+        Some(
+            kurtogram::of_recording(&ch.samples, rec.sample_rate, settings)
+                .with_context(|| format!("{}: --kurtogram-levels / --kurtogram-max-hz", what()))?,
+        )
+    } else {
+        None
+    };
 
+    let markers = fault_markers(&rig, max_order);
+    if args.json {
+        let k = record_kurtogram.as_ref().expect("computed for --json");
+        let rule = EnvelopeRule::for_rig(&rig, RuleSettings::default());
+        let mut bands = Vec::new();
+        for choice in [
+            BandChoice::LowPass,
+            BandChoice::PerWindow(settings),
+            BandChoice::Fixed(k.best()),
+        ] {
+            bands.push(
+                band_ratios(&ch.samples, rec.sample_rate, &rig, &speed, choice, &rule)
+                    .with_context(|| {
+                        format!(
+                            "{}: {} envelope (--kurtogram-levels {}, --kurtogram-max-hz {:?})",
+                            what(),
+                            choice.name(),
+                            settings.levels,
+                            settings.max_hz
+                        )
+                    })?,
+            );
+        }
+        let doc = serde_json::json!({
+            "recording": args.recording.display().to_string(),
+            "channel": ch.name,
+            "sample_rate_hz": rec.sample_rate,
+            "duration_s": rec.duration_s(),
+            "rpm": spec.rpm,
+            "speed_source": speed.source(),
+            "fault_orders": {"ftf": fo.ftf, "bpfo": fo.bpfo, "bpfi": fo.bpfi, "two_bsf": fo.two_bsf},
+            "lowpass_hz": lowpass.1,
+            "window_s": rig.features.window_s,
+            "hop_s": rig.features.hop_s,
+            "rule_threshold": rule.threshold(),
+            "kurtogram": {
+                "levels": settings.levels,
+                "max_hz": settings.max_hz,
+                "top_hz": k.top_hz(),
+                "best": band_json(&k.best()),
+                "rows": k.rows(),
+            },
+            "bands": bands,
+        });
+        serde_json::to_writer(&mut out, &doc)?;
+        writeln!(out)?;
+    } else {
+        writeln!(
+            out,
+            "{} channel {:?}: {:.1} s, {:.0} revolutions, mean speed {:.1} rpm (source: {}), order resolution {:.4}",
+            args.recording.display(),
+            ch.name,
+            rec.duration_s(),
+            spec.revolutions,
+            spec.rpm,
+            speed.source(),
+            spec.order_step
+        )?;
+        writeln!(
+            out,
+            "fault orders: FTF {:.4}  BPFO {:.4}  BPFI {:.4}  2xBSF {:.4}",
+            fo.ftf, fo.bpfo, fo.bpfi, fo.two_bsf
+        )?;
+        writeln!(
+            out,
+            "{:>9} {:>12}  nearest fault order",
+            "order", "amplitude"
+        )?;
+        print_peaks(&mut out, &spec, &markers, args.peaks, max_order)?;
+        if let Some(k) = &record_kurtogram {
+            let b = k.best();
+            writeln!(
+                out,
+                "kurtogram ({} levels, 0-{:.0} Hz): best band centre {:.0} Hz, bandwidth {:.0} Hz ({:.0}-{:.0} Hz), level {}, kurtosis {:.3}",
+                settings.levels,
+                k.top_hz(),
+                b.centre_hz(),
+                b.bandwidth_hz(),
+                b.lo_hz,
+                b.hi_hz,
+                level_label(b.level),
+                b.kurtosis
+            )?;
+        }
+    }
+    // "wrote" lines go to stderr under --json, so stdout stays one JSON document
+    let mut said = |text: String| -> Result<()> {
+        if args.json {
+            eprintln!("{text}");
+        } else {
+            writeln!(out, "{text}")?;
+        }
+        Ok(())
+    };
+    let file_name = args
+        .recording
+        .file_name()
+        .map(|s| s.to_string_lossy().to_string())
+        .unwrap_or_default();
+    if let (Some(png), Some(k)) = (&args.kurtogram, &record_kurtogram) {
+        let b = k.best();
+        let title = format!(
+            "{file_name} - {} - fast kurtogram: best band {:.0}-{:.0} Hz (centre {:.0}, width {:.0}), level {}, K = {:.2}",
+            ch.name,
+            b.lo_hz,
+            b.hi_hz,
+            b.centre_hz(),
+            b.bandwidth_hz(),
+            level_label(b.level),
+            b.kurtosis
+        );
+        draw_kurtogram(
+            png,
+            &KurtogramPlot {
+                title: &title,
+                rows: k.rows(),
+                best: b,
+                top_hz: k.top_hz(),
+            },
+        )?;
+        said(format!("wrote {}", png.display()))?;
+    }
+    if let Some(png) = &args.png {
+        let title = format!(
+            "{file_name} - {} - envelope order spectrum, low-pass {:.0} Hz ({:.0} rpm, {})",
+            ch.name,
+            lowpass.1,
+            spec.rpm,
+            speed.source()
+        );
+        let mut plots = vec![SpectrumPlot {
+            title: &title,
+            order_step: spec.order_step,
+            amplitude: &spec.amplitude,
+            max_order,
+            markers: &markers,
+            unit: &ch.unit,
+        }];
+        let band_spec;
+        let band_title;
+        if let Some(k) = &record_kurtogram {
+            let b = k.best();
+            band_spec = whole_recording_band(
+                &ch.samples,
+                rec.sample_rate,
+                &speed,
+                (b.lo_hz, b.hi_hz),
+                max_order,
+            )
+            .with_context(what)?;
+            band_title = format!(
+                "{file_name} - {} - envelope order spectrum, kurtogram band {:.0}-{:.0} Hz (level {}, K = {:.2})",
+                ch.name,
+                b.lo_hz,
+                b.hi_hz,
+                level_label(b.level),
+                b.kurtosis
+            );
+            plots.push(SpectrumPlot {
+                title: &band_title,
+                order_step: band_spec.order_step,
+                amplitude: &band_spec.amplitude,
+                max_order,
+                markers: &markers,
+                unit: &ch.unit,
+            });
+        }
+        draw_order_spectra(png, &plots)?;
+        said(format!("wrote {}", png.display()))?;
+    }
+    Ok(())
+}
+
+/// Shaft harmonics up to `max_order` and the first three harmonics of FTF, BPFO, BPFI, 2xBSF.
+fn fault_markers(rig: &RigConfig, max_order: f64) -> Vec<Marker> {
+    let fo = rig.bearing.fault_orders();
     let mut markers = Vec::new();
     for h in 1..=(max_order.floor() as usize) {
         markers.push(Marker {
@@ -116,33 +328,26 @@ fn inspect(args: Args) -> Result<()> {
             });
         }
     }
-    writeln!(
-        out,
-        "{} channel {:?}: {:.1} s, {:.0} revolutions, mean speed {:.1} rpm (source: {}), order resolution {:.4}",
-        args.recording.display(),
-        ch.name,
-        rec.duration_s(),
-        spec.revolutions,
-        spec.rpm,
-        speed.source(),
-        spec.order_step
-    )?;
-    writeln!(
-        out,
-        "fault orders: FTF {:.4}  BPFO {:.4}  BPFI {:.4}  2xBSF {:.4}",
-        fo.ftf, fo.bpfo, fo.bpfi, fo.two_bsf
-    )?;
-    writeln!(
-        out,
-        "{:>9} {:>12}  nearest fault order",
-        "order", "amplitude"
-    )?;
-    let named: Vec<(String, f64)> = markers.iter().map(|m| (m.label.clone(), m.order)).collect();
-    for p in spec.top_peaks(args.peaks, 0.3, max_order, 0.05) {
-        let (name, o) = named
+    markers
+}
+
+/// The `n` highest peaks with the nearest marker each.
+fn print_peaks(
+    out: &mut impl Write,
+    spec: &WholeSpectrum,
+    markers: &[Marker],
+    n: usize,
+    max_order: f64,
+) -> Result<()> {
+    for p in spec.top_peaks(n, 0.3, max_order, 0.05) {
+        let (name, o) = markers
             .iter()
-            .min_by(|a, b| (a.1 - p.order).abs().total_cmp(&(b.1 - p.order).abs()))
-            .cloned()
+            .min_by(|a, b| {
+                (a.order - p.order)
+                    .abs()
+                    .total_cmp(&(b.order - p.order).abs())
+            })
+            .map(|m| (m.label.clone(), m.order))
             .unwrap_or_default();
         writeln!(
             out,
@@ -152,29 +357,18 @@ fn inspect(args: Args) -> Result<()> {
             100.0 * (p.order / o - 1.0)
         )?;
     }
-    if let Some(png) = &args.png {
-        let title = format!(
-            "{} - {} - envelope order spectrum ({:.0} rpm, {})",
-            args.recording
-                .file_name()
-                .map(|s| s.to_string_lossy().to_string())
-                .unwrap_or_default(),
-            ch.name,
-            spec.rpm,
-            speed.source()
-        );
-        draw_order_spectrum(
-            png,
-            &SpectrumPlot {
-                title: &title,
-                order_step: spec.order_step,
-                amplitude: &spec.amplitude,
-                max_order,
-                markers: &markers,
-                unit: &ch.unit,
-            },
-        )?;
-        writeln!(out, "wrote {}", png.display())?;
-    }
     Ok(())
+}
+
+/// A band as JSON, with its centre and width.
+fn band_json(b: &KurtogramBand) -> serde_json::Value {
+    serde_json::json!({
+        "level": b.level,
+        "level_label": level_label(b.level),
+        "lo_hz": b.lo_hz,
+        "hi_hz": b.hi_hz,
+        "centre_hz": b.centre_hz(),
+        "bandwidth_hz": b.bandwidth_hz(),
+        "kurtosis": b.kurtosis,
+    })
 }

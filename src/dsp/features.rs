@@ -200,6 +200,46 @@ impl FeaturePipeline {
         Ok((step, info.revolutions, lines))
     }
 
+    /// As [`envelope_order_power`](Self::envelope_order_power), with the envelope taken over
+    /// `lo_hz..hi_hz` (an ideal band-pass, e.g. the band a kurtogram chose) instead of the
+    /// recipe's low-pass; the pipeline keeps its low-pass for everything else. Band selection
+    /// studies and `inspect --kurtogram`; the features never use it.
+    pub fn envelope_order_power_band(
+        &mut self,
+        t_start: f64,
+        x: &[f32],
+        speed: &SpeedTrack,
+        lo_hz: f64,
+        hi_hz: f64,
+    ) -> Result<(f64, f64, &[f32])> {
+        let nyquist = self.sample_rate / 2.0;
+        if !(lo_hz >= 0.0 && lo_hz < hi_hz && hi_hz <= nyquist) {
+            bail!(
+                "envelope band {lo_hz}-{hi_hz} Hz: must satisfy 0 <= low < high <= {nyquist} Hz (Nyquist at {} Hz)",
+                self.sample_rate
+            );
+        }
+        if x.len() != self.len {
+            bail!(
+                "the window at t = {t_start:.3} s has {} samples, the pipeline expects {}",
+                x.len(),
+                self.len
+            );
+        }
+        let info = self.tracker.prepare(t_start, speed)?;
+        if self.angle.len() < info.count {
+            self.angle.resize(info.count + info.count / 4, 0.0);
+        }
+        self.envelope.set_band(lo_hz, hi_hz);
+        self.envelope.process(x, &mut self.env);
+        self.envelope.set_band(0.0, self.lowpass_hz);
+        let count = info.count;
+        let spr = self.tracker.samples_per_rev();
+        self.tracker.resample(&self.env, &mut self.angle[..count]);
+        let (step, lines) = self.fft.power(&self.angle[..count], spr);
+        Ok((step, info.revolutions, lines))
+    }
+
     /// Envelope, order tracking (prepared for `count` angle samples) and power spectrum.
     fn channel_power(&mut self, x: &[f32], count: usize) -> (f64, &[f32]) {
         let spr = self.tracker.samples_per_rev();

@@ -4,6 +4,7 @@
 //! Layers, bottom up: [`speed_config`] and [`feature_settings`] (the rig file's `[speed]` and
 //! `[features]` sections), [`tacho`] (analog tacho -> edges), [`speed`] (shaft angle/speed vs
 //! time, pulse repair) and [`speed_estimate`] (speed from vibration), [`envelope`],
+//! [`kurtogram`] (the band where the signal is most impulsive, for the envelope),
 //! [`order_tracking`], [`order_spectrum`], [`features`] (the per-window pipeline) and
 //! [`quality`] (flags). Windows of a stream or a whole recording are cut and given their
 //! speed in `analysis`.
@@ -12,6 +13,7 @@ pub mod envelope;
 pub mod feature_settings;
 pub mod features;
 pub mod fft_len;
+pub mod kurtogram;
 pub mod order_spectrum;
 pub mod order_tracking;
 pub mod quality;

@@ -191,6 +191,23 @@ pub fn whole_recording(
     lowpass_hz: f64,
     max_order: f64,
 ) -> Result<WholeSpectrum> {
+    whole_recording_band(samples, sample_rate, speed, (0.0, lowpass_hz), max_order)
+}
+
+/// As [`whole_recording`], the envelope taken over the band `lo_hz..hi_hz` (an ideal
+/// band-pass; `(0, lowpass_hz)` is the low-pass).
+pub fn whole_recording_band(
+    samples: &[f32],
+    sample_rate: f64,
+    speed: &SpeedTrack,
+    (lo_hz, hi_hz): (f64, f64),
+    max_order: f64,
+) -> Result<WholeSpectrum> {
+    if !(lo_hz >= 0.0 && lo_hz < hi_hz) {
+        bail!(
+            "envelope band {lo_hz}-{hi_hz} Hz: the low edge must be >= 0 and below the high edge"
+        );
+    }
     if let Some(i) = samples.iter().position(|v| !v.is_finite()) {
         bail!(
             "sample {i} (t = {:.4} s) is {}; the recording must be finite",
@@ -206,7 +223,8 @@ pub fn whole_recording(
     }
     let n = fast_len_at_most(samples.len());
     let x = &samples[..n];
-    let mut env = Envelope::new(n, sample_rate, lowpass_hz);
+    let mut env = Envelope::new(n, sample_rate, hi_hz);
+    env.set_band(lo_hz, hi_hz);
     let mut e = vec![0.0f32; n];
     env.process(x, &mut e);
     let mut tracker = OrderTracker::new(n, sample_rate, max_order);

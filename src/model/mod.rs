@@ -2,9 +2,11 @@
 //! novelty detector ([`novelty`]), the trained bundle ([`classifier`]), its metadata
 //! ([`meta`]), file digests ([`digest`]), the ONNX writer/reader ([`export`]), tract
 //! inference ([`onnx`]) and the alignment to one machine: reference levels ([`align`]) and
-//! the healthy-baseline gate ([`baseline`]).
+//! the healthy-baseline gate ([`baseline`]). The envelope-order rule every model is compared
+//! with ([`rule`]), and its statistic under kurtogram-chosen envelope bands ([`band_ratios`]).
 
 pub mod align;
+pub mod band_ratios;
 pub mod baseline;
 pub mod classifier;
 pub mod digest;

@@ -91,6 +91,32 @@ impl EnvelopeRule {
     /// Judge one envelope order spectrum given as power lines `order_step` apart (line 0 at
     /// order 0).
     pub fn judge(&self, order_step: f64, power: &[f32]) -> RuleVerdict {
+        let o = &self.orders;
+        let targets = [o.bpfo, 2.0 * o.bpfo, o.bpfi, 2.0 * o.bpfi];
+        let mut ratios = [0.0; 4];
+        self.ratios_at(order_step, power, &targets, &mut ratios);
+        let outer = ratios[0].max(ratios[1]);
+        let inner = ratios[2].max(ratios[3]);
+        let class = if outer.max(inner) < self.settings.threshold {
+            0
+        } else if outer >= inner {
+            1
+        } else {
+            2
+        };
+        RuleVerdict {
+            class,
+            ratios,
+            rpm: 0.0,
+            t_start: 0.0,
+        }
+    }
+
+    /// The rule's statistic at any orders: RMS of the band (one band width wide) centred at
+    /// each of `centres`, over the median RMS of the bands (k w, (k+1) w] tiling
+    /// 0..max_order, into `out` (0 when the median is 0). `judge` takes it at BPFO, 2xBPFO,
+    /// BPFI and 2xBPFI.
+    pub fn ratios_at(&self, order_step: f64, power: &[f32], centres: &[f64], out: &mut [f64]) {
         let w = self.settings.band_width_order;
         let n_bands = ((self.max_order / w).round() as usize).max(1);
         let mut bands = vec![0.0f32; n_bands];
@@ -107,31 +133,18 @@ impl EnvelopeRule {
                 .sum::<f64>()
                 .sqrt()
         };
-        let o = &self.orders;
-        let targets = [o.bpfo, 2.0 * o.bpfo, o.bpfi, 2.0 * o.bpfi];
-        let mut ratios = [0.0; 4];
-        for (r, &t) in ratios.iter_mut().zip(&targets) {
+        for (r, &t) in out.iter_mut().zip(centres) {
             *r = if median > 0.0 {
                 band_at(t) / median
             } else {
                 0.0
             };
         }
-        let outer = ratios[0].max(ratios[1]);
-        let inner = ratios[2].max(ratios[3]);
-        let class = if outer.max(inner) < self.settings.threshold {
-            0
-        } else if outer >= inner {
-            1
-        } else {
-            2
-        };
-        RuleVerdict {
-            class,
-            ratios,
-            rpm: 0.0,
-            t_start: 0.0,
-        }
+    }
+
+    /// The rule's threshold (a band this many times the median is a fault).
+    pub fn threshold(&self) -> f64 {
+        self.settings.threshold
     }
 
     /// The rule on every full feature window (`window_s` long, `hop_s` apart) of a

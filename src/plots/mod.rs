@@ -2,6 +2,7 @@
 
 pub mod confusion;
 pub mod embedding;
+pub mod kurtogram;
 
 use anyhow::{bail, Result};
 use std::sync::OnceLock;

@@ -1,8 +1,10 @@
 //! PNG of an envelope order spectrum with labelled fault-order markers (FTF, BPFO, BPFI,
-//! 2xBSF and their harmonics, shaft harmonics).
+//! 2xBSF and their harmonics, shaft harmonics); several spectra of one recording (the fixed
+//! low-pass envelope and a kurtogram band's) stack as panels of one picture.
 
 use crate::plots::ensure_font;
-use anyhow::{anyhow, Result};
+use anyhow::{anyhow, bail, Result};
+use plotters::coord::Shift;
 use plotters::prelude::*;
 use std::path::Path;
 
@@ -41,10 +43,37 @@ fn colour(group: usize) -> RGBColor {
 
 /// Draw `plot` into a 1400 x 700 PNG at `path`.
 pub fn draw_order_spectrum(path: &Path, plot: &SpectrumPlot) -> Result<()> {
+    draw_order_spectra(path, std::slice::from_ref(plot))
+}
+
+/// Draw `plots` one above the other (1400 x 700 for one, 560 px high each for more) into a
+/// PNG at `path`; each panel keeps its own amplitude scale.
+pub fn draw_order_spectra(path: &Path, plots: &[SpectrumPlot]) -> Result<()> {
+    if plots.is_empty() {
+        bail!("drawing {}: no spectrum to draw", path.display());
+    }
     ensure_font()?;
     let e = |err: &dyn std::fmt::Display| anyhow!("drawing {}: {err}", path.display());
-    let root = BitMapBackend::new(path, (1400, 700)).into_drawing_area();
+    let height = if plots.len() == 1 {
+        700
+    } else {
+        560 * plots.len() as u32
+    };
+    let root = BitMapBackend::new(path, (1400, height)).into_drawing_area();
     root.fill(&WHITE).map_err(|x| e(&x))?;
+    for (area, plot) in root.split_evenly((plots.len(), 1)).iter().zip(plots) {
+        draw_panel(area, plot, &e)?;
+    }
+    root.present().map_err(|x| e(&x))?;
+    Ok(())
+}
+
+fn draw_panel(
+    root: &DrawingArea<BitMapBackend<'_>, Shift>,
+    plot: &SpectrumPlot,
+    e: &dyn Fn(&dyn std::fmt::Display) -> anyhow::Error,
+) -> Result<()> {
+    let (width, _) = root.dim_in_pixel();
     let last = ((plot.max_order / plot.order_step).ceil() as usize + 1).min(plot.amplitude.len());
     let first = (0.2 / plot.order_step).ceil() as usize; // skip the DC skirt
     let ymax = plot.amplitude[first.min(last)..last]
@@ -88,7 +117,7 @@ pub fn draw_order_spectrum(path: &Path, plot: &SpectrumPlot) -> Result<()> {
         .map_err(|x| e(&x))?;
     // labels: stagger heights so neighbouring markers do not overlap
     let mut placed: Vec<(f64, usize)> = Vec::new();
-    let width_orders = plot.max_order / 1400.0 * 60.0;
+    let width_orders = plot.max_order / width as f64 * 60.0;
     for m in plot.markers.iter().filter(|m| m.order < plot.max_order) {
         let mut row = 0;
         while placed
@@ -107,6 +136,5 @@ pub fn draw_order_spectrum(path: &Path, plot: &SpectrumPlot) -> Result<()> {
             )))
             .map_err(|x| e(&x))?;
     }
-    root.present().map_err(|x| e(&x))?;
     Ok(())
 }
