@@ -58,7 +58,7 @@ impl Mode {
                 analog: None,
             },
             SpeedConfig::Fixed { rpm } => Mode::Constant(SpeedTrack::fixed(*rpm)?),
-            SpeedConfig::Recording => match stored_rpm {
+            SpeedConfig::Recording { .. } => match stored_rpm {
                 Some(rpm) => Mode::Constant(SpeedTrack::constant(rpm, "recording")?),
                 None => Mode::EdgesOrEstimate {
                     pulses_per_rev: speed.pulses_per_rev(),

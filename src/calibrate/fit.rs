@@ -252,7 +252,9 @@ pub fn twin_speed_track(
     };
     match &rig.speed {
         SpeedConfig::Fixed { rpm } => SpeedTrack::fixed(*rpm),
-        SpeedConfig::Recording => SpeedTrack::constant(profile.mean_rpm(seconds), "recording"),
+        SpeedConfig::Recording { .. } => {
+            SpeedTrack::constant(profile.mean_rpm(seconds), "recording")
+        }
         _ => {
             let n = (seconds * 100.0).ceil() as usize + 2;
             let t: Vec<f64> = (0..n).map(|i| i as f64 / 100.0).collect();

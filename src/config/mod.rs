@@ -172,6 +172,14 @@ impl RigConfig {
                 bail!("speed.pulses_per_rev must be at least 1");
             }
         }
+        if let SpeedConfig::Recording {
+            check_within_percent,
+        } = self.speed
+        {
+            if !(0.0..=20.0).contains(&check_within_percent) {
+                bail!("speed.check_within_percent = {check_within_percent}: use 0 (do not check the stored speed) to 20 (5 is typical)");
+            }
+        }
         if let SpeedConfig::Fixed { rpm } = self.speed {
             if !(rpm.is_finite() && rpm > 0.0) {
                 bail!("speed.rpm = {rpm}: must be a positive number");

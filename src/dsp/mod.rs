@@ -20,6 +20,7 @@ pub mod quality;
 pub mod speed;
 pub mod speed_config;
 pub mod speed_estimate;
+pub mod stored_speed;
 pub mod synthetic;
 pub mod tacho;
 

@@ -29,7 +29,13 @@ pub enum SpeedConfig {
     /// A fixed, known speed.
     Fixed { rpm: f64 },
     /// The speed stored in the recording (e.g. CWRU's `X<nnn>RPM`); falls back to estimation.
-    Recording,
+    /// A stored speed is checked against the recording's own 1x line, searched within
+    /// +-`check_within_percent` of it, and replaced where clearly off ([`super::stored_speed`]);
+    /// 0 keeps it unchecked.
+    Recording {
+        #[serde(default = "default_check_within_percent")]
+        check_within_percent: f64,
+    },
     /// Estimate from the vibration itself by tracking the 1x line.
     Estimate {
         #[serde(default = "default_min_rpm")]
@@ -54,6 +60,9 @@ fn default_min_rpm() -> f64 {
 fn default_max_rpm() -> f64 {
     3600.0
 }
+fn default_check_within_percent() -> f64 {
+    5.0
+}
 
 impl SpeedConfig {
     /// Pulses per revolution of the tacho, whatever form it comes in (1 without a tacho).
@@ -63,6 +72,16 @@ impl SpeedConfig {
                 *pulses_per_rev
             }
             _ => 1,
+        }
+    }
+
+    /// `recording` with the stored speed checked: the search half-width as a fraction.
+    pub fn stored_speed_check(&self) -> Option<f64> {
+        match self {
+            SpeedConfig::Recording {
+                check_within_percent,
+            } if *check_within_percent > 0.0 => Some(check_within_percent / 100.0),
+            _ => None,
         }
     }
 

@@ -32,13 +32,17 @@ pub struct ImportOptions {
     pub declared_sample_rate: Option<(f64, String)>,
 }
 
-/// Prefix of provenance notes about side data an importer could not read (kept as text).
+/// Prefix of provenance notes that warn: side data an importer could not read (kept as text),
+/// or a stored speed the vibration contradicts.
 pub const WARNING: &str = "warning: ";
 
 /// Metadata key holding the rig id a recording was imported with.
 pub const META_RIG_ID: &str = "rig_id";
 /// Metadata key holding the rig file (TOML text) a recording was imported with.
 pub const META_RIG_CONFIG: &str = "rig_config";
+/// Metadata key holding the speed a file stored, when the vibration showed it off and another
+/// was used (`Recording::rpm`).
+pub const META_STORED_RPM: &str = "stored_rpm";
 
 /// The formats [`load`] understands.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -149,6 +153,9 @@ pub fn load(path: &Path, rig: &RigConfig, opts: &ImportOptions) -> Result<Record
         bail!("{}: the recording holds no samples", path.display());
     }
     check_finite(path, &rec)?;
+    if opts.rpm.is_none() {
+        check_stored_speed(&mut rec, rig);
+    }
     for note in rec.provenance.notes.iter() {
         if let Some(w) = note.strip_prefix(WARNING) {
             tracing::warn!("{}: {w}", path.display());
@@ -156,6 +163,50 @@ pub fn load(path: &Path, rig: &RigConfig, opts: &ImportOptions) -> Result<Record
     }
     stamp_rig(&mut rec.metadata, rig);
     Ok(rec)
+}
+
+/// Where the rig reads speed from the recording (`[speed] source = "recording"`), check the
+/// file's stored speed against its own 1x line ([`crate::dsp::stored_speed`]) and use the
+/// vibration's where the stored one is clearly off; the stored value stays in the metadata
+/// (`stored_rpm`) and the provenance says what was done. A speed given on the command line
+/// (`--rpm`) is never checked; rigmon's own MCAP recordings keep what they carry.
+fn check_stored_speed(rec: &mut Recording, rig: &RigConfig) {
+    let (Some(within), Some(stored)) = (rig.speed.stored_speed_check(), rec.rpm) else {
+        return;
+    };
+    let Some(ch) = rig
+        .classifier_channel()
+        .and_then(|c| rec.channel(&c.name))
+        .or_else(|| rec.channels.first())
+    else {
+        return;
+    };
+    let checked = crate::dsp::stored_speed::check(&ch.samples, rec.sample_rate, stored, within);
+    let name = ch.name.clone();
+    match checked {
+        Ok(c) if c.replaced() => {
+            rec.metadata.insert(META_STORED_RPM.into(), stored.to_string());
+            rec.rpm = Some(c.rpm);
+            rec.provenance.notes.push(format!(
+                "{WARNING}the file stores {stored} rpm but channel {:?} turns at {:.1} rpm ({:+.2} %, its 1x line searched within +-{:.0} %): \
+                 using {:.1} rpm (set [speed] check_within_percent = 0 in the rig file, or pass --rpm, to keep the stored value)",
+                name,
+                c.rpm,
+                100.0 * c.off,
+                100.0 * within,
+                c.rpm
+            ));
+        }
+        Ok(c) => rec.provenance.notes.push(format!(
+            "stored speed {stored} rpm checked against channel {:?}: 1x line at {:.1} rpm ({:+.2} %), kept",
+            name,
+            c.estimate.rpm,
+            100.0 * c.off
+        )),
+        Err(e) => rec.provenance.notes.push(format!(
+            "stored speed {stored} rpm not checked against the vibration: {e}"
+        )),
+    }
 }
 
 /// Record which rig a recording belongs to: `rig_id` and `rig_config` (the rig as TOML) in its
