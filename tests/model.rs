@@ -315,6 +315,18 @@ fn bad_model_files_give_clear_errors() {
     let mut cwru = RigConfig::load(&manifest_dir().join("config/cwru-de.toml")).unwrap();
     cwru.features.max_order = 25.0;
     assert!(clf.check_rig(&cwru).is_err());
+    // The envelope recipe is part of the layout: a model stores its low-pass and refuses a
+    // rig that sets another one (a model written before the key was stored is not checked).
+    let trained_at = clf
+        .meta()
+        .lowpass_hz
+        .expect("rigmon train stores lowpass_hz");
+    let mut rig = rig();
+    rig.features.lowpass_hz = trained_at;
+    clf.check_rig(&rig).unwrap();
+    rig.features.lowpass_hz = 2000.0;
+    let e = format!("{:#}", clf.check_rig(&rig).unwrap_err());
+    assert!(e.contains("lowpass_hz") && e.contains("2000"), "{e}");
 }
 
 fn shared_data() -> PathBuf {

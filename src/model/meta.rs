@@ -44,6 +44,9 @@ pub struct ModelMeta {
     pub trained_mean: Vec<f32>,
     /// Alignment summary (JSON text), empty when the model was never aligned.
     pub alignment: String,
+    /// The envelope low-pass the training features were computed with (`[features]
+    /// lowpass_hz`), Hz; `None` in models written before it was stored (not checked then).
+    pub lowpass_hz: Option<f64>,
 }
 
 /// `metadata_props` of a decoded model as a map.
@@ -119,6 +122,9 @@ impl ModelMeta {
         if !self.alignment.is_empty() {
             v.push(("alignment".into(), self.alignment.clone()));
         }
+        if let Some(hz) = self.lowpass_hz {
+            v.push(("lowpass_hz".into(), hz.to_string()));
+        }
         v
     }
 
@@ -169,6 +175,10 @@ impl ModelMeta {
                 None => Vec::new(),
             },
             alignment: props.get("alignment").cloned().unwrap_or_default(),
+            lowpass_hz: match props.get("lowpass_hz") {
+                Some(_) => Some(num("lowpass_hz")?),
+                None => None,
+            },
         })
     }
 }

@@ -97,6 +97,15 @@ impl OnnxClassifier {
                 f.max_order
             );
         }
+        if let Some(hz) = m.lowpass_hz {
+            if (f.lowpass_hz - hz).abs() > 1e-6 * hz {
+                bail!(
+                    "model was trained on envelopes low-passed at {hz} Hz, but rig {:?} sets [features] lowpass_hz = {}; use a model trained for this recipe, or set lowpass_hz = {hz}",
+                    rig.machine.id,
+                    f.lowpass_hz
+                );
+            }
+        }
         Ok(())
     }
 

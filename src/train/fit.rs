@@ -187,6 +187,7 @@ pub fn fit(
         healthy_reference: healthy_reference(&tr, labels, t.pre.floor),
         trained_mean: Vec::new(),
         alignment: String::new(),
+        lowpass_hz: Some(rig.features.lowpass_hz),
     };
     let mut model = TrainedModel {
         pre: t.pre,
