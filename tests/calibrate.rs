@@ -8,8 +8,8 @@
 //! main parameter is within 20 % of the truth and the error at least halves. The `outside`
 //! case (an order-locked line at order 17.3, which no catalog effect explains) must come
 //! back `unexplained` at the right place with no effect accepted, and so must `whirl` (a
-//! 0.46x line, beside the half order `subharmonics` fits); `baseline` must accept nothing. The calibrated rig file written by `-o` must parse back with the effects and an
-//! id.
+//! 0.46x line, beside the half order `subharmonics` fits); `baseline` must accept nothing.
+//! The calibrated rig file written by `-o` must parse back with the effects and an id.
 
 use serde_json::Value;
 use std::path::{Path, PathBuf};

@@ -63,9 +63,9 @@ pub struct Param {
 }
 
 /// What the measured data fix about the search: the lowest sample rate (bounds the
-/// resonance), the highest speed (reference of the shaft and half-order lines) and whether there are
-/// recordings at two or more distinct speeds (only then can a growth with speed be fitted),
-/// and the speed-fluctuation line the fit part's speed spectra show, if any.
+/// resonance), the highest speed (reference of the shaft and half-order lines) and whether
+/// there are recordings at two or more distinct speeds (only then can a growth with speed be
+/// fitted), and the speed-fluctuation line the fit part's speed spectra show, if any.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Context {
     pub fs: f64,

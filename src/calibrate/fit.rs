@@ -5,10 +5,10 @@
 //! when nothing passes. The trials of a round run in parallel. Views are cached by
 //! (simulation section, operating point), engine runs by the section's engine part in a
 //! least-recently-used cache, so effects of the sensor stage (noise, lines, shaft and
-//! half-order lines) do not re-run the mechanics. A measured recording is analysed whole, its views averaged over
-//! [`views::SEGMENT_S`] segments; its simulated twin is one segment long, and the twin's
-//! `speed` view comes from its speed profile over the whole measured length
-//! ([`views::compute`]).
+//! half-order lines) do not re-run the mechanics. A measured recording is analysed whole,
+//! its views averaged over [`views::SEGMENT_S`] segments; its simulated twin is one segment
+//! long, and the twin's `speed` view comes from its speed profile over the whole measured
+//! length ([`views::compute`]).
 
 use super::catalog::{self, Effect, ALL};
 use super::error::{self, min_cut, ErrorParts};

@@ -499,9 +499,9 @@ pub const SIGNALS: [&str; 5] = [
 ];
 
 impl SimulationConfig {
-    /// The section with the sensor-stage keys (noise, quantisation, electrical,
-    /// shaft-order and half-order lines, tacho) at their defaults: what the mechanical simulation depends
-    /// on (see `sim::EngineRun`).
+    /// The section with the sensor-stage keys (noise, quantisation, electrical, shaft-order
+    /// and half-order lines, tacho) at their defaults: what the mechanical simulation
+    /// depends on (see `sim::EngineRun`).
     pub fn engine_part(&self) -> SimulationConfig {
         let d = SimulationConfig::default();
         let mut s = self.clone();

@@ -1,7 +1,7 @@
 //! The sensor stage of a simulation: from the engine's housing signals and shaft angles
 //! ([`super::EngineRun`]) to a [`Recording`]: white sensor noise, electrical line
-//! interference, shaft-order and half-order lines, units and quantisation per channel, the analog tacho
-//! and the metadata (labels, the simulation section used).
+//! interference, shaft-order and half-order lines, units and quantisation per channel, the
+//! analog tacho and the metadata (labels, the simulation section used).
 
 use super::{channel_signals, high_fraction, model_fault_orders, EngineRun, Fault, Scenario};
 use crate::config::{ChannelKind, RigConfig};
