@@ -470,6 +470,78 @@ fn shaft_lines_have_their_configured_amplitudes() {
     );
 }
 
+/// `[simulation.subharmonics]`: the half order o has amplitude half_order_m_s2 (2 o)^-slope
+/// (rpm / ref_rpm)^exponent on the vertical and horizontal channels, read back by the
+/// calibration's fractional view, and nothing on the axial one; and a calibrated rig file
+/// carrying it keeps it in the dataset it trains on, whatever the plan draws, in both
+/// `--calibrated` modes.
+#[test]
+fn subharmonics_have_their_configured_amplitudes_and_reach_the_dataset() {
+    use rigmon::calibrate::{fractional_orders, half_orders};
+    use rigmon::sim::config::SubharmonicsConfig;
+    use rigmon::sim::dataset::{generate, CalibratedDraws};
+    let mut rig = rig("lut-rig.toml");
+    rig.simulation.as_mut().unwrap().subharmonics = Some(SubharmonicsConfig {
+        ref_rpm: 1200.0,
+        exponent: 2.0,
+        half_order_m_s2: 0.4,
+        slope: 1.0,
+        highest_order: 1.5,
+        phase_deg: 40.0,
+    });
+    // at 600 rpm: 0.5x 0.4 / 4, 1.5x a third of it, 2.5x and 3.5x off
+    let want = [0.1, 0.1 / 3.0, 0.0, 0.0];
+    let check = |rig: &RigConfig, rec: &rigmon::recording::Recording, what: &str| {
+        let track = rigmon::analysis::whole_recording(rec, rig).unwrap();
+        for (ch, gain) in [("vertical", 1.0), ("horizontal", 1.0), ("axial", 0.0)] {
+            let f = fractional_orders::measure(
+                &rec.channel(ch).unwrap().samples,
+                rec.sample_rate,
+                &track,
+            );
+            for (k, w) in want.iter().enumerate() {
+                let (got, floor, w) = (f.half.amplitude[k], f.half.floor[k], gain * w);
+                // where no line is set, the rotor's own response (its bending modes near
+                // 31-34 Hz, 3.5x at 600 rpm) is broadband: no line above twice its floor
+                let tol = if w > 0.0 {
+                    0.1 * w + 0.005
+                } else {
+                    2.0 * floor
+                };
+                assert!(
+                    (got - w).abs() < tol,
+                    "{what} {ch} {}x: {got} vs {w} (floor {floor})",
+                    half_orders::ORDERS[k]
+                );
+            }
+        }
+    };
+    let rec = sim::simulate(&rig, &Scenario::constant(&[], 600.0, 2.0, 5)).unwrap();
+    check(&rig, &rec, "simulate");
+    // the calibrated rig file: `[calibration]` names the effect; the plan draws unbalance and
+    // noise, which must not take the half orders away
+    rig.calibration = Some(rigmon::config::CalibrationStamp {
+        id: "cal-test".into(),
+        effects: vec![toml::from_str("name = \"subharmonics\"\nhalf_order_m_s2 = 0.4").unwrap()],
+    });
+    let plan = sim::plan::Plan::parse(
+        "name = \"loop\"\nseed = 2\nseconds = 2.0\n[random]\nunbalance_scale = [0.5, 2.0]\n\
+         noise_rms_m_s2 = [0.1, 0.3]\n[[case]]\nfaults = \"healthy\"\nrpm = 600\nrecordings = 1\n",
+    )
+    .unwrap();
+    for mode in [CalibratedDraws::Fixed, CalibratedDraws::Spread] {
+        let dir = tempfile::tempdir().unwrap();
+        generate(&rig, &plan, dir.path(), "mcap", Some(1), false, mode).unwrap();
+        let path = std::fs::read_dir(dir.path())
+            .unwrap()
+            .map(|e| e.unwrap().path())
+            .find(|p| p.extension().is_some_and(|x| x == "mcap"))
+            .unwrap();
+        let rec = rigmon::recording::mcap::read_recording(&path).unwrap();
+        check(&rig, &rec, &format!("dataset {mode:?}"));
+    }
+}
+
 /// A calibrated rig file and a plan that draws the calibrated parameters: `fixed` keeps the
 /// fitted noise and resonance in every recording; `spread` draws them from the plan's
 /// ranges moved onto the fitted values (same width for the frequency, same ratio for the

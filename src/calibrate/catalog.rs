@@ -10,10 +10,14 @@
 //! | `line_interference` | `line_hz` {50, 60}, `amplitude_m_s2` 0.01-3 (log) | `structure.line_hz`, `line_amplitudes_m_s2` |
 //! | `speed_fluctuation` | `period_s` 0.2-5 (log), `fraction` 0.002-0.1 (log); around a measured speed line ([`Context::speed_line`]): `period_s` over its frequency +- one resolution step (1 / the shortest length), `fraction` over its depth / 2-x2 (log), within those bounds, starting there | `speed_fluctuation.period_s`, `.fraction` |
 //! | `looseness` | `harmonics_m_s2` 0.0005-3 (log), `slope` -2-3, `highest_order` {5, 10, 20, 30} | `shaft_lines` orders 3..highest: `harmonics_m_s2` (k / k_mid)^`slope`, k_mid the geometric mean order |
+//! | `subharmonics` | `half_order_m_s2` 0.0005-3 (log), `exponent` 0-6 (two speeds or more; else 2), `slope` -1-4 (searched from 4, so the 0.5x line is fitted first): the half-order lines of looseness or a rub, 0.5x at `half_order_m_s2`, order o at (2 o)^-`slope` of it, up to 3.5x (the highest half order the fractional view compares) | `subharmonics` at the highest measured speed, `highest_order` 3.5 |
 //! | `noise` | `noise_rms_m_s2` 0.003-3 (log) | `structure.noise_rms_m_s2` |
 
+use super::half_orders;
 use super::speed_line::SpeedLine;
-use crate::sim::config::{ShaftLinesConfig, SimulationConfig, SpeedFluctuationConfig};
+use crate::sim::config::{
+    ShaftLinesConfig, SimulationConfig, SpeedFluctuationConfig, SubharmonicsConfig,
+};
 use serde::Serialize;
 
 /// Effects the calibrator can add.
@@ -27,10 +31,11 @@ pub enum Effect {
     LineInterference,
     SpeedFluctuation,
     Looseness,
+    Subharmonics,
     Noise,
 }
 
-pub const ALL: [Effect; 8] = [
+pub const ALL: [Effect; 9] = [
     Effect::Slip,
     Effect::ContactAngle,
     Effect::Resonance,
@@ -38,6 +43,7 @@ pub const ALL: [Effect; 8] = [
     Effect::LineInterference,
     Effect::SpeedFluctuation,
     Effect::Looseness,
+    Effect::Subharmonics,
     Effect::Noise,
 ];
 
@@ -57,9 +63,9 @@ pub struct Param {
 }
 
 /// What the measured data fix about the search: the lowest sample rate (bounds the
-/// resonance), the highest speed (reference of the shaft lines) and whether there are
-/// recordings at two or more distinct speeds (only then can a growth with speed be fitted),
-/// and the speed-fluctuation line the fit part's speed spectra show, if any.
+/// resonance), the highest speed (reference of the shaft and half-order lines) and whether
+/// there are recordings at two or more distinct speeds (only then can a growth with speed be
+/// fitted), and the speed-fluctuation line the fit part's speed spectra show, if any.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Context {
     pub fs: f64,
@@ -109,6 +115,10 @@ pub fn fluctuation_ranges(cx: &Context) -> ((f64, f64), (f64, f64)) {
 /// Exponent of the shaft lines when one speed cannot fix it: the unbalance force's speed^2.
 pub const DEFAULT_EXPONENT: f64 = 2.0;
 
+/// Bounds of `subharmonics`' `slope`: at -1 1.5x is three times 0.5x, at 4 it is 1/81 of it
+/// (the search starts there, so the 0.5x line is fitted before the higher half orders).
+pub const SLOPE: (f64, f64) = (-1.0, 4.0);
+
 impl Effect {
     pub fn name(&self) -> &'static str {
         match self {
@@ -119,6 +129,7 @@ impl Effect {
             Effect::LineInterference => "line_interference",
             Effect::SpeedFluctuation => "speed_fluctuation",
             Effect::Looseness => "looseness",
+            Effect::Subharmonics => "subharmonics",
             Effect::Noise => "noise",
         }
     }
@@ -134,6 +145,7 @@ impl Effect {
             Effect::LineInterference => &["lines"],
             Effect::SpeedFluctuation => &["speed", "lines"],
             Effect::Looseness => &["harmonics"],
+            Effect::Subharmonics => &["half_orders"],
             Effect::Noise => &["floor"],
         }
     }
@@ -172,6 +184,14 @@ impl Effect {
                 p("slope", Range::Linear(-2.0, 3.0)),
                 p("highest_order", Range::Choice(vec![5.0, 10.0, 20.0, 30.0])),
             ],
+            Effect::Subharmonics => {
+                let mut v = vec![p("half_order_m_s2", Range::Log(0.0005, 3.0))];
+                if cx.several_speeds {
+                    v.push(p("exponent", Range::Linear(0.0, 6.0)));
+                }
+                v.push(p("slope", Range::Linear(SLOPE.0, SLOPE.1)));
+                v
+            }
             Effect::Noise => vec![p("noise_rms_m_s2", Range::Log(0.003, 3.0))],
         }
     }
@@ -206,6 +226,16 @@ impl Effect {
                 }
             }
             Effect::Looseness => vec![0.01, 0.0, 10.0],
+            Effect::Subharmonics => {
+                let mut v = vec![0.01];
+                if cx.several_speeds {
+                    v.push(DEFAULT_EXPONENT);
+                }
+                // the steepest slope: the 0.5x line (and its speed law) is fitted first, with
+                // the higher half orders too weak to pull it; then their decay
+                v.push(SLOPE.1);
+                v
+            }
             Effect::Noise => vec![sim.structure.noise_rms_m_s2],
         }
     }
@@ -244,6 +274,21 @@ impl Effect {
                 for (k, a) in (3..).zip(&mut lines.amplitudes_m_s2[2..]) {
                     *a = values[0] * (k as f64 / mid).powf(values[1]);
                 }
+            }
+            Effect::Subharmonics => {
+                let (exponent, slope) = if cx.several_speeds {
+                    (values[1], values[2])
+                } else {
+                    (DEFAULT_EXPONENT, values[1])
+                };
+                s.subharmonics = Some(SubharmonicsConfig {
+                    ref_rpm: cx.max_rpm,
+                    exponent,
+                    half_order_m_s2: values[0],
+                    slope,
+                    highest_order: half_orders::ORDERS[half_orders::ORDERS.len() - 1],
+                    phase_deg: 0.0,
+                });
             }
             Effect::Noise => s.structure.noise_rms_m_s2 = values[0],
 

@@ -30,6 +30,10 @@
 //! - `fractional` (every recording): sub-synchronous and fractional shaft orders
 //!   (0.2x-4x between the integers), summed dB / [`FRACTIONAL_PER`] (a 10 dB line about five
 //!   grid points wide counts 0.5);
+//! - `half_orders` (every recording): the half-order lines 0.5x, 1.5x, 2.5x, 3.5x of the
+//!   fractional view (looseness or rub sub-harmonics), each in dB above the higher of the two
+//!   floors (6 dB threshold) where the view peaks on the half order
+//!   ([`super::half_orders`]), summed dB / [`LINES_PER`];
 //! - `impacts` (recordings labelled healthy: in a faulty one the fault's own comb, which `env`,
 //!   `peaks` and `ratios` compare, fills it): envelope spectrum in Hz of the broadband
 //!   energy, summed dB / [`IMPACTS_PER`]; its residuals are located in faulty recordings too
@@ -38,6 +42,8 @@
 //! The README defines it too.
 
 use super::fault_peaks::SEARCH;
+use super::fractional_orders;
+use super::half_orders;
 use super::shaft_orders::levels_db;
 use super::views::{Views, BAND_HZ};
 use serde::Serialize;
@@ -56,12 +62,13 @@ pub struct ErrorParts {
     pub floor: f64,
     pub speed: f64,
     pub fractional: f64,
+    pub half_orders: f64,
     pub impacts: f64,
     pub total: f64,
 }
 
 /// Component names, in report order.
-pub const NAMES: [&str; 12] = [
+pub const NAMES: [&str; 13] = [
     "env",
     "peaks",
     "ratios",
@@ -73,6 +80,7 @@ pub const NAMES: [&str; 12] = [
     "floor",
     "speed",
     "fractional",
+    "half_orders",
     "impacts",
 ];
 
@@ -99,7 +107,7 @@ pub fn min_cut(name: &str) -> f64 {
         "orders" => 0.5,
         "modes" => 1.0,
         "floor" => 0.5,
-        "harmonics" => 0.5,
+        "harmonics" | "half_orders" => 0.5,
         _ => 0.05,
     }
 }
@@ -221,6 +229,19 @@ pub fn pair_only(m: &Views, s: &Views, names: &[&str]) -> ErrorParts {
     } else {
         nan
     };
+    let half = if want("half_orders") {
+        let grid = fractional_orders::orders();
+        let (lm, ls) = half_orders::levels_db(
+            &grid,
+            &m.fractional,
+            &m.half_orders,
+            &s.fractional,
+            &s.half_orders,
+        );
+        summed_abs(&lm, &ls) / LINES_PER
+    } else {
+        nan
+    };
     let impacts = if m.healthy && want("impacts") {
         summed_abs(&m.impacts, &s.impacts) / IMPACTS_PER
     } else {
@@ -240,6 +261,7 @@ pub fn pair_only(m: &Views, s: &Views, names: &[&str]) -> ErrorParts {
         floor,
         speed,
         fractional,
+        half_orders: half,
         impacts,
         total: 0.0,
     }
@@ -261,6 +283,7 @@ impl ErrorParts {
             "floor" => self.floor,
             "speed" => self.speed,
             "fractional" => self.fractional,
+            "half_orders" => self.half_orders,
             "impacts" => self.impacts,
             _ => self.total,
         }
@@ -279,6 +302,7 @@ impl ErrorParts {
             "floor" => &mut self.floor,
             "speed" => &mut self.speed,
             "fractional" => &mut self.fractional,
+            "half_orders" => &mut self.half_orders,
             "impacts" => &mut self.impacts,
             _ => &mut self.total,
         }

@@ -4,11 +4,11 @@
 //! that cuts its own components most, if the held-out part confirms it ([`accepts`]). Stops
 //! when nothing passes. The trials of a round run in parallel. Views are cached by
 //! (simulation section, operating point), engine runs by the section's engine part in a
-//! least-recently-used cache, so effects of the sensor stage (noise, lines, shaft lines) do
-//! not re-run the mechanics. A measured recording is analysed whole, its views averaged over
-//! [`views::SEGMENT_S`] segments; its simulated twin is one segment long, and the twin's
-//! `speed` view comes from its speed profile over the whole measured length
-//! ([`views::compute`]).
+//! least-recently-used cache, so effects of the sensor stage (noise, lines, shaft and
+//! half-order lines) do not re-run the mechanics. A measured recording is analysed whole,
+//! its views averaged over [`views::SEGMENT_S`] segments; its simulated twin is one segment
+//! long, and the twin's `speed` view comes from its speed profile over the whole measured
+//! length ([`views::compute`]).
 
 use super::catalog::{self, Effect, ALL};
 use super::error::{self, min_cut, ErrorParts};
@@ -469,11 +469,17 @@ fn whole_piece(
     Ok(v)
 }
 
-/// Extra, reportable parameters derived from the simulation: the total 1x and 2x amplitudes
-/// (rotor model plus the added lines) at the highest measured speed, m/s^2: what a
-/// measurement of the rig would read.
+/// Extra, reportable parameters derived from the simulation: for `unbalance` the total 1x
+/// and 2x amplitudes (rotor model plus the added lines) at the highest measured speed, m/s^2
+/// (what a measurement of the rig would read); for `subharmonics` the speed its 0.5x
+/// amplitude holds at.
 fn derived(twin: &Twin, effect: Effect, sim: &SimulationConfig) -> Result<BTreeMap<String, f64>> {
     let mut out = BTreeMap::new();
+    if effect == Effect::Subharmonics {
+        if let Some(h) = &sim.subharmonics {
+            out.insert("at_rpm".into(), h.ref_rpm.round());
+        }
+    }
     if effect == Effect::Unbalance {
         let (i, m) = twin
             .ops

@@ -7,8 +7,10 @@
 //! each order of a [`STEP`] grid from [`MIN_ORDER`] to [`MAX_ORDER`]), orders within
 //! [`INTEGER_GAP`] of an integer left out (the integer lines' own leakage). Each order's
 //! level is in dB above the median of the grid within [`FLOOR_HALF_WIDTH`] orders (its local
-//! floor), less a 6 dB threshold (0 below), capped at 60 dB.
+//! floor), less a 6 dB threshold (0 below), capped at 60 dB. The same demodulation gives the
+//! half-order lines' amplitudes and floors ([`super::half_orders`]).
 
+use super::half_orders::{self, HalfOrders};
 use crate::dsp::speed::SpeedTrack;
 
 pub const MIN_ORDER: f64 = 0.2;
@@ -44,13 +46,28 @@ fn mul(a: C, b: C) -> C {
     (a.0 * b.0 - a.1 * b.1, a.0 * b.1 + a.1 * b.0)
 }
 
-/// Thresholded levels (dB above the local floor) at [`orders`]; all 0 for fewer than 16
+/// The fractional view of one recording.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Fractional {
+    /// Thresholded levels (dB above the local floor) at [`orders`].
+    pub levels: Vec<f64>,
+    /// Amplitude and local floor at each of [`half_orders::ORDERS`], channel units.
+    pub half: HalfOrders,
+}
+
+/// The view of `x` (sampled at `fs`): levels all 0 and half-order lines 0 for fewer than 16
 /// samples. Orders above 0.45 fs at the mean speed are 0.
-pub fn measure(x: &[f32], fs: f64, track: &SpeedTrack) -> Vec<f64> {
+pub fn measure(x: &[f32], fs: f64, track: &SpeedTrack) -> Fractional {
     let keep = orders();
     let n = x.len();
     if n < 16 {
-        return vec![0.0; keep.len()];
+        return Fractional {
+            levels: vec![0.0; keep.len()],
+            half: HalfOrders {
+                amplitude: vec![0.0; half_orders::ORDERS.len()],
+                floor: vec![0.0; half_orders::ORDERS.len()],
+            },
+        };
     }
     let w = |i: usize| 0.5 - 0.5 * (std::f64::consts::TAU * i as f64 / n as f64).cos();
     let wsum: f64 = (0..n).map(w).sum();
@@ -89,20 +106,38 @@ pub fn measure(x: &[f32], fs: f64, track: &SpeedTrack) -> Vec<f64> {
         })
         .filter(|(o, _)| kept(*o))
         .collect();
-    amp.iter()
+    let floor_at = |o: f64| {
+        let local: Vec<f64> = amp
+            .iter()
+            .filter(|(p, _)| (p - o).abs() <= FLOOR_HALF_WIDTH)
+            .map(|(_, b)| *b)
+            .collect();
+        super::stats::median(&local).max(1e-30)
+    };
+    let levels = amp
+        .iter()
         .map(|&(o, a)| {
             if o > top {
                 return 0.0;
             }
-            let local: Vec<f64> = amp
-                .iter()
-                .filter(|(p, _)| (p - o).abs() <= FLOOR_HALF_WIDTH)
-                .map(|(_, b)| *b)
-                .collect();
-            let floor = super::stats::median(&local).max(1e-30);
-            (20.0 * (a / floor).max(1e-6).log10() - THRESHOLD_DB).clamp(0.0, CAP_DB)
+            (20.0 * (a / floor_at(o)).max(1e-6).log10() - THRESHOLD_DB).clamp(0.0, CAP_DB)
         })
-        .collect()
+        .collect();
+    let mut half = HalfOrders::default();
+    for h in half_orders::ORDERS {
+        let a = amp
+            .iter()
+            .find(|(o, _)| (o - h).abs() < 1e-6)
+            .map_or(0.0, |(_, a)| *a);
+        let (a, f) = if h > top {
+            (0.0, 0.0)
+        } else {
+            (a, floor_at(h))
+        };
+        half.amplitude.push(a);
+        half.floor.push(f);
+    }
+    Fractional { levels, half }
 }
 
 #[cfg(test)]
@@ -132,7 +167,8 @@ mod tests {
             })
             .collect();
         let o = orders();
-        let v = measure(&x, fs, &track);
+        let f = measure(&x, fs, &track);
+        let v = &f.levels;
         let at = |order: f64| {
             let k = o
                 .iter()
@@ -148,5 +184,22 @@ mod tests {
         assert!(o
             .iter()
             .all(|p| (p - p.round()).abs() >= INTEGER_GAP - 1e-9));
+        // the half-order lines: every one on the grid, 0.5x and 2.5x at their amplitudes
+        // (0.05), the others at the floor
+        for h in half_orders::ORDERS {
+            assert!(
+                o.iter().any(|p| (p - h).abs() < 1e-6),
+                "{h} not on the grid"
+            );
+        }
+        let (a, fl) = (&f.half.amplitude, &f.half.floor);
+        assert!(
+            (a[0] - 0.05).abs() < 0.005 && (a[2] - 0.05).abs() < 0.005,
+            "{a:?}"
+        );
+        assert!(
+            a[1] < 0.005 && a[3] < 0.005 && fl.iter().all(|x| *x < 0.005),
+            "{a:?} {fl:?}"
+        );
     }
 }

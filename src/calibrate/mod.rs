@@ -1,17 +1,19 @@
 //! Simulator calibration against measured recordings (`rigmon calibrate`): simulate the
 //! measured operating points ([`measured`]), compare physically meaningful views
 //! ([`views`]: envelope and raw spectra, [`fault_peaks`], [`shaft_orders`],
-//! [`fractional_orders`], [`impacts`], [`modes`], with order [`stats`]) with one scalar
-//! error of named components ([`error`]), locate the residual ([`locate`]) and name its
-//! usual causes ([`trace`]), attribute it greedily to catalog effects ([`catalog`],
-//! [`search`], [`fit`]; a speed fluctuation around the line the measured speed spectra show,
-//! [`speed_line`]) confirmed on a held-out part, and report ([`report`], [`plots`]).
+//! [`fractional_orders`] with its [`half_orders`], [`impacts`], [`modes`], with order
+//! [`stats`]) with one scalar error of named components ([`error`]), locate the residual
+//! ([`locate`]) and name its usual causes ([`trace`]), attribute it greedily to catalog
+//! effects ([`catalog`], [`search`], [`fit`]; a speed fluctuation around the line the
+//! measured speed spectra show, [`speed_line`]) confirmed on a held-out part, and report
+//! ([`report`], [`plots`]).
 
 pub mod catalog;
 pub mod error;
 pub mod fault_peaks;
 pub mod fit;
 pub mod fractional_orders;
+pub mod half_orders;
 pub mod impacts;
 pub mod locate;
 pub mod measured;

@@ -44,7 +44,7 @@ fn parts(e: &ErrorParts) -> Value {
 }
 
 /// What each component compares, for the Markdown table.
-const DESCRIPTIONS: [(&str, &str); 12] = [
+const DESCRIPTIONS: [(&str, &str); 13] = [
     ("env", "envelope order spectrum, mean dB"),
     ("peaks", "fault-order locations, per mille"),
     ("ratios", "harmonic and sideband ratios, summed dB / 10"),
@@ -61,6 +61,10 @@ const DESCRIPTIONS: [(&str, &str); 12] = [
     (
         "fractional",
         "sub-synchronous and fractional shaft orders, summed dB / 100",
+    ),
+    (
+        "half_orders",
+        "half-order lines 0.5x-3.5x (looseness, rub), summed dB / 10",
     ),
     (
         "impacts",

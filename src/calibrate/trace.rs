@@ -15,7 +15,8 @@
 //! | narrowband, frequency-locked, no mains multiple | a source not locked to this shaft (another machine, a fan, a pump, the foundation) |
 //! | order at the cage rate (FTF +-3 %) | cage defect or cage-rate modulation |
 //! | order 0.38-0.48 | fluid-film (oil) whirl or another sub-synchronous instability |
-//! | order near k + 1/2 (+-0.03), below 10x | mechanical looseness (half-order sub-harmonics), rub |
+//! | order near k + 1/2 (+-0.03), below 4x | mechanical looseness or rub (half-order sub-harmonics) that the catalog's `subharmonics` did not explain: a line off the exact half order, levels unlike its power law, or not confirmed on the held-out part |
+//! | order near k + 1/2 (+-0.03), 4x-10x | mechanical looseness or rub (half-order sub-harmonics above 3.5x, which `subharmonics` does not compare) |
 //! | order near k + 1/3 or k + 2/3 (+-0.03), below 5x | looseness or rub (third-order sub-harmonics) |
 //! | a bearing fault order or harmonic (+-1 %, up to the 4th), or BPFI +-1x, +-2x | that bearing fault where the label does not claim one, or another bearing |
 //! | 1-8 % from a fault order or harmonic | slip or contact angle: a fault-order comb slightly off |
@@ -37,6 +38,9 @@ const FAULT_AT: f64 = 0.01;
 const FAULT_OFF: f64 = 0.08;
 /// Half orders (looseness, rub) are read as such below this order...
 const HALF_ORDERS_UP_TO: f64 = 10.0;
+/// ... and as ones the `subharmonics` effect could have fitted below this one (its lines,
+/// [`super::half_orders::ORDERS`], end at 3.5x, inside the fractional view).
+const FITTED_HALF_ORDERS_BELOW: f64 = 4.0;
 /// ... third orders below this one.
 const THIRD_ORDERS_UP_TO: f64 = 5.0;
 /// Harmonics of the fault orders checked.
@@ -118,7 +122,14 @@ fn order_candidates(o: f64, f: &FaultOrders, out: &mut Vec<&str>) {
     }
     let integer = (o - o.round()).abs() <= FRACTION_TOL;
     if !integer && o < HALF_ORDERS_UP_TO && near_fraction(o, 2.0, &[1.0]) {
-        out.push("mechanical looseness (half-order sub-harmonics), rub");
+        out.push(if o < FITTED_HALF_ORDERS_BELOW {
+            "mechanical looseness or rub (half-order sub-harmonics) that the catalog's \
+             `subharmonics` did not explain: a line off the exact half order, levels unlike its \
+             power law, or not confirmed on the held-out part (see its trial)"
+        } else {
+            "mechanical looseness or rub (half-order sub-harmonics above 3.5x, which \
+             `subharmonics` does not compare)"
+        });
     }
     if !integer && o < THIRD_ORDERS_UP_TO && near_fraction(o, 3.0, &[1.0, 2.0]) {
         out.push("looseness or rub (third-order sub-harmonics)");
@@ -211,6 +222,13 @@ mod tests {
             &u(0.5, "order", "speed", "fractional", 0.5),
             "looseness"
         ));
+        // half orders the catalog's `subharmonics` could have fitted, and ones above them
+        assert!(has(
+            &u(1.5, "order", "speed", "fractional", 1.5),
+            "did not explain"
+        ));
+        let high = u(4.5, "order", "speed", "lines", 4.5);
+        assert!(has(&high, "above 3.5x") && !has(&high, "did not explain"));
         assert!(has(&u(0.44, "order", "speed", "fractional", 0.44), "whirl"));
         assert!(!has(
             &u(0.44, "order", "speed", "fractional", 0.44),

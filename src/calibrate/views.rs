@@ -16,7 +16,8 @@
 //! - `mode`: the dominant structural resonance ([`super::modes`]);
 //! - `floor_db`: the absolute broadband floor (sensor noise);
 //! - `fractional`: sub-synchronous and fractional shaft orders of the raw signal
-//!   ([`super::fractional_orders`]), every recording;
+//!   ([`super::fractional_orders`]), every recording, with the half-order lines 0.5x-3.5x
+//!   (`half_orders`, [`super::half_orders`]);
 //! - `impacts`: the envelope spectrum in Hz of the broadband band energy
 //!   ([`super::impacts`]), every recording.
 //!
@@ -27,6 +28,7 @@
 //! slow fluctuations (periods up to half the recording) are resolved.
 
 use super::fault_peaks::{self, DbSpectrum, FaultPeak};
+use super::half_orders::HalfOrders;
 use super::modes::{self, Mode};
 use super::shaft_orders::{self, ShaftOrders};
 use super::stats::{median, quantile};
@@ -92,6 +94,9 @@ pub struct Views {
     /// Sub-synchronous and fractional shaft orders, thresholded dB
     /// ([`fractional_orders::orders`]).
     pub fractional: Vec<f64>,
+    /// The half-order lines (0.5x-3.5x) of the fractional view: amplitudes and floors
+    /// ([`super::half_orders`]).
+    pub half_orders: HalfOrders,
     /// Envelope spectrum of the broadband energy in Hz, thresholded dB
     /// ([`impacts::frequencies`]).
     pub impacts: Vec<f64>,
@@ -175,6 +180,8 @@ fn average(parts: Vec<Views>) -> Views {
     v.bands = mean_vec(&parts, |p| &p.bands);
     v.env_db = mean_vec(&parts, |p| &p.env_db);
     v.fractional = mean_vec(&parts, |p| &p.fractional);
+    v.half_orders.amplitude = mean_vec(&parts, |p| &p.half_orders.amplitude);
+    v.half_orders.floor = mean_vec(&parts, |p| &p.half_orders.floor);
     v.impacts = mean_vec(&parts, |p| &p.impacts);
     v.shaft.amplitude = mean_vec(&parts, |p| &p.shaft.amplitude);
     v.shaft.floor = mean_vec(&parts, |p| &p.shaft.floor);
@@ -276,7 +283,7 @@ pub struct Parts {
     pub spectrum: bool,
     /// `shaft` (the shaft-order lines).
     pub shaft: bool,
-    /// `fractional`.
+    /// `fractional`, `half_orders`.
     pub fractional: bool,
     /// `impacts`.
     pub impacts: bool,
@@ -310,7 +317,7 @@ impl Parts {
                 "lines" | "bands" | "floor" => p.spectrum = true,
                 "modes" => p.spectrum |= mode_from_spectrum,
                 "orders" | "harmonics" => p.shaft = true,
-                "fractional" => p.fractional = true,
+                "fractional" | "half_orders" => p.fractional = true,
                 "impacts" => p.impacts = true,
                 _ => {}
             }
@@ -372,7 +379,8 @@ pub fn compute_parts(
         v.shaft = shaft_orders::measure(&ch.samples, fs, &track);
     }
     if parts.fractional {
-        v.fractional = fractional_orders::measure(&ch.samples, fs, &track);
+        let f = fractional_orders::measure(&ch.samples, fs, &track);
+        (v.fractional, v.half_orders) = (f.levels, f.half);
     }
     if parts.impacts {
         v.impacts = impacts::measure(&ch.samples, fs, BAND_MIN_HZ);

@@ -79,7 +79,8 @@ pub fn run(a: Args) -> Result<()> {
                 serde_json::json!({"rpm": w.rpm, "env": w.env, "lines": w.lines, "bands": w.bands, "band_lo_hz": w.band_lo_hz, "speed": w.speed,
                     "fault_peaks": w.fault_peaks, "shaft_orders": {"amplitude": w.shaft.amplitude, "floor": w.shaft.floor},
                     "mode": {"hz": w.mode.hz, "prominent": w.mode.prominent},
-                    "fractional": w.fractional, "impacts": w.impacts, "seconds": w.seconds, "segments": w.segments})
+                    "fractional": w.fractional, "half_orders": {"orders": crate::calibrate::half_orders::ORDERS, "amplitude": w.half_orders.amplitude, "floor": w.half_orders.floor},
+                    "impacts": w.impacts, "seconds": w.seconds, "segments": w.segments})
             };
             serde_json::json!({"recording": ops[i].name, "measured": v(&outcome.measured_views[i]),
                 "before": v(&outcome.views_before[i]), "after": v(&outcome.views_after[i])})

@@ -41,6 +41,10 @@ pub struct SimulationConfig {
     /// `rigmon calibrate` as `unbalance`); off when absent.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub shaft_lines: Option<ShaftLinesConfig>,
+    /// Half-order lines (0.5x, 1.5x, ...) at the sensor, as mechanical looseness or a rub
+    /// gives (found by `rigmon calibrate` as `subharmonics`); off when absent.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub subharmonics: Option<SubharmonicsConfig>,
 }
 
 /// `[simulation.shaft_lines]`: vibration locked to the shaft angle at orders 1, 2, ... on the
@@ -79,6 +83,87 @@ impl ShaftLinesConfig {
     }
 }
 
+/// `[simulation.subharmonics]`: vibration locked to the shaft angle at the half orders 0.5x,
+/// 1.5x, 2.5x, ... up to `highest_order` on the radial channels (vertical, horizontal 90 deg
+/// behind), as a loose support or a rub that repeats every other revolution gives. The line at
+/// order o has amplitude `half_order_m_s2 (2 o)^-slope (rpm / ref_rpm)^exponent`: 0.5x is
+/// `half_order_m_s2` at `ref_rpm`, slope 1 makes 1.5x a third of it.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SubharmonicsConfig {
+    /// Speed at which `half_order_m_s2` holds, rpm.
+    pub ref_rpm: f64,
+    /// Growth of every line with speed.
+    pub exponent: f64,
+    /// Amplitude of the 0.5x line at `ref_rpm`, m/s^2.
+    pub half_order_m_s2: f64,
+    /// Decay of the lines over the order (0: all as strong as 0.5x).
+    pub slope: f64,
+    /// The highest half order: 0.5, 1.5, 2.5, ...
+    pub highest_order: f64,
+    /// Phase of the 0.5x line relative to the tacho mark, degrees (order o: 2 o times it).
+    #[serde(default)]
+    pub phase_deg: f64,
+}
+
+/// Highest half order `[simulation.subharmonics]` accepts.
+pub const MAX_HALF_ORDER: f64 = 50.5;
+
+impl SubharmonicsConfig {
+    /// The half orders and their amplitudes at `ref_rpm`, m/s^2, ascending.
+    pub fn lines(&self) -> Vec<(f64, f64)> {
+        let n = (self.highest_order - 0.5).round().max(0.0) as usize + 1;
+        (0..n)
+            .map(|j| {
+                let o = j as f64 + 0.5;
+                (o, self.half_order_m_s2 * (2.0 * o).powf(-self.slope))
+            })
+            .collect()
+    }
+
+    /// The speed law every line follows: (rpm / ref_rpm)^exponent.
+    pub fn speed_gain(&self, rpm: f64) -> f64 {
+        (rpm / self.ref_rpm).max(0.0).powf(self.exponent)
+    }
+
+    /// Checks of the section; messages name the key and what to use.
+    fn validate(&self) -> Result<()> {
+        let key = "[simulation.subharmonics]";
+        if !(self.ref_rpm.is_finite() && self.ref_rpm > 0.0) {
+            bail!(
+                "{key} ref_rpm = {}: the speed the amplitude holds at, rpm; must be > 0",
+                self.ref_rpm
+            );
+        }
+        if !(self.exponent.is_finite() && (0.0..=8.0).contains(&self.exponent)) {
+            bail!("{key} exponent = {}: growth of the lines with speed; use 0..8 (2 for a force growing with speed^2)", self.exponent);
+        }
+        if !(self.half_order_m_s2.is_finite() && self.half_order_m_s2 >= 0.0) {
+            bail!(
+                "{key} half_order_m_s2 = {}: the 0.5x amplitude in m/s^2; must be zero or positive",
+                self.half_order_m_s2
+            );
+        }
+        if !(self.slope.is_finite() && (-4.0..=8.0).contains(&self.slope)) {
+            bail!("{key} slope = {}: decay of the lines over the order; use -4..8 (1: 1.5x a third of 0.5x)", self.slope);
+        }
+        let h = self.highest_order;
+        if !(h.is_finite()
+            && (0.5..=MAX_HALF_ORDER).contains(&h)
+            && ((h - 0.5) - (h - 0.5).round()).abs() < 1e-9)
+        {
+            bail!("{key} highest_order = {h}: use a half order from 0.5 to {MAX_HALF_ORDER} (0.5, 1.5, 2.5, ...)");
+        }
+        if !self.phase_deg.is_finite() {
+            bail!(
+                "{key} phase_deg = {}: must be a number of degrees",
+                self.phase_deg
+            );
+        }
+        Ok(())
+    }
+}
+
 /// `[simulation.speed_fluctuation]`: rpm(t) = rpm (1 + fraction sin(2 pi t / period_s)),
 /// applied to constant-speed scenarios.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -106,6 +191,7 @@ impl Default for SimulationConfig {
             channel_map: BTreeMap::new(),
             speed_fluctuation: None,
             shaft_lines: None,
+            subharmonics: None,
         }
     }
 }
@@ -413,9 +499,9 @@ pub const SIGNALS: [&str; 5] = [
 ];
 
 impl SimulationConfig {
-    /// The section with the sensor-stage keys (noise, quantisation, electrical and
-    /// shaft-order lines, tacho) at their defaults: what the mechanical simulation depends
-    /// on (see `sim::EngineRun`).
+    /// The section with the sensor-stage keys (noise, quantisation, electrical, shaft-order
+    /// and half-order lines, tacho) at their defaults: what the mechanical simulation
+    /// depends on (see `sim::EngineRun`).
     pub fn engine_part(&self) -> SimulationConfig {
         let d = SimulationConfig::default();
         let mut s = self.clone();
@@ -424,6 +510,7 @@ impl SimulationConfig {
         s.structure.line_hz = d.structure.line_hz;
         s.structure.line_amplitudes_m_s2 = d.structure.line_amplitudes_m_s2;
         s.shaft_lines = None;
+        s.subharmonics = None;
         s.tacho = d.tacho;
         s
     }
@@ -445,6 +532,9 @@ impl SimulationConfig {
             {
                 bail!("[simulation.shaft_lines]: ref_rpm must be > 0, exponent in [0, 8] and amplitudes_m_s2 >= 0 (got {}, {} and {:?})", l.ref_rpm, l.exponent, l.amplitudes_m_s2);
             }
+        }
+        if let Some(h) = &self.subharmonics {
+            h.validate()?;
         }
         let pos = |name: &str, v: f64| -> Result<()> {
             if !(v.is_finite() && v > 0.0) {
@@ -639,5 +729,43 @@ mod tests {
             .unwrap_err()
             .to_string()
             .contains("channel_map.DE"));
+    }
+
+    /// `[simulation.subharmonics]`: unknown keys are refused by name, bad values name the key
+    /// and what to use, and the lines follow the documented law.
+    #[test]
+    fn subharmonics_are_checked_and_follow_their_law() {
+        let text = "[subharmonics]\nref_rpm = 1200.0\nexponent = 2.0\nhalf_order_m_s2 = 0.3\nslope = 1.0\nhighest_order = 2.5\n";
+        let c: SimulationConfig = toml::from_str(text).unwrap();
+        c.validate().unwrap();
+        let h = c.subharmonics.as_ref().unwrap();
+        let lines = h.lines();
+        assert_eq!(lines.len(), 3, "{lines:?}");
+        assert_eq!(lines[0], (0.5, 0.3));
+        assert!(
+            (lines[1].1 - 0.1).abs() < 1e-12 && lines[2].0 == 2.5,
+            "{lines:?}"
+        );
+        assert!((h.speed_gain(600.0) - 0.25).abs() < 1e-12);
+        assert_eq!(c.engine_part().subharmonics, None);
+        let err = toml::from_str::<SimulationConfig>(&text.replace("slope", "slop"))
+            .unwrap_err()
+            .to_string();
+        assert!(err.contains("slop"), "{err}");
+        for (bad, key) in [
+            ("highest_order = 2.0", "highest_order"),
+            ("highest_order = 0.0", "highest_order"),
+            ("slope = 20.0", "slope"),
+            ("exponent = -1.0", "exponent"),
+        ] {
+            let k = bad.split(' ').next().unwrap();
+            let line = text.lines().find(|l| l.starts_with(k)).unwrap();
+            let c: SimulationConfig = toml::from_str(&text.replace(line, bad)).unwrap();
+            let err = c.validate().unwrap_err().to_string();
+            assert!(
+                err.contains("[simulation.subharmonics]") && err.contains(key),
+                "{bad}: {err}"
+            );
+        }
     }
 }

@@ -1,7 +1,7 @@
 //! The sensor stage of a simulation: from the engine's housing signals and shaft angles
 //! ([`super::EngineRun`]) to a [`Recording`]: white sensor noise, electrical line
-//! interference, shaft-order lines, units and quantisation per channel, the analog tacho
-//! and the metadata (labels, the simulation section used).
+//! interference, shaft-order and half-order lines, units and quantisation per channel, the
+//! analog tacho and the metadata (labels, the simulation section used).
 
 use super::{channel_signals, high_fraction, model_fault_orders, EngineRun, Fault, Scenario};
 use crate::config::{ChannelKind, RigConfig};
@@ -58,6 +58,33 @@ pub fn finish(
             .collect();
         (l.phase_deg.to_radians(), shaft_hz, gain, orders)
     });
+    // half-order lines (0.5x, 1.5x, ...) the same way; their angle is half orders of the shaft
+    // angle, so they repeat every two revolutions
+    let half_lines = sim.subharmonics.as_ref().map(|h| {
+        let b = &out.boundary_angles;
+        let gain: Vec<f64> = (0..n_out)
+            .map(|i| h.speed_gain(60.0 * (b[i + 1] - b[i]) * fs / std::f64::consts::TAU))
+            .collect();
+        let orders: Vec<(f64, f64)> = h.lines().into_iter().filter(|(_, a)| *a != 0.0).collect();
+        (h.phase_deg.to_radians(), gain, orders)
+    });
+    let half_line = |vertical: bool, i: usize| -> f64 {
+        let Some((phase, gain, orders)) = &half_lines else {
+            return 0.0;
+        };
+        let b = &out.boundary_angles;
+        let shaft_hz = (b[i + 1] - b[i]) * fs / std::f64::consts::TAU;
+        let th = 0.5 * (b[i] + b[i + 1]);
+        let nyquist = 0.5 * fs;
+        orders
+            .iter()
+            .take_while(|(o, _)| o * shaft_hz < nyquist)
+            .map(|(o, a)| {
+                let x = o * (th + 2.0 * phase);
+                a * gain[i] * if vertical { x.cos() } else { x.sin() }
+            })
+            .sum()
+    };
     let shaft_line = |vertical: bool, i: usize| -> f64 {
         let Some((phase, shaft_hz, gain, orders)) = &shaft_lines else {
             return 0.0;
@@ -74,7 +101,8 @@ pub fn finish(
             .sum()
     };
     for ((c, signal, scale), sig) in chans.iter().zip(&out.signals) {
-        // shaft lines act on the radial housing signals: cos on vertical, sin on horizontal
+        // shaft and half-order lines act on the radial housing signals: cos on vertical, sin
+        // on horizontal
         let radial = match SIGNALS[*signal] {
             "vertical" | "support_vertical" => Some(true),
             "horizontal" | "support_horizontal" => Some(false),
@@ -98,6 +126,7 @@ pub fn finish(
                 let y = (a
                     + hum
                     + radial.map_or(0.0, |v| shaft_line(v, i))
+                    + radial.map_or(0.0, |v| half_line(v, i))
                     + sim.structure.noise_rms_m_s2 * z)
                     * scale;
                 (if lsb > 0.0 {

@@ -14,7 +14,8 @@ effect in rigmon's catalog explains (an order-locked narrowband line at a non-in
 `whirl` another one below 1x (a sub-synchronous line locked to the shaft at 0.46x, as
 fluid-film whirl is). `slow_speed_fluctuation` is a speed fluctuation slower than the default
 2 s of signal could show (period 4 s: generate 10 s or more).
-`looseness` adds shaft harmonics 3x..Nx, `noise` changes the sensor noise.
+`looseness` adds shaft harmonics 3x..Nx, `subharmonics` half orders 0.5x, 1.5x, 2.5x, ...
+(a housing rocking between two stops every other revolution), `noise` changes the sensor noise.
 
     python3 measured_like.py --out DIR --case CASE [--seed N] [--seconds S]
 
@@ -56,6 +57,25 @@ TACHO_HIGH_V = 5.0
 TACHO_DUTY = 0.1
 TACHO_NOISE_V = 0.01
 
+
+def clipped_half_orders(stop_fraction, lines=4):
+    """Amplitudes of 0.5x, 1.5x, ... (per unit stroke) of a motion at half the shaft speed cut
+    off symmetrically at +-stop_fraction of its stroke (the Fourier series of one period, two
+    shaft revolutions): a symmetric clip keeps the odd multiples of 0.5x only."""
+    th = np.linspace(0.0, 2 * np.pi, 4096, endpoint=False)
+    x = np.clip(np.cos(th), -stop_fraction, stop_fraction) / stop_fraction
+    c = 2 * np.abs(np.fft.rfft(x)) / len(x)
+    return [float(c[2 * j + 1]) for j in range(lines)]
+
+
+# Mechanical looseness with sub-harmonics: the housing rocks between two stops, repeating
+# every two revolutions; its acceleration is a 0.5x motion of `stroke_m_s2` clipped at
+# `stop_fraction` of the stroke, growing with speed^2. `half_order_m_s2` is the resulting 0.5x
+# line at `at_rpm` (the truth a calibration is scored on).
+SUB_STROKE_M_S2 = 0.48
+SUB_STOP_FRACTION = 0.3
+SUB_LINES = clipped_half_orders(SUB_STOP_FRACTION)
+
 # Hidden parameters per case (a test must not pass them to calibrate).
 CASES = {
     "baseline": (None, {}),
@@ -67,6 +87,17 @@ CASES = {
     "speed_fluctuation": ("speed_fluctuation", {"fraction": 0.04, "period_s": 0.8}),
     "looseness": ("looseness", {"harmonics_m_s2": 0.1, "highest_order": 10, "at_rpm": 1200.0}),
     "noise": ("noise", {"noise_rms_m_s2": 0.1}),
+    "subharmonics": (
+        "subharmonics",
+        {
+            "stroke_m_s2": SUB_STROKE_M_S2,
+            "stop_fraction": SUB_STOP_FRACTION,
+            "at_rpm": 1200.0,
+            "half_order_m_s2": round(SUB_STROKE_M_S2 * SUB_LINES[0], 4),
+            # 0.5x, 1.5x, 2.5x, 3.5x relative to 0.5x
+            "line_ratios": [round(r / SUB_LINES[0], 4) for r in SUB_LINES],
+        },
+    ),
     "outside": (None, {}),
     "whirl": (None, {}),
     "slow_speed_fluctuation": ("speed_fluctuation", {"fraction": 0.04, "period_s": 4.0}),
@@ -174,6 +205,15 @@ def record(label, rpm, case, params, seconds, rng):
             ph = rng.uniform(0, 2 * np.pi)
             chans[1] += a * np.cos(2 * np.pi * k * revs + ph)
             chans[2] += 0.7 * a * np.sin(2 * np.pi * k * revs + ph)
+    if case == "subharmonics":
+        # the housing rocks between two stops: a motion at half the shaft speed (it takes two
+        # revolutions to repeat), cut off symmetrically at the stops, so 0.5x, 1.5x, 2.5x, ...
+        # and no integer order
+        a = params["stroke_m_s2"] * (rpm / params["at_rpm"]) ** 2
+        stop = params["stop_fraction"]
+        ph = rng.uniform(0, 2 * np.pi)
+        chans[1] += a * np.clip(np.cos(np.pi * revs + ph), -stop, stop) / stop
+        chans[2] += 0.7 * a * np.clip(np.sin(np.pi * revs + ph), -stop, stop) / stop
     if case == "line_interference":
         ph = rng.uniform(0, 2 * np.pi)
         for c, g in zip(chans, (0.5, 1.0, 0.8)):
