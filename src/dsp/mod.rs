@@ -5,8 +5,8 @@
 //! `[features]` sections), [`tacho`] (analog tacho -> edges), [`speed`] (shaft angle/speed vs
 //! time, pulse repair) and [`speed_estimate`] (speed from vibration), [`envelope`],
 //! [`order_tracking`], [`order_spectrum`], [`features`] (the per-window pipeline) and
-//! [`quality`] (flags). Windows of a stream or a whole recording are cut and given their
-//! speed in `analysis`.
+//! [`quality`] (flags); [`resample`] (a whole stretch down to a lower rate, band-limited).
+//! Windows of a stream or a whole recording are cut and given their speed in `analysis`.
 
 pub mod envelope;
 pub mod feature_settings;
@@ -15,6 +15,7 @@ pub mod fft_len;
 pub mod order_spectrum;
 pub mod order_tracking;
 pub mod quality;
+pub mod resample;
 pub mod speed;
 pub mod speed_config;
 pub mod speed_estimate;
