@@ -622,10 +622,12 @@ fn searching_on_own_views_gives_the_same_objective() {
             .enumerate()
             .map(|(i, (faults, rpm))| {
                 let sc = Scenario::constant(&faults, rpm, 1.0, 50 + i as u64);
+                let recording = simulate_with(&rig, &truth, &sc).unwrap();
                 rigmon::calibrate::measured::Measured {
                     name: format!("r{i}"),
                     label: sc.label().to_string(),
-                    recording: simulate_with(&rig, &truth, &sc).unwrap(),
+                    recorded_sample_rate: recording.sample_rate,
+                    recording,
                     faults,
                     rpm,
                 }
