@@ -116,7 +116,12 @@ mod tests {
         let rig = rig(TACHO);
         assert_eq!(analysis_rate(&rig).unwrap(), 10_000.0);
         let mut rec = recording(&rig, 48_000.0, 2.0);
-        let rpm_before = crate::calibrate::measured::mean_rpm(&rec, &rig).unwrap();
+        let mean_rpm = |rec: &Recording| {
+            crate::analysis::whole_recording(rec, &rig)
+                .unwrap()
+                .mean_rpm(0.0, rec.duration_s())
+        };
+        let rpm_before = mean_rpm(&rec);
         let edges = match &rec.tacho {
             Some(Tacho::Analog { samples, .. }) => {
                 crate::dsp::tacho::detect_edges(samples, 48_000.0, 2.5, 0.5)
@@ -129,7 +134,7 @@ mod tests {
         assert!((rec.duration_s() - 2.0).abs() < 1e-12);
         // the tacho became the edges detected at 48 kHz: same track, same mean speed
         assert_eq!(rec.tacho, Some(Tacho::Edges { times_s: edges }));
-        let rpm_after = crate::calibrate::measured::mean_rpm(&rec, &rig).unwrap();
+        let rpm_after = mean_rpm(&rec);
         assert_eq!(rpm_after, rpm_before);
         assert!((rpm_after - 1234.0).abs() < 0.5, "{rpm_after}");
         // 150 Hz kept, 7 kHz (above the new Nyquist) gone, on every channel
