@@ -147,30 +147,7 @@ pub fn markdown(rig: &RigConfig, o: &Outcome, ops: &[Measured], id: &str) -> Str
             o.after.get(n)
         );
     }
-    let _ = writeln!(s, "\n## Split (checkerboard by recording)\n\n| recording | label | rpm | seconds analysed (segments) | analysed at, Hz (recorded at) | part |\n|---|---|---|---|---|---|");
-    for ((m, f), v) in ops.iter().zip(&o.fit_part).zip(&o.measured_views) {
-        let _ = writeln!(
-            s,
-            "| {} | {} | {:.1} | {:.2} ({}) | {} ({}) | {} |",
-            m.name,
-            m.label,
-            m.rpm,
-            v.seconds,
-            v.segments,
-            hz(m.recording.sample_rate),
-            hz(m.recorded_sample_rate),
-            if *f { "fit" } else { "held out" }
-        );
-    }
-    if ops
-        .iter()
-        .any(|m| m.recording.sample_rate < m.recorded_sample_rate)
-    {
-        let _ = writeln!(
-            s,
-            "\nRecordings made faster than the simulator's output rate were resampled to it (band-limited) before they were analysed: the classifier is trained on signals at that rate."
-        );
-    }
+    s.push_str(&split_table(o, ops));
     let _ = writeln!(s, "\n## Effects added (in order)\n");
     if o.accepted.is_empty() {
         let _ = writeln!(s, "None: no catalog effect passed the acceptance rule.");
@@ -239,6 +216,37 @@ pub fn markdown(rig: &RigConfig, o: &Outcome, ops: &[Measured], id: &str) -> Str
         s,
         "\n![measured vs simulated](spectra.png)\n\n![residual](residual.png)"
     );
+    s
+}
+
+/// The split table of the Markdown summary: each recording's part, what of it was analysed
+/// and at which rate (and the rate it was recorded at).
+fn split_table(o: &Outcome, ops: &[Measured]) -> String {
+    let mut s = String::new();
+    let _ = writeln!(s, "\n## Split (checkerboard by recording)\n\n| recording | label | rpm | seconds analysed (segments) | analysed at, Hz (recorded at) | part |\n|---|---|---|---|---|---|");
+    for ((m, f), v) in ops.iter().zip(&o.fit_part).zip(&o.measured_views) {
+        let _ = writeln!(
+            s,
+            "| {} | {} | {:.1} | {:.2} ({}) | {} ({}) | {} |",
+            m.name,
+            m.label,
+            m.rpm,
+            v.seconds,
+            v.segments,
+            hz(m.recording.sample_rate),
+            hz(m.recorded_sample_rate),
+            if *f { "fit" } else { "held out" }
+        );
+    }
+    if ops
+        .iter()
+        .any(|m| m.recording.sample_rate < m.recorded_sample_rate)
+    {
+        let _ = writeln!(
+            s,
+            "\nRecordings made faster than the simulator's output rate were resampled to it (band-limited) before they were analysed: the classifier is trained on signals at that rate."
+        );
+    }
     s
 }
 
