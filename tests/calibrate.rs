@@ -457,12 +457,15 @@ fn baseline_accepts_nothing() {
     );
 }
 
-/// The real CWRU healthy record (healthy-only calibration, the README's *Real data*): the
-/// resonance the record rings at and the sensor floor are found and confirmed by the held-out
-/// half, no bearing effect (slip, contact angle) is invented from a healthy record, the
-/// error drops, and the drive-end bearing's inner-race line (162 Hz, 5.415 orders at 1796
-/// rpm), which no catalog effect models, comes back unexplained. The fitted resonance must
-/// agree with the shipped `config/cwru-de-calibrated.toml` (the README's numbers) within 1 %.
+/// The real CWRU healthy record (healthy-only calibration, the README's *Real data*),
+/// recorded at 48 kHz and analysed at the rig's 12 kHz simulation rate: the resonance the
+/// record rings at (4.1-4.3 kHz) is found and confirmed by the held-out half, no bearing
+/// effect (slip, contact angle) is invented from a healthy record, the error drops, and the
+/// drive-end bearing's inner-race line (162 Hz, 5.415 orders at 1796 rpm), which no catalog
+/// effect models, comes back unexplained. The fitted resonance must agree with the shipped
+/// `config/cwru-de-calibrated.toml` (the README's numbers) within 1 %. (Analysed at 48 kHz,
+/// the sensor noise was accepted too; at 12 kHz fitting it costs more in the shaft harmonics
+/// than it gains in the floor, docs/calibration.md, so it is not asserted.)
 #[test]
 fn cwru_healthy_record_calibrates() {
     let record = repo().join("../shared/data/cwru/97_Normal_0.mat");
@@ -491,11 +494,13 @@ fn cwru_healthy_record_calibrates() {
             r["effects"]
         );
     }
+    for rec in r["recordings"].as_array().unwrap() {
+        assert_eq!(rec["recorded_sample_rate_hz"], 48_000.0, "{rec}");
+        assert_eq!(rec["sample_rate_hz"], 12_000.0, "{rec}");
+    }
     let resonance = named("resonance").expect("no resonance fitted");
     let hz = num(&resonance["params"]["hz"], "resonance hz");
-    let noise = named("noise").expect("no sensor noise fitted");
-    let noise_rms = num(&noise["params"]["noise_rms_m_s2"], "noise rms");
-    assert!((0.01..0.1).contains(&noise_rms), "noise {noise_rms} m/s^2");
+    assert!((4100.0..4300.0).contains(&hz), "resonance {hz} Hz");
     let shipped: toml::Table = toml::from_str(
         &std::fs::read_to_string(repo().join("config/cwru-de-calibrated.toml")).unwrap(),
     )
@@ -661,10 +666,12 @@ fn searching_on_own_views_gives_the_same_objective() {
             .enumerate()
             .map(|(i, (faults, rpm))| {
                 let sc = Scenario::constant(&faults, rpm, 1.0, 50 + i as u64);
+                let recording = simulate_with(&rig, &truth, &sc).unwrap();
                 rigmon::calibrate::measured::Measured {
                     name: format!("r{i}"),
                     label: sc.label().to_string(),
-                    recording: simulate_with(&rig, &truth, &sc).unwrap(),
+                    recorded_sample_rate: recording.sample_rate,
+                    recording,
                     faults,
                     rpm,
                 }

@@ -741,10 +741,22 @@ fn manifest_sample_rate_column_reaches_the_importers() {
     assert!(e.contains("--sample-rate"), "{e}");
 }
 
+/// The spans a manifest names, cut sample for sample. 97 is recorded at 48 kHz and the
+/// shipped rig simulates at 12 kHz, so calibration analyses it resampled; the cut itself is
+/// checked on the same rig simulating at 48 kHz (nothing resampled), the resampled spans
+/// after it ([`calibration_analyses_at_the_simulation_rate`]).
 #[test]
 fn calibration_reads_only_the_span_a_manifest_row_names() {
     let dir = tempfile::tempdir().unwrap();
-    let de = rig("cwru-de.toml");
+    let text =
+        std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("config/cwru-de.toml"))
+            .unwrap();
+    assert!(text.contains("\nsample_rate_hz = 12000.0\n"));
+    let de = rigmon::config::RigConfig::parse(&text.replace(
+        "\nsample_rate_hz = 12000.0\n",
+        "\nsample_rate_hz = 48000.0\n",
+    ))
+    .unwrap();
     let file = shared_data().join("cwru/97_Normal_0.mat");
     let labels = dir.path().join("labels.csv");
     let p = file.display();
@@ -785,4 +797,38 @@ fn calibration_reads_only_the_span_a_manifest_row_names() {
         e.contains("97_Normal_0.mat") && e.contains("widen the span"),
         "{e}"
     );
+}
+
+/// With the shipped 12 kHz rig the same spans of the 48 kHz record are analysed at 12 kHz:
+/// the whole length the span names, a quarter of its samples (the rate is the ratio used,
+/// never above 12 kHz), the recorded rate kept for the report, the speed unchanged.
+#[test]
+fn calibration_analyses_at_the_simulation_rate() {
+    let dir = tempfile::tempdir().unwrap();
+    let de = rig("cwru-de.toml");
+    let file = shared_data().join("cwru/97_Normal_0.mat");
+    let labels = dir.path().join("labels.csv");
+    let p = file.display();
+    std::fs::write(
+        &labels,
+        format!("path,label,start_s,end_s\n{p},healthy,,\n{p},healthy,0,2.5\n{p},healthy,2.5,\n"),
+    )
+    .unwrap();
+    let m = rigmon::calibrate::measured::load(&de, std::slice::from_ref(&labels), f64::INFINITY)
+        .unwrap();
+    // 243,938 samples at 48 kHz: all, the first 120,000, the rest
+    let recorded = [243_938usize, 120_000, 123_938];
+    for (r, n) in m.iter().zip(recorded) {
+        assert_eq!(r.recorded_sample_rate, 48_000.0);
+        assert_eq!(r.recording.len(), n / 4, "{}", r.name);
+        let fs = r.recording.sample_rate;
+        assert_eq!(fs, 48_000.0 * (n / 4) as f64 / n as f64);
+        // less than one sample per stretch below 12 kHz
+        assert!(
+            fs <= 12_000.0 && fs > 12_000.0 * (1.0 - 4.0 / n as f64),
+            "{fs}"
+        );
+        assert!((r.recording.duration_s() - n as f64 / 48_000.0).abs() < 1e-9);
+        assert!((r.rpm - 1796.0).abs() < 1e-9, "{}", r.rpm);
+    }
 }

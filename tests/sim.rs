@@ -546,11 +546,39 @@ fn subharmonics_have_their_configured_amplitudes_and_reach_the_dataset() {
 /// fitted noise and resonance in every recording; `spread` draws them from the plan's
 /// ranges moved onto the fitted values (same width for the frequency, same ratio for the
 /// noise), so they vary around the calibration instead of over the plan's original ranges.
+/// The shipped CWRU calibration (its fitted resonance) with a fitted sensor noise added, so
+/// both kinds of parameter are covered whatever that calibration accepts.
 #[test]
 fn a_dataset_keeps_or_spreads_a_calibration() {
     use rigmon::sim::dataset::{generate, CalibratedDraws};
-    let r = rig("cwru-de-calibrated.toml");
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("config/cwru-de-calibrated.toml");
+    let mut table: toml::Table = toml::from_str(&std::fs::read_to_string(path).unwrap()).unwrap();
+    let effects = table["calibration"]["effects"].as_array().unwrap().clone();
+    assert!(
+        effects
+            .iter()
+            .any(|e| e["name"].as_str() == Some("resonance")),
+        "the shipped calibration has no resonance: {effects:?}"
+    );
+    let mut effects: Vec<toml::Value> = effects
+        .into_iter()
+        .filter(|e| e["name"].as_str() != Some("noise"))
+        .collect();
+    let mut noise_effect = toml::Table::new();
+    noise_effect.insert("name".into(), "noise".into());
+    noise_effect.insert("noise_rms_m_s2".into(), 0.04.into());
+    effects.push(noise_effect.into());
+    table["calibration"]
+        .as_table_mut()
+        .unwrap()
+        .insert("effects".into(), effects.into());
+    table["simulation"]["structure"]
+        .as_table_mut()
+        .unwrap()
+        .insert("noise_rms_m_s2".into(), 0.04.into());
+    let r = RigConfig::parse(&toml::to_string(&table).unwrap()).unwrap();
     let sim = r.simulation.as_ref().unwrap();
+    assert_eq!(sim.structure.noise_rms_m_s2, 0.04);
     let noise = sim.structure.noise_rms_m_s2;
     let hz = sim.structure.resonances[0].hz;
     let plan = sim::plan::Plan::parse(

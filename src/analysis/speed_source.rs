@@ -5,8 +5,9 @@
 //! daemon and for whole recordings alike (features are computed window by window, so
 //! training and serving see the same speed); [`whole_recording`] gives one track over a whole
 //! recording for the analyses that are not per-window features (calibration, whole-recording
-//! spectra, `rigmon inspect`). Also says when the tacho has gone quiet inside a window (so the
-//! state goes `unknown` instead of raising a false alarm).
+//! spectra, `rigmon inspect`), and [`analog_tacho_to_edges`] turns an analog tacho into the
+//! edges it would read (before a recording is resampled). Also says when the tacho has gone
+//! quiet inside a window (so the state goes `unknown` instead of raising a false alarm).
 
 use crate::config::RigConfig;
 use crate::dsp::speed::SpeedTrack;
@@ -213,11 +214,7 @@ pub fn whole_recording(rec: &Recording, rig: &RigConfig) -> Result<SpeedTrack> {
         match tacho {
             Tacho::Edges { times_s } => SpeedTrack::from_edges(times_s, ppr, "edges"),
             Tacho::Analog { samples, .. } => {
-                let (thr, hyst) = match rig.speed.tacho_levels() {
-                    Some(levels) => levels,
-                    None => tacho::auto_threshold(samples)
-                        .context("the analog tacho channel has no usable levels")?,
-                };
+                let (thr, hyst) = analog_levels(samples, &rig.speed)?;
                 SpeedTrack::from_analog(samples, rec.sample_rate, thr, hyst, ppr)
             }
         }
@@ -245,4 +242,44 @@ pub fn whole_recording(rec: &Recording, rig: &RigConfig) -> Result<SpeedTrack> {
             None => estimate(FALLBACK_RPM.0, FALLBACK_RPM.1),
         },
     }
+}
+
+/// The switching levels of an analog tacho: the rig file's threshold and hysteresis, else
+/// half-way between the channel's own levels ([`tacho::auto_threshold`]).
+fn analog_levels(samples: &[f32], speed: &SpeedConfig) -> Result<(f64, f64)> {
+    match speed.tacho_levels() {
+        Some(levels) => Ok(levels),
+        None => {
+            tacho::auto_threshold(samples).context("the analog tacho channel has no usable levels")
+        }
+    }
+}
+
+/// Turn an analog tacho into the edge times [`whole_recording`] would detect in it, at the
+/// recording's own rate: the speed track (and its mean speed) stays the same, and the
+/// recording can then be resampled without its speed reference losing anything. Edges
+/// delivered by the source, or no tacho, stay as they are. A tacho without usable levels is
+/// an error when the rig's speed source reads it, and is dropped when it does not (a fixed,
+/// stored or estimated speed).
+pub fn analog_tacho_to_edges(rec: &mut Recording, rig: &RigConfig) -> Result<()> {
+    let Some(Tacho::Analog { samples, .. }) = &rec.tacho else {
+        return Ok(());
+    };
+    let reads_tacho = matches!(
+        Mode::new(&rig.speed, rec.rpm)?,
+        Mode::Edges { .. } | Mode::EdgesOrEstimate { .. }
+    );
+    rec.tacho = match analog_levels(samples, &rig.speed) {
+        Ok((thr, hyst)) => Some(Tacho::Edges {
+            times_s: tacho::detect_edges(samples, rec.sample_rate, thr, hyst),
+        }),
+        Err(e) if reads_tacho => {
+            return Err(e.context(format!(
+                "{}: the rig's speed source reads the analog tacho; check that channel, or take the speed from [speed] source = \"fixed\" or \"estimate\"",
+                rec.provenance.source_path
+            )))
+        }
+        Err(_) => None,
+    };
+    Ok(())
 }

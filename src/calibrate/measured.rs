@@ -1,8 +1,10 @@
 //! The measured side of calibration: recordings (a `labels.csv` manifest, or recording files
 //! whose label is taken from their metadata, else `healthy`), each reduced to an operating
-//! point (mean speed from the rig's speed source, fault class) and cut to a common length.
-//! Also the checkerboard fit / held-out split.
+//! point (mean speed from the rig's speed source, fault class), cut to a common length and
+//! brought to the simulator's output rate ([`super::rate`]). Also the checkerboard fit /
+//! held-out split.
 
+use super::rate;
 use crate::config::RigConfig;
 use crate::importers::{self, ImportOptions};
 use crate::manifest::{manifest_path, read_manifest};
@@ -31,11 +33,17 @@ pub struct Measured {
     pub faults: Vec<Fault>,
     /// Mean shaft speed over the analysed span, rpm.
     pub rpm: f64,
+    /// The analysed span, at the rate it is analysed at (`recording.sample_rate`: the
+    /// simulator's output rate when it was recorded faster, [`super::rate`]).
     pub recording: Recording,
+    /// The rate the recording was made at, Hz.
+    pub recorded_sample_rate: f64,
 }
 
 /// Load measured recordings: one `labels.csv` (or a folder holding one) or recording files.
-/// Each is cut to at most `max_seconds` (`f64::INFINITY`: whole).
+/// Each is cut to at most `max_seconds` (`f64::INFINITY`: whole), its mean speed taken at
+/// the recorded rate, and then brought to the simulator's output rate
+/// ([`rate::to_analysis_rate`]).
 pub fn load(rig: &RigConfig, inputs: &[PathBuf], max_seconds: f64) -> Result<Vec<Measured>> {
     // (path, label, import options, the manifest row's start_s/end_s)
     let mut files: Vec<(PathBuf, Option<String>, ImportOptions, Option<(f64, f64)>)> = Vec::new();
@@ -73,6 +81,8 @@ pub fn load(rig: &RigConfig, inputs: &[PathBuf], max_seconds: f64) -> Result<Vec
             );
         }
         let rpm = mean_rpm(&rec, rig).with_context(|| format!("speed of {}", path.display()))?;
+        let recorded_sample_rate = rate::to_analysis_rate(&mut rec, rig)
+            .with_context(|| format!("bringing {} to the simulation rate", path.display()))?;
         out.push(Measured {
             name: path.file_name().map_or_else(
                 || path.display().to_string(),
@@ -82,6 +92,7 @@ pub fn load(rig: &RigConfig, inputs: &[PathBuf], max_seconds: f64) -> Result<Vec
             faults,
             rpm,
             recording: rec,
+            recorded_sample_rate,
         });
     }
     Ok(out)
@@ -166,6 +177,7 @@ pub fn split_single(m: &Measured, rig: &RigConfig) -> Result<Vec<Measured>> {
             faults: m.faults.clone(),
             rpm,
             recording: rec,
+            recorded_sample_rate: m.recorded_sample_rate,
         });
     }
     Ok(out)

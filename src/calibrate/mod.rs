@@ -1,5 +1,6 @@
 //! Simulator calibration against measured recordings (`rigmon calibrate`): simulate the
-//! measured operating points ([`measured`]), compare physically meaningful views
+//! measured operating points ([`measured`], analysed at the simulator's output rate,
+//! [`rate`]), compare physically meaningful views
 //! ([`views`]: envelope and raw spectra, [`fault_peaks`], [`shaft_orders`],
 //! [`fractional_orders`] with its [`half_orders`], [`impacts`], [`modes`], with order
 //! [`stats`]) with one scalar error of named components ([`error`]), locate the residual
@@ -19,6 +20,7 @@ pub mod locate;
 pub mod measured;
 pub mod modes;
 pub mod plots;
+pub mod rate;
 pub mod report;
 pub mod search;
 pub mod shaft_orders;

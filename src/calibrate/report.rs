@@ -1,4 +1,5 @@
-//! Calibration outputs: the JSON object (`--json`), the Markdown summary, the calibrated rig
+//! Calibration outputs: the JSON object (`--json`; per recording the rate it was analysed
+//! at and the rate it was recorded at), the Markdown summary, the calibrated rig
 //! file (the rig's TOML with the calibrated `[simulation]` section and a `[calibration]` stamp
 //! `{id, effects}`), and the calibration id (hash of the calibrated section and the inputs).
 
@@ -28,6 +29,15 @@ pub fn calibration_id(o: &Outcome, ops: &[Measured]) -> String {
             .map(|b| format!("{b:02x}"))
             .collect::<String>()
     )
+}
+
+/// A sample rate for the Markdown report: whole Hz as they are, else to the mHz.
+fn hz(v: f64) -> String {
+    if v.fract() == 0.0 {
+        format!("{v:.0}")
+    } else {
+        format!("{v:.3}")
+    }
 }
 
 fn r3(v: f64) -> f64 {
@@ -98,7 +108,9 @@ pub fn json(rig: &RigConfig, o: &Outcome, ops: &[Measured], id: &str) -> Value {
             let a = super::error::pair(&o.measured_views[i], &o.views_after[i]);
             let v = &o.measured_views[i];
             json!({"recording": m.name, "seconds": (v.seconds * 1000.0).round() / 1000.0,
-                   "segments": v.segments, "before": parts(&b), "after": parts(&a)})
+                   "segments": v.segments, "sample_rate_hz": m.recording.sample_rate,
+                   "recorded_sample_rate_hz": m.recorded_sample_rate,
+                   "before": parts(&b), "after": parts(&a)})
         })
         .collect();
     json!({
@@ -139,19 +151,7 @@ pub fn markdown(rig: &RigConfig, o: &Outcome, ops: &[Measured], id: &str) -> Str
             o.after.get(n)
         );
     }
-    let _ = writeln!(s, "\n## Split (checkerboard by recording)\n\n| recording | label | rpm | seconds analysed (segments) | part |\n|---|---|---|---|---|");
-    for ((m, f), v) in ops.iter().zip(&o.fit_part).zip(&o.measured_views) {
-        let _ = writeln!(
-            s,
-            "| {} | {} | {:.1} | {:.2} ({}) | {} |",
-            m.name,
-            m.label,
-            m.rpm,
-            v.seconds,
-            v.segments,
-            if *f { "fit" } else { "held out" }
-        );
-    }
+    s.push_str(&split_table(o, ops));
     let _ = writeln!(s, "\n## Effects added (in order)\n");
     if o.accepted.is_empty() {
         let _ = writeln!(s, "None: no catalog effect passed the acceptance rule.");
@@ -220,6 +220,37 @@ pub fn markdown(rig: &RigConfig, o: &Outcome, ops: &[Measured], id: &str) -> Str
         s,
         "\n![measured vs simulated](spectra.png)\n\n![residual](residual.png)"
     );
+    s
+}
+
+/// The split table of the Markdown summary: each recording's part, what of it was analysed
+/// and at which rate (and the rate it was recorded at).
+fn split_table(o: &Outcome, ops: &[Measured]) -> String {
+    let mut s = String::new();
+    let _ = writeln!(s, "\n## Split (checkerboard by recording)\n\n| recording | label | rpm | seconds analysed (segments) | analysed at, Hz (recorded at) | part |\n|---|---|---|---|---|---|");
+    for ((m, f), v) in ops.iter().zip(&o.fit_part).zip(&o.measured_views) {
+        let _ = writeln!(
+            s,
+            "| {} | {} | {:.1} | {:.2} ({}) | {} ({}) | {} |",
+            m.name,
+            m.label,
+            m.rpm,
+            v.seconds,
+            v.segments,
+            hz(m.recording.sample_rate),
+            hz(m.recorded_sample_rate),
+            if *f { "fit" } else { "held out" }
+        );
+    }
+    if ops
+        .iter()
+        .any(|m| m.recording.sample_rate < m.recorded_sample_rate)
+    {
+        let _ = writeln!(
+            s,
+            "\nRecordings made faster than the simulator's output rate were resampled to it (band-limited) before they were analysed: the classifier is trained on signals at that rate."
+        );
+    }
     s
 }
 

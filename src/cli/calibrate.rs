@@ -40,11 +40,13 @@ pub fn run(a: Args) -> Result<()> {
     let part = measured::checkerboard(&ops);
     for (m, p) in ops.iter().zip(&part) {
         eprintln!(
-            "split: {:<32} {:<11} {:7.1} rpm  {:6.2} s  {}",
+            "split: {:<32} {:<11} {:7.1} rpm  {:6.2} s at {:.3} Hz (recorded at {} Hz)  {}",
             m.name,
             m.label,
             m.rpm,
             m.recording.duration_s(),
+            m.recording.sample_rate,
+            m.recorded_sample_rate,
             if *p { "fit" } else { "held out" }
         );
     }

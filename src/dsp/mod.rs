@@ -6,8 +6,8 @@
 //! time, pulse repair) and [`speed_estimate`] (speed from vibration), [`envelope`],
 //! [`kurtogram`] (the band where the signal is most impulsive, for the envelope),
 //! [`order_tracking`], [`order_spectrum`], [`features`] (the per-window pipeline) and
-//! [`quality`] (flags). Windows of a stream or a whole recording are cut and given their
-//! speed in `analysis`.
+//! [`quality`] (flags); [`resample`] (a whole stretch down to a lower rate, band-limited).
+//! Windows of a stream or a whole recording are cut and given their speed in `analysis`.
 
 pub mod envelope;
 pub mod feature_settings;
@@ -17,6 +17,7 @@ pub mod kurtogram;
 pub mod order_spectrum;
 pub mod order_tracking;
 pub mod quality;
+pub mod resample;
 pub mod speed;
 pub mod speed_config;
 pub mod speed_estimate;
