@@ -7,7 +7,7 @@
 use crate::dsp::envelope::Envelope;
 use crate::dsp::feature_settings::FeatureSettings;
 use crate::dsp::order_spectrum::OrderFft;
-use crate::dsp::order_tracking::OrderTracker;
+use crate::dsp::order_tracking::{GridInfo, OrderTracker};
 use crate::dsp::quality::{scan, Quality};
 use crate::dsp::speed::SpeedTrack;
 use crate::dsp::speed_config::SpeedConfig;
@@ -185,17 +185,7 @@ impl FeaturePipeline {
         x: &[f32],
         speed: &SpeedTrack,
     ) -> Result<(f64, f64, &[f32])> {
-        if x.len() != self.len {
-            bail!(
-                "the window at t = {t_start:.3} s has {} samples, the pipeline expects {}",
-                x.len(),
-                self.len
-            );
-        }
-        let info = self.tracker.prepare(t_start, speed)?;
-        if self.angle.len() < info.count {
-            self.angle.resize(info.count + info.count / 4, 0.0);
-        }
+        let info = self.prepare_window(t_start, x, speed)?;
         let (step, lines) = self.channel_power(x, info.count);
         Ok((step, info.revolutions, lines))
     }
@@ -219,6 +209,20 @@ impl FeaturePipeline {
                 self.sample_rate
             );
         }
+        let info = self.prepare_window(t_start, x, speed)?;
+        self.envelope.set_band(lo_hz, hi_hz);
+        self.envelope.process(x, &mut self.env);
+        self.envelope.set_band(0.0, self.lowpass_hz);
+        let count = info.count;
+        let spr = self.tracker.samples_per_rev();
+        self.tracker.resample(&self.env, &mut self.angle[..count]);
+        let (step, lines) = self.fft.power(&self.angle[..count], spr);
+        Ok((step, info.revolutions, lines))
+    }
+
+    /// Check the window's length and prepare order tracking for it (angle buffer grown once,
+    /// by a quarter more than needed, so later windows do not allocate).
+    fn prepare_window(&mut self, t_start: f64, x: &[f32], speed: &SpeedTrack) -> Result<GridInfo> {
         if x.len() != self.len {
             bail!(
                 "the window at t = {t_start:.3} s has {} samples, the pipeline expects {}",
@@ -230,14 +234,7 @@ impl FeaturePipeline {
         if self.angle.len() < info.count {
             self.angle.resize(info.count + info.count / 4, 0.0);
         }
-        self.envelope.set_band(lo_hz, hi_hz);
-        self.envelope.process(x, &mut self.env);
-        self.envelope.set_band(0.0, self.lowpass_hz);
-        let count = info.count;
-        let spr = self.tracker.samples_per_rev();
-        self.tracker.resample(&self.env, &mut self.angle[..count]);
-        let (step, lines) = self.fft.power(&self.angle[..count], spr);
-        Ok((step, info.revolutions, lines))
+        Ok(info)
     }
 
     /// Envelope, order tracking (prepared for `count` angle samples) and power spectrum.
