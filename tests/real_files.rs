@@ -12,7 +12,7 @@
 
 use rigmon::importers::{self, ImportOptions};
 use serde_json::Value;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::process::Command;
 
 mod common;
@@ -757,14 +757,8 @@ fn calibration_reads_only_the_span_a_manifest_row_names() {
         "\nsample_rate_hz = 48000.0\n",
     ))
     .unwrap();
-    let file = shared_data().join("cwru/97_Normal_0.mat");
-    let labels = dir.path().join("labels.csv");
+    let (labels, file) = three_spans_of_97(dir.path());
     let p = file.display();
-    std::fs::write(
-        &labels,
-        format!("path,label,start_s,end_s\n{p},healthy,,\n{p},healthy,0,2.5\n{p},healthy,2.5,\n"),
-    )
-    .unwrap();
     let load = |max_s: f64| {
         rigmon::calibrate::measured::load(&de, std::slice::from_ref(&labels), max_s).unwrap()
     };
@@ -799,6 +793,19 @@ fn calibration_reads_only_the_span_a_manifest_row_names() {
     );
 }
 
+/// A manifest naming 97 three times: whole, 0-2.5 s and from 2.5 s. Returns it and 97's path.
+fn three_spans_of_97(dir: &Path) -> (PathBuf, PathBuf) {
+    let file = shared_data().join("cwru/97_Normal_0.mat");
+    let labels = dir.join("labels.csv");
+    let p = file.display();
+    std::fs::write(
+        &labels,
+        format!("path,label,start_s,end_s\n{p},healthy,,\n{p},healthy,0,2.5\n{p},healthy,2.5,\n"),
+    )
+    .unwrap();
+    (labels, file)
+}
+
 /// With the shipped 12 kHz rig the same spans of the 48 kHz record are analysed at 12 kHz:
 /// the whole length the span names, a quarter of its samples (the rate is the ratio used,
 /// never above 12 kHz), the recorded rate kept for the report, the speed unchanged.
@@ -806,14 +813,7 @@ fn calibration_reads_only_the_span_a_manifest_row_names() {
 fn calibration_analyses_at_the_simulation_rate() {
     let dir = tempfile::tempdir().unwrap();
     let de = rig("cwru-de.toml");
-    let file = shared_data().join("cwru/97_Normal_0.mat");
-    let labels = dir.path().join("labels.csv");
-    let p = file.display();
-    std::fs::write(
-        &labels,
-        format!("path,label,start_s,end_s\n{p},healthy,,\n{p},healthy,0,2.5\n{p},healthy,2.5,\n"),
-    )
-    .unwrap();
+    let (labels, _) = three_spans_of_97(dir.path());
     let m = rigmon::calibrate::measured::load(&de, std::slice::from_ref(&labels), f64::INFINITY)
         .unwrap();
     // 243,938 samples at 48 kHz: all, the first 120,000, the rest
