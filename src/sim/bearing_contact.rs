@@ -45,7 +45,37 @@ pub struct BallBearing {
     /// Per-ball jitter offsets (rad) and their phasors (spacing included).
     pub jitter: Vec<f64>,
     pub offsets: Vec<(f64, f64)>,
+    /// Nominal ball phasors on the cage (2 pi j / n).
+    pub spacing: Vec<(f64, f64)>,
     pub drop_prev: Vec<f64>,
+}
+
+/// sin and cos of `x`: Taylor series to x^13 / x^12 for |x| <= 0.1 (truncation below
+/// 1e-24, so within rounding of `sin_cos`), `sin_cos` beyond.
+#[inline]
+fn small_sin_cos(x: f64) -> (f64, f64) {
+    const S: [f64; 6] = [
+        -1.0 / 6.0,
+        1.0 / 120.0,
+        -1.0 / 5040.0,
+        1.0 / 362_880.0,
+        -1.0 / 39_916_800.0,
+        1.0 / 6_227_020_800.0,
+    ];
+    const C: [f64; 6] = [
+        -1.0 / 2.0,
+        1.0 / 24.0,
+        -1.0 / 720.0,
+        1.0 / 40_320.0,
+        -1.0 / 3_628_800.0,
+        1.0 / 479_001_600.0,
+    ];
+    if x.abs() > 0.1 {
+        return x.sin_cos();
+    }
+    let x2 = x * x;
+    let horner = |k: &[f64; 6]| k.iter().rev().fold(0.0, |acc, &c| acc * x2 + c);
+    (x + x * x2 * horner(&S), 1.0 + x2 * horner(&C))
 }
 
 /// Forces of one step, on the shaft journal (radial) and on the housing (axial).
@@ -118,6 +148,12 @@ impl BallBearing {
             ir_phase: defect.inner_race_position_deg.to_radians(),
             jitter: vec![0.0; n],
             offsets: vec![(1.0, 0.0); n],
+            spacing: (0..n)
+                .map(|j| {
+                    let (s, c) = (TAU * j as f64 / n as f64).sin_cos();
+                    (c, s)
+                })
+                .collect(),
             drop_prev: vec![0.0; n],
         };
         b.refresh_offsets();
@@ -151,11 +187,13 @@ impl BallBearing {
         self.refresh_offsets();
     }
 
+    /// Ball j's position phasor: its nominal place on the cage (`spacing[j]`) turned by its
+    /// jitter. The jitter is a small angle (a fraction of the ball spacing), whose sine and
+    /// cosine a short series gives to double precision; a large one takes `sin_cos`.
     fn refresh_offsets(&mut self) {
-        let n = self.n as f64;
-        for (j, (o, jit)) in self.offsets.iter_mut().zip(&self.jitter).enumerate() {
-            let (s, c) = (TAU * j as f64 / n + jit).sin_cos();
-            *o = (c, s);
+        for ((o, &jit), &(bc, bs)) in self.offsets.iter_mut().zip(&self.jitter).zip(&self.spacing) {
+            let (s, c) = small_sin_cos(jit);
+            *o = (bc * c - bs * s, bs * c + bc * s);
         }
     }
 
@@ -207,7 +245,7 @@ impl BallBearing {
                     let cr = c * pc + s * ps;
                     if cr > 0.9 {
                         let sr = s * pc - c * ps;
-                        drop += self.outer_slot.drop_at(sr.atan2(cr));
+                        drop += self.outer_slot.drop_at_phasor(sr, cr);
                     }
                 }
                 if self.defects.inner_race {
@@ -215,16 +253,16 @@ impl BallBearing {
                     let cr = c * pc + s * ps;
                     if cr > 0.9 {
                         let sr = s * pc - c * ps;
-                        drop += self.inner_slot.drop_at(sr.atan2(cr));
+                        drop += self.inner_slot.drop_at_phasor(sr, cr);
                     }
                 }
                 if self.defects.ball && j == 0 {
                     // spin phasor: 0 = defect facing the outer race, pi = inner race
                     let (pc, ps) = spin;
                     if pc > 0.9 {
-                        drop += self.ball_slot_outer.drop_at(ps.atan2(pc));
+                        drop += self.ball_slot_outer.drop_at_phasor(ps, pc);
                     } else if pc < -0.9 {
-                        drop += self.ball_slot_inner.drop_at((-ps).atan2(-pc));
+                        drop += self.ball_slot_inner.drop_at_phasor(-ps, -pc);
                     }
                 }
             }
@@ -273,5 +311,24 @@ impl BallBearing {
             }
         }
         f
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_small_angle_series_matches_sin_cos() {
+        for k in -2000..=2000 {
+            let x = k as f64 * 1e-4;
+            let (s, c) = small_sin_cos(x);
+            let (s0, c0) = x.sin_cos();
+            assert!(
+                (s - s0).abs() <= 2.0 * f64::EPSILON * s0.abs().max(1e-300),
+                "sin {x}: {s} vs {s0}"
+            );
+            assert!((c - c0).abs() <= 2.0 * f64::EPSILON, "cos {x}: {c} vs {c0}");
+        }
     }
 }

@@ -1,11 +1,16 @@
 //! Anti-aliasing decimation from the internal step rate to the DAQ rate: a linear-phase
 //! windowed-sinc FIR (Blackman window, cut-off at half the output Nyquist band's edge)
-//! evaluated only at output instants from a ring buffer. Plan once, no allocation per sample.
+//! evaluated only at output instants. The history is a ring buffer written twice (at `pos`
+//! and `pos + len`), so the filter window is always one contiguous slice and the dot product
+//! runs on four independent accumulators instead of one long chain of dependent additions
+//! (the FIR is about 280 taps at 10x oversampling). Plan once, no allocation per sample.
 
 /// Streaming FIR decimator for one channel.
 #[derive(Debug, Clone)]
 pub struct Decimator {
     taps: Vec<f64>,
+    /// The last `taps.len()` samples, twice: `ring[pos..pos + taps.len()]` is the window,
+    /// oldest first.
     ring: Vec<f64>,
     pos: usize,
 }
@@ -41,7 +46,7 @@ impl Decimator {
         let n = taps.len();
         Decimator {
             taps,
-            ring: vec![0.0; n],
+            ring: vec![0.0; 2 * n],
             pos: 0,
         }
     }
@@ -53,21 +58,33 @@ impl Decimator {
 
     #[inline]
     pub fn push(&mut self, x: f64) {
+        let n = self.taps.len();
         self.ring[self.pos] = x;
+        self.ring[self.pos + n] = x;
         self.pos += 1;
-        if self.pos == self.ring.len() {
+        if self.pos == n {
             self.pos = 0;
         }
     }
 
     /// Filter output for the sample `delay()` steps before the last pushed one.
     pub fn output(&self) -> f64 {
-        let n = self.ring.len();
-        // oldest sample sits at pos; taps are symmetric so order does not matter.
-        let (a, b) = self.ring.split_at(self.pos);
-        let (ta, tb) = self.taps.split_at(n - self.pos);
-        b.iter().zip(ta).map(|(x, t)| x * t).sum::<f64>()
-            + a.iter().zip(tb).map(|(x, t)| x * t).sum::<f64>()
+        let n = self.taps.len();
+        let window = &self.ring[self.pos..self.pos + n];
+        let mut acc = [0.0f64; 4];
+        let (xs, ts) = (window.chunks_exact(4), self.taps.chunks_exact(4));
+        let tail: f64 = xs
+            .remainder()
+            .iter()
+            .zip(ts.remainder())
+            .map(|(x, t)| x * t)
+            .sum();
+        for (x, t) in xs.zip(ts) {
+            for k in 0..4 {
+                acc[k] += x[k] * t[k];
+            }
+        }
+        (acc[0] + acc[1]) + (acc[2] + acc[3]) + tail
     }
 }
 

@@ -23,6 +23,8 @@ pub struct DefectSet {
 pub struct Slot {
     /// Half-width of the slot as an angle on its rolling circle (rad).
     pub half_angle: f64,
+    /// tan(half_angle): a phasor (c, s) with c > 0 is off the slot when |s| >= c tan(half_angle).
+    pub tan_half_angle: f64,
     /// Radius of the rolling circle (m): arc length = angle x radius.
     pub radius: f64,
     /// Maximum drop (m).
@@ -52,14 +54,28 @@ impl Slot {
         };
         let patch = (cfg.length_mm / cfg.contact_patch_mm).min(1.0);
         let max_drop = geom.min(cfg.depth_mm * 1e-3) * patch;
+        let half_angle = w / 2.0 / path_r;
         Slot {
-            half_angle: w / 2.0 / path_r,
+            half_angle,
+            tan_half_angle: half_angle.min(1.5).tan(),
             radius: path_r,
             max_drop,
             width: w,
             shape: cfg.shape,
             ball_r,
         }
+    }
+
+    /// [`Slot::drop_at`] for the angle of the phasor (`c` = cos, `s` = sin, c > 0, not
+    /// necessarily of unit length): the angle (an `atan2`) is only taken when the phasor
+    /// is within the slot's half-width, which the step loop asks of every ball near a
+    /// defect at every step.
+    #[inline]
+    pub fn drop_at_phasor(&self, s: f64, c: f64) -> f64 {
+        if s.abs() >= c * self.tan_half_angle {
+            return 0.0;
+        }
+        self.drop_at(s.atan2(c))
     }
 
     /// Drop (m) when the ball centre is `angle` (rad, |angle| small) from the slot centre.
@@ -110,6 +126,27 @@ mod tests {
         assert_eq!(outer.drop_at(outer.half_angle * 1.01), 0.0);
         assert!((outer.drop_at(0.0) - outer.max_drop).abs() < 1e-12);
         assert!(outer.drop_at(0.5 * outer.half_angle) < 0.5 * outer.max_drop);
+    }
+
+    #[test]
+    fn the_phasor_form_gives_the_drop_of_its_angle() {
+        let cfg = DefectConfig::default();
+        let r = 7.94e-3 / 2.0;
+        for slot in [
+            Slot::new(&cfg, r, 24e-3 + r, false, 24e-3 + r),
+            Slot::new(&cfg, r, 24e-3 - r, true, 24e-3 - r),
+            Slot::new(&cfg, r, r, true, r),
+        ] {
+            for k in -4000..=4000 {
+                let a = k as f64 * 1e-4 * slot.half_angle.max(0.01) * 3.0;
+                let (s, c) = a.sin_cos();
+                for scale in [1.0, 0.97] {
+                    let got = slot.drop_at_phasor(scale * s, scale * c);
+                    let want = slot.drop_at((scale * s).atan2(scale * c));
+                    assert_eq!(got.to_bits(), want.to_bits(), "angle {a}");
+                }
+            }
+        }
     }
 
     #[test]

@@ -93,6 +93,24 @@ fn rot((c, s): (f64, f64), (dc, ds): (f64, f64)) -> (f64, f64) {
     (c * dc - s * ds, s * dc + c * ds)
 }
 
+/// Dot product of two equally long rows, on two independent accumulators.
+#[inline]
+fn dot(a: &[f64], b: &[f64]) -> f64 {
+    let (ca, cb) = (a.chunks_exact(2), b.chunks_exact(2));
+    let tail: f64 = ca
+        .remainder()
+        .iter()
+        .zip(cb.remainder())
+        .map(|(x, y)| x * y)
+        .sum();
+    let mut acc = [0.0f64; 2];
+    for (x, y) in ca.zip(cb) {
+        acc[0] += x[0] * y[0];
+        acc[1] += x[1] * y[1];
+    }
+    acc[0] + acc[1] + tail
+}
+
 #[inline]
 fn phasor(a: f64) -> (f64, f64) {
     let (s, c) = a.sin_cos();
@@ -141,6 +159,20 @@ impl Engine {
             .collect();
         let mu = rotor.planes[0].minv[(nde, nde)] + rotor.planes[0].minv[(hn, hn)]
             - 2.0 * rotor.planes[0].minv[(nde, hn)];
+        // [M^-1 K | M^-1 C] row by row, per plane, against the state [x | v]: one dot
+        // product of 2n per row
+        let kc: [Vec<f64>; 2] = [0, 1].map(|p| {
+            let pl = &rotor.planes[p];
+            (0..n)
+                .flat_map(|r| {
+                    pl.minv_k.a[r * n..(r + 1) * n]
+                        .iter()
+                        .chain(&pl.minv_c.a[r * n..(r + 1) * n])
+                        .copied()
+                })
+                .collect()
+        });
+        let mut state = vec![0.0; 2 * n];
         let disc_phase: Vec<(f64, f64)> =
             rotor.unbalance.iter().map(|&(_, ph)| phasor(ph)).collect();
         let (m_ax, k_ax, c_ax) = rotor.axial;
@@ -160,8 +192,13 @@ impl Engine {
         let mut sig = [0.0f64; 5];
 
         let mut i = -w_steps;
+        // i mod k, kept by counting (no integer division per step): the output-sample
+        // boundaries, the half-step angle boundaries and the decimator's output instants
+        let mut phase = i.rem_euclid(ki);
+        let boundary_phase = (ki - half).rem_euclid(ki);
+        let output_phase = d.rem_euclid(ki);
         while i <= last {
-            if i.rem_euclid(ki) == 0 {
+            if phase == 0 {
                 let t = i as f64 * dt;
                 let ws = self.profile.rpm_at(t) * TAU / 60.0;
                 let wc = ws * self.bearing.cage_ratio;
@@ -170,10 +207,13 @@ impl Engine {
                 pc = phasor(th_c);
                 pp = phasor(psi);
                 pir = phasor(th_s + self.bearing.ir_phase);
-                (inc_s, inc_c, inc_p) = (ws * dt, wc * dt, wsp * dt);
-                ds = phasor(inc_s);
-                dc = phasor(inc_c);
-                dp = phasor(inc_p);
+                // the step rotations change only with the speed
+                if (ws * dt, wc * dt, wsp * dt) != (inc_s, inc_c, inc_p) {
+                    (inc_s, inc_c, inc_p) = (ws * dt, wc * dt, wsp * dt);
+                    ds = phasor(inc_s);
+                    dc = phasor(inc_c);
+                    dp = phasor(inc_p);
+                }
                 let ramp = if i >= 0 {
                     1.0
                 } else {
@@ -191,7 +231,7 @@ impl Engine {
                 }
                 max_exc = max_exc.max(e);
             }
-            if (i + half).rem_euclid(ki) == 0 {
+            if phase == boundary_phase {
                 let b = (i + half) / ki;
                 if b >= 0 && (b as usize) <= n_out {
                     bounds[b as usize] = th_s;
@@ -211,20 +251,15 @@ impl Engine {
             let mut hd_acc = [0.0; 2];
             let mut hn_acc = [0.0; 2];
             for p in 0..2 {
-                let pl = &rotor.planes[p];
-                let (xp, vp) = (&x[p], &mut v[p]);
+                let vp = &mut v[p];
                 v_old.copy_from_slice(vp);
+                state[..n].copy_from_slice(&x[p]);
+                state[n..].copy_from_slice(vp);
                 let fb = cf.elastic[p];
-                for r in 0..n {
+                for (r, row) in kc[p].chunks_exact(2 * n).enumerate() {
                     let mut a = if p == 0 { g_acc[r] } else { 0.0 };
                     a += bcol[p][r] * fb;
-                    let kr = &pl.minv_k.a[r * n..(r + 1) * n];
-                    let cr = &pl.minv_c.a[r * n..(r + 1) * n];
-                    let mut s = 0.0;
-                    for j in 0..n {
-                        s += kr[j] * xp[j] + cr[j] * v_old[j];
-                    }
-                    a -= s;
+                    a -= dot(row, &state);
                     for (dc_, u) in disc_cols.iter().zip(&unb) {
                         a += dc_[p][r] * u[p];
                     }
@@ -280,7 +315,7 @@ impl Engine {
                     dec.push(sig[w]);
                 }
                 let j = i - d;
-                if j >= 0 && j.rem_euclid(ki) == 0 {
+                if j >= 0 && phase == output_phase {
                     let o = (j / ki) as usize;
                     if o < n_out {
                         for (dec, s) in decs.iter().zip(signals.iter_mut()) {
@@ -298,6 +333,10 @@ impl Engine {
             pp = rot(pp, dp);
             pir = rot(pir, ds);
             i += 1;
+            phase += 1;
+            if phase == ki {
+                phase = 0;
+            }
         }
         Ok(EngineOutput {
             signals,
