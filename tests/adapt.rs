@@ -202,3 +202,220 @@ fn rigmon_model_meta(p: &Path) -> String {
         .calibration_id
         .clone()
 }
+
+/// `rigmon adapt` with `args`: (exit status success, stdout, stderr).
+fn rigmon_status(args: &[&str]) -> (bool, String, String) {
+    let out = Command::new(env!("CARGO_BIN_EXE_rigmon"))
+        .args(args)
+        .output()
+        .unwrap();
+    (
+        out.status.success(),
+        String::from_utf8_lossy(&out.stdout).to_string(),
+        String::from_utf8_lossy(&out.stderr).to_string(),
+    )
+}
+
+/// Everything adapt can know is wrong is refused before any long work: the output folder is
+/// not even created, and the error names what is wrong and where.
+#[test]
+fn adapt_refuses_a_standing_shaft_a_missing_file_and_a_too_short_recording_up_front() {
+    let dir = tempfile::tempdir().unwrap();
+    let data = dir.path().join("data");
+    generate(&data, "baseline", "1");
+    let rig = repo().join("config/lut-rig.toml");
+    let s = |p: &Path| p.to_str().unwrap().to_string();
+    let refuse = |measured: &Path, plan: Option<&Path>, out: &Path| -> String {
+        let mut args = vec![
+            "adapt".to_string(),
+            "--rig".into(),
+            s(&rig),
+            "--measured".into(),
+            s(measured),
+            "-o".into(),
+            s(out),
+            "--quiet".into(),
+        ];
+        if let Some(p) = plan {
+            args.extend(["--plan".into(), s(p)]);
+        }
+        let args: Vec<&str> = args.iter().map(String::as_str).collect();
+        let (ok, _, err) = rigmon_status(&args);
+        assert!(!ok, "adapt accepted {args:?}");
+        assert!(!out.exists(), "adapt started work before refusing: {err}");
+        err
+    };
+
+    // a plan that would simulate a standing shaft
+    let plan = dir.path().join("standing.toml");
+    std::fs::write(
+        &plan,
+        "name = \"standing\"\ndescription = \"a case at 0 rpm\"\nseed = 1\nseconds = 2.0\n\n\
+         [[case]]\nfaults = \"healthy\"\nrpm = 600.0\nrecordings = 2\n\n\
+         [[case]]\nfaults = \"outer_race\"\nrpm = 0.0\nrecordings = 2\n",
+    )
+    .unwrap();
+    let err = refuse(
+        &data.join("labels.csv"),
+        Some(&plan),
+        &dir.path().join("o1"),
+    );
+    assert!(
+        err.contains("0.0 rpm") && err.contains("turning shaft"),
+        "{err}"
+    );
+
+    // a plan without a class the model predicts (training would stop on it at the end)
+    let plan = dir.path().join("healthy-only.toml");
+    std::fs::write(
+        &plan,
+        "name = \"healthy-only\"\ndescription = \"no fault class\"\nseed = 1\nseconds = 2.0\n\n\
+         [[case]]\nfaults = \"healthy\"\nrpm = 600.0\nrecordings = 2\n",
+    )
+    .unwrap();
+    let err = refuse(
+        &data.join("labels.csv"),
+        Some(&plan),
+        &dir.path().join("o4"),
+    );
+    assert!(
+        err.contains("simulates no") && err.contains("outer_race"),
+        "{err}"
+    );
+
+    // a listed file that does not exist
+    let missing = dir.path().join("missing.csv");
+    std::fs::write(
+        &missing,
+        format!(
+            "path,label\n{},healthy\n{}/gone.csv,outer_race\n",
+            s(&data.join("healthy-600rpm.csv")),
+            s(&data)
+        ),
+    )
+    .unwrap();
+    let err = refuse(&missing, None, &dir.path().join("o2"));
+    assert!(
+        err.contains("gone.csv") && err.contains("does not exist") && err.contains(":3"),
+        "{err}"
+    );
+
+    // a recording far too short for a feature window or a speed (0.05 s)
+    let full = std::fs::read_to_string(data.join("healthy-1200rpm.csv")).unwrap();
+    let short: Vec<&str> = full.lines().take(501).collect();
+    let short_csv = dir.path().join("short-1200rpm.csv");
+    std::fs::write(&short_csv, short.join("\n") + "\n").unwrap();
+    let short_manifest = dir.path().join("short.csv");
+    std::fs::write(
+        &short_manifest,
+        format!(
+            "path,label\n{},healthy\n{},healthy\n",
+            s(&data.join("healthy-600rpm.csv")),
+            s(&short_csv)
+        ),
+    )
+    .unwrap();
+    let err = refuse(&short_manifest, None, &dir.path().join("o3"));
+    assert!(err.contains("short-1200rpm.csv"), "{err}");
+}
+
+/// Adapt checks itself: handed labelled race faults, with a plan whose fault classes carry
+/// no defect to learn from (a 1 um scratch, and louder sensor noise: the model learns the
+/// noise, not the fault), it misses them, says so on stderr and in the report, keeps the
+/// model out of `model.onnx` and exits non-zero; `--accept-regression` writes it as
+/// `model.onnx`, still saying so. Only fault recordings are given, so no healthy-baseline
+/// gate stands in for the classifier.
+#[test]
+fn adapt_that_misses_a_labelled_fault_says_so_and_exits_non_zero() {
+    let dir = tempfile::tempdir().unwrap();
+    let data = dir.path().join("data");
+    generate(&data, "baseline", "1");
+    let rig = repo().join("config/lut-rig.toml");
+    let plan = dir.path().join("no-defects.toml");
+    // fault classes whose defect is a 1 um scratch: they look healthy
+    let mut toml = String::from(
+        "name = \"no-defects\"\ndescription = \"fault classes without a defect\"\nseed = 7\nseconds = 2.0\n\n\
+         [random]\nrpm = [580.0, 1220.0]\n",
+    );
+    for class in ["healthy", "outer_race", "inner_race"] {
+        toml += &format!("\n[[case]]\nfaults = \"{class}\"\nrecordings = 10\n");
+        if class != "healthy" {
+            toml += "[case.overrides]\ndefect_width_mm = 0.001\ndefect_depth_mm = 0.0001\nnoise_rms_m_s2 = 30.0\n";
+        }
+    }
+    std::fs::write(&plan, toml).unwrap();
+    let labels = std::fs::read_to_string(data.join("labels.csv")).unwrap();
+    let faults: Vec<&str> = labels.lines().filter(|l| !l.contains("healthy")).collect();
+    assert_eq!(faults.len(), 5, "header and four race-fault recordings");
+    let manifest = data.join("faults.csv");
+    std::fs::write(&manifest, faults.join("\n") + "\n").unwrap();
+    let s = |p: &Path| p.to_str().unwrap().to_string();
+    let run = |out: &Path, accept: bool| {
+        let mut args = vec![
+            "adapt".to_string(),
+            "--rig".into(),
+            s(&rig),
+            "--measured".into(),
+            s(&manifest),
+            "--plan".into(),
+            s(&plan),
+            "-o".into(),
+            s(out),
+            "--seeds".into(),
+            "1".into(),
+            "--epochs".into(),
+            "40".into(),
+            "--quiet".into(),
+        ];
+        if accept {
+            args.push("--accept-regression".into());
+        }
+        let args: Vec<&str> = args.iter().map(String::as_str).collect();
+        rigmon_status(&args)
+    };
+
+    let out = dir.path().join("refused");
+    let (ok, _, err) = run(&out, false);
+    assert!(
+        !ok,
+        "adapt exited 0 with a model that misses labelled faults:\n{err}"
+    );
+    assert!(err.contains("SELF-CHECK FAILED"), "{err}");
+    assert!(
+        err.contains("outer_race") || err.contains("inner_race"),
+        "the missed recording is not named: {err}"
+    );
+    assert!(
+        !out.join("model.onnx").exists(),
+        "the failing model was written as model.onnx"
+    );
+    assert!(out.join("model.rejected.onnx").is_file());
+    let md = std::fs::read_to_string(out.join("report.md")).unwrap();
+    assert!(
+        md.contains("SELF-CHECK FAILED") && md.contains("NOT written"),
+        "{md}"
+    );
+    let report: Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).unwrap()).unwrap();
+    let missed = report["self_check"]["regressions"].as_array().unwrap();
+    assert!(!missed.is_empty());
+    // each regression is a labelled fault the adapted model's own score counts as missed
+    for r in missed {
+        let rec = report["measured_scores"]["after"]["records"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .find(|x| x["path"] == r["recording"])
+            .unwrap();
+        assert_eq!(rec["missed_alarm"], true, "{rec}");
+        assert_ne!(rec["label"], "healthy");
+    }
+
+    let out = dir.path().join("accepted");
+    let (ok, _, err) = run(&out, true);
+    assert!(ok, "--accept-regression still failed:\n{err}");
+    assert!(err.contains("SELF-CHECK FAILED"), "{err}");
+    assert!(out.join("model.onnx").is_file());
+    let md = std::fs::read_to_string(out.join("report.md")).unwrap();
+    assert!(md.contains("--accept-regression"), "{md}");
+}

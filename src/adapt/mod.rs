@@ -1,15 +1,22 @@
 //! `rigmon adapt`: turn a rig file plus measured recordings of that machine into a diagnosis
-//! for it. Measured data calibrates the simulator ([`crate::calibrate`]) and is scored; it
-//! never trains the classifier. Steps: calibrate -> derive the dataset plan ([`plan`]) ->
-//! simulate with the plan's ranges spread around the calibration (and the uncalibrated rig
-//! for the zero-shot model) -> train `seeds` models and the zero-shot model in parallel
-//! (rayon), keep the best seed on simulated validation -> score the labelled recordings
-//! before (the zero-shot model) and after, with the rule baseline beside -> write the folder
-//! ([`report`], with wall and CPU time per step: [`timing`]). Before it is written, the kept model is aligned to the machine's healthy
-//! recordings ([`crate::model::align`]: reference levels and the healthy-baseline gate).
+//! for it. Measured data calibrates the simulator ([`crate::calibrate`]), shapes the plan
+//! (labelled faults, [`shape`]) and is scored; it never trains the classifier. Steps:
+//! check every input and the plan before any long work ([`preflight`]: files, spans, speeds,
+//! a plan from the machine's speeds [`plan`], one simulated recording featurised) ->
+//! calibrate, with the zero-shot dataset (the plan on the uncalibrated rig) simulated
+//! alongside on the same cores -> shape the plan with the labelled faults -> simulate with the
+//! plan's ranges spread around the calibration -> train `seeds` models and the zero-shot
+//! model in parallel (rayon), keep the best seed on simulated validation -> align the kept
+//! model to the machine's healthy recordings ([`crate::model::align`]) -> score every
+//! labelled recording with the zero-shot model, the adapted model and the rule, and check
+//! that the adapted model misses no labelled fault ([`check`]) -> write the folder
+//! ([`report`], with wall and CPU time per step: [`timing`]).
 
+pub mod check;
 pub mod plan;
+pub mod preflight;
 pub mod report;
+pub mod shape;
 pub mod timing;
 
 use crate::calibrate::{fit as cal_fit, measured, plots as cal_plots, report as cal_report};
@@ -29,9 +36,11 @@ use crate::train::score::{model_outcomes, rule_outcomes};
 use crate::train::trainer::TrainConfig;
 use anyhow::{bail, Context, Result};
 use indicatif::{ProgressBar, ProgressStyle};
+use preflight::LabelledSet;
 use rayon::prelude::*;
 use serde::Serialize;
 use std::path::{Path, PathBuf};
+use std::time::Instant;
 use timing::{StepTime, Stopwatch};
 
 /// What `rigmon adapt` is asked to do.
@@ -62,6 +71,8 @@ pub struct AdaptOptions {
     pub keep_datasets: bool,
     pub threads: Option<usize>,
     pub progress: bool,
+    /// Write `model.onnx` even when the self-check finds a missed labelled fault.
+    pub accept_regression: bool,
 }
 
 /// One training seed on the calibrated simulation.
@@ -92,8 +103,15 @@ pub struct AdaptOutcome {
     pub measured: String,
     pub calibration: serde_json::Value,
     pub measured_range: plan::MeasuredRange,
+    /// Seconds of each measured recording calibration analysed.
+    pub calibration_seconds: f64,
     pub plan_source: String,
+    /// Where the plan's speeds come from.
+    pub plan_speeds: String,
+    /// The plan the adapted model was trained on (the zero-shot plan plus the shaped cases).
     pub plan: Plan,
+    /// What each labelled fault recording added to the plan.
+    pub shaped: Vec<shape::ShapedFault>,
     pub dataset_recordings: usize,
     pub dataset_seconds: f64,
     pub labels: Vec<String>,
@@ -106,6 +124,8 @@ pub struct AdaptOutcome {
     pub alignment: Option<serde_json::Value>,
     pub measured_scores: SetScores,
     pub holdout_scores: Option<SetScores>,
+    /// Missed labelled faults, and where the model was written.
+    pub self_check: check::SelfCheck,
     /// Wall and CPU seconds per step, with the load average.
     pub timings: Vec<StepTime>,
     pub total_s: f64,
@@ -229,18 +249,16 @@ fn train_seed(
 }
 
 /// Align models to the machine's healthy measured recordings (reference levels and the
-/// healthy-baseline gate; the recordings are featurised once); models are kept as trained
-/// when none is labelled healthy.
+/// healthy-baseline gate; their feature windows from the checks); models are kept as
+/// trained when none is labelled healthy.
 fn align_step(
     models: Vec<TrainedModel>,
-    entries: &[ManifestEntry],
-    rig: &RigConfig,
-    progress: bool,
+    measured: &LabelledSet,
 ) -> Result<(Vec<TrainedModel>, Option<serde_json::Value>)> {
-    let healthy: Vec<ManifestEntry> = entries
+    let healthy: Vec<&RecordingFeatures> = measured
+        .features
         .iter()
-        .filter(|e| e.label == "healthy")
-        .cloned()
+        .filter(|r| r.label == "healthy")
         .collect();
     if healthy.is_empty() {
         tracing::warn!(
@@ -248,12 +266,9 @@ fn align_step(
         );
         return Ok((models, None));
     }
-    let pb = file_bar(progress, healthy.len(), "align");
-    let recs = featurise_all(&healthy, rig, &pb)?;
-    pb.finish_and_clear();
-    let views: Vec<_> = recs.iter().map(|r| r.windows.view()).collect();
+    let views: Vec<_> = healthy.iter().map(|r| r.windows.view()).collect();
     let windows = ndarray::concatenate(ndarray::Axis(0), &views)?;
-    let names: Vec<String> = recs.iter().map(|r| r.path_text.clone()).collect();
+    let names: Vec<String> = healthy.iter().map(|r| r.path_text.clone()).collect();
     let aligned = models
         .iter()
         .map(|m| align_to_healthy(m, windows.view(), &names))
@@ -277,22 +292,19 @@ pub fn align_to_recordings(
     align_to_healthy(model, windows.view(), &names)
 }
 
-/// Score a model file and the rule on labelled recordings of the machine.
+/// Score the zero-shot model, the adapted model and the rule on a labelled set (featurised
+/// by the checks), through the code `rigmon evaluate` uses.
 fn score_set(
-    manifest: &Path,
+    set: &LabelledSet,
     rig: &RigConfig,
     before: &OnnxClassifier,
     after: &OnnxClassifier,
-    progress: bool,
 ) -> Result<SetScores> {
-    let entries: Vec<ManifestEntry> = read_manifest(manifest)?;
-    let pb = file_bar(progress, entries.len(), "score");
-    let recs = featurise_all(&entries, rig, &pb)?;
-    pb.finish_and_clear();
-    let b = model_outcomes(before, &recs, rig)?;
-    let a = model_outcomes(after, &recs, rig)?;
+    let b = model_outcomes(before, &set.features, rig)?;
+    let a = model_outcomes(after, &set.features, rig)?;
     let labels = after.meta().labels.clone();
-    let kept: Vec<ManifestEntry> = entries
+    let kept: Vec<ManifestEntry> = set
+        .entries
         .iter()
         .filter(|e| a.outcomes.iter().any(|o| o.path == e.display_name()))
         .cloned()
@@ -300,113 +312,61 @@ fn score_set(
     let rule = EnvelopeRule::for_rig(rig, RuleSettings::default());
     let r = rule_outcomes(&rule, &kept, rig, &labels, &ProgressBar::hidden())?;
     Ok(SetScores {
-        manifest: manifest.display().to_string(),
+        manifest: set.manifest.display().to_string(),
         before: score(&before.meta().labels, &b.outcomes),
         after: score(&labels, &a.outcomes),
         rule: score(&labels, &r),
     })
 }
 
-/// Run the whole adaptation; writes `o.out` and returns what the report holds.
-pub fn adapt(o: &AdaptOptions) -> Result<AdaptOutcome> {
-    let mut clock = Stopwatch::start();
-    if o.seeds == 0 {
-        bail!("--seeds 0: give at least 1");
-    }
-    let rig = RigConfig::load(&o.rig)?;
-    crate::sim::rig_simulation(&rig)?;
-    std::fs::create_dir_all(&o.out)
-        .with_context(|| format!("cannot create output folder {}", o.out.display()))?;
-    let entries = read_manifest(&o.measured)?;
-    if entries.is_empty() {
-        bail!(
-            "{}: no recordings listed; give at least one measured recording of the machine",
-            o.measured.display()
-        );
-    }
-    let steps = step_bar(o.progress, 6);
+/// The trained models: every seed's (in seed order), the kept seed and the zero-shot model.
+struct Trained {
+    seeds: Vec<SeedResult>,
+    models: Vec<TrainedModel>,
+    chosen_seed: u64,
+    zero_shot: Option<TrainedModel>,
+}
 
-    // 1. calibrate
-    steps.set_message("calibrating the simulator on the measured recordings");
-    let (cal_rig, calibration) = calibrate_step(&o.rig, &rig, &o.measured, o.seconds, &o.out)?;
-    clock.lap("calibrate");
-    steps.inc(1);
-
-    // 2. plan
-    steps.set_message("deriving the dataset plan");
-    let mut items = Vec::new();
-    for e in &entries {
-        let rec = crate::importers::load(&e.path, &rig, &Default::default())
-            .with_context(|| format!("loading {}", e.path.display()))?;
-        let rpm = measured::mean_rpm(&rec, &rig)?;
-        items.push((rpm, rec.sample_rate, e.label.clone()));
-    }
-    let range = plan::MeasuredRange::of(&items)?;
-    let (the_plan, plan_source) = match &o.plan {
-        Some(p) => (Plan::load(p)?, p.display().to_string()),
-        None => (
-            plan::derive(&cal_rig, &range, o.recordings, o.sim_seconds)?,
-            "derived".to_string(),
-        ),
-    };
-    std::fs::write(o.out.join("plan.toml"), toml::to_string(&the_plan)?)?;
-    clock.lap("plan");
-    steps.inc(1);
-
-    // 3. simulate the calibrated rig, and the uncalibrated one for the zero-shot model
-    steps.set_message("simulating the calibrated rig");
-    let work = o.out.join("datasets");
-    let (summary, recs) = simulate_and_featurise(&cal_rig, &the_plan, &work.join("calibrated"), o)?;
-    clock.lap("simulate (calibrated rig)");
-    let recs0 = match &o.baseline_model {
-        Some(_) => None,
-        None => {
-            steps.set_message("simulating the uncalibrated rig (zero-shot model)");
-            let (_, r) = simulate_and_featurise(&rig, &the_plan, &work.join("uncalibrated"), o)?;
-            clock.lap("simulate (uncalibrated rig, zero-shot)");
-            Some(r)
-        }
-    };
-    steps.inc(1);
-
-    // 4. train the seeds and the zero-shot model in parallel; keep the best seed on
-    // simulated validation
-    steps.set_message(format!(
-        "training {} seeds{}",
-        o.seeds,
-        if recs0.is_some() {
-            " and the zero-shot model"
-        } else {
-            ""
-        }
-    ));
-    let labels = class_labels(range.labels.iter().any(|l| l == "ball"));
+/// Train the seeds on the calibrated dataset and, when `recs0` is given, the zero-shot
+/// model (seed 1 on the uncalibrated rig's dataset), in parallel; keep the seed best on
+/// simulated validation (whole-record balanced accuracy, then window accuracy; the first
+/// seed wins ties).
+fn train_step(
+    recs: &[RecordingFeatures],
+    recs0: Option<&[RecordingFeatures]>,
+    (rig, cal_rig): (&RigConfig, &RigConfig),
+    labels: &[String],
+    o: &AdaptOptions,
+) -> Result<Trained> {
     let n_jobs = o.seeds as usize + usize::from(recs0.is_some());
     let pb = file_bar(o.progress, n_jobs * o.epochs, "train");
-    // job 0 is the zero-shot model (seed 1 on the uncalibrated rig), jobs 1.. the seeds
+    // job 0 is the zero-shot model, jobs 1.. the seeds
     let jobs: Vec<u64> = (u64::from(recs0.is_none())..=o.seeds).collect();
     let trained: Vec<(u64, Result<(TrainedModel, FitReport, Evaluation)>)> = jobs
         .par_iter()
         .map(|&job| {
-            let r = match (job, &recs0) {
-                (0, Some(r0)) => train_seed(r0, &rig, &labels, 1, o.epochs, &pb),
-                _ => train_seed(&recs, &cal_rig, &labels, job, o.epochs, &pb),
+            let r = match (job, recs0) {
+                (0, Some(r0)) => train_seed(r0, rig, labels, 1, o.epochs, &pb),
+                _ => train_seed(recs, cal_rig, labels, job, o.epochs, &pb),
             };
             (job, r)
         })
         .collect();
     pb.finish_and_clear();
-    let mut seeds = Vec::new();
-    let mut models = Vec::new();
-    let mut best: Option<(f64, u64)> = None;
-    let mut zero_shot = None;
+    let mut out = Trained {
+        seeds: Vec::new(),
+        models: Vec::new(),
+        chosen_seed: 1,
+        zero_shot: None,
+    };
+    let mut best: Option<f64> = None;
     for (job, r) in trained {
         let (model, rep, ev) = r?;
         if job == 0 {
-            zero_shot = Some(model);
+            out.zero_shot = Some(model);
             continue;
         }
-        seeds.push(SeedResult {
+        out.seeds.push(SeedResult {
             seed: job,
             validation_balanced_accuracy: ev.balanced_accuracy,
             validation_record_accuracy: ev.record_accuracy,
@@ -414,63 +374,212 @@ pub fn adapt(o: &AdaptOptions) -> Result<AdaptOutcome> {
             epochs_run: rep.epochs_run,
             best_epoch: rep.best_epoch,
         });
-        // whole-record balanced accuracy, then window accuracy; the first seed wins ties
         let key = ev.balanced_accuracy + 1e-3 * ev.window_accuracy;
-        if best.is_none_or(|(k, _)| key > k) {
-            best = Some((key, job));
+        if best.is_none_or(|k| key > k) {
+            best = Some(key);
+            out.chosen_seed = job;
         }
-        models.push(model);
+        out.models.push(model);
     }
-    let (_, chosen_seed) = best.expect("at least one seed");
-    clock.lap(&format!(
-        "train ({n_jobs} models in parallel, {} threads)",
-        rayon::current_num_threads()
-    ));
-    steps.inc(1);
+    Ok(out)
+}
 
-    // 5. align the kept model to the machine's healthy recordings; write both models
-    steps.set_message("aligning the model to the machine's healthy recordings");
-    let (models, alignment) = align_step(models, &entries, &rig, o.progress)?;
-    // every seed's model, aligned the same way, so real-data scores of all seeds can be had
+/// Write every seed's model (`seeds/seed<N>.onnx`), the kept one as `model.onnx` and the
+/// zero-shot one as `before.onnx`; returns the adapted and the zero-shot classifier.
+fn write_models(
+    t: Trained,
+    rig: &RigConfig,
+    o: &AdaptOptions,
+) -> Result<(OnnxClassifier, OnnxClassifier, String)> {
     let seed_dir = o.out.join("seeds");
     std::fs::create_dir_all(&seed_dir)
         .with_context(|| format!("cannot create {}", seed_dir.display()))?;
-    for (s, m) in seeds.iter().zip(&models) {
+    for (s, m) in t.seeds.iter().zip(&t.models) {
         export::write(m, &seed_dir.join(format!("seed{}.onnx", s.seed)))?;
     }
     let model_path = o.out.join("model.onnx");
-    let kept = seeds
+    let kept = t
+        .seeds
         .iter()
-        .position(|s| s.seed == chosen_seed)
+        .position(|s| s.seed == t.chosen_seed)
         .expect("the kept seed was trained");
-    export::write(&models[kept], &model_path)?;
+    export::write(&t.models[kept], &model_path)?;
     let after = OnnxClassifier::load(&model_path)?;
-    after.check_rig(&rig)?;
-    let (before, before_name) = match (&o.baseline_model, zero_shot) {
+    after.check_rig(rig)?;
+    let (before, before_name) = match (&o.baseline_model, t.zero_shot) {
         (Some(p), _) => (OnnxClassifier::load(p)?, p.display().to_string()),
         (None, Some(m0)) => {
             let p = o.out.join("before.onnx");
             export::write(&m0, &p)?;
             (
                 OnnxClassifier::load(&p)?,
-                "before.onnx (same plan on the uncalibrated rig file, seed 1, not aligned)"
+                "before.onnx (the plan without the shaped cases, on the uncalibrated rig file, seed 1, not aligned)"
                     .to_string(),
             )
         }
         (None, None) => bail!("internal: no zero-shot model was trained"),
     };
-    before.check_rig(&rig)?;
+    before.check_rig(rig)?;
+    Ok((after, before, before_name))
+}
+
+/// Score the labelled sets and run the self-check ([`check`]); a failed check moves
+/// `model.onnx` to [`check::REJECTED_MODEL`] unless `--accept-regression`.
+fn score_and_check(
+    pre: &preflight::Checked,
+    before: &OnnxClassifier,
+    after: &OnnxClassifier,
+    o: &AdaptOptions,
+) -> Result<(SetScores, Option<SetScores>, check::SelfCheck)> {
+    let measured_scores = score_set(&pre.measured, &pre.rig, before, after)?;
+    let holdout_scores = match &pre.holdout {
+        Some(h) => Some(score_set(h, &pre.rig, before, after)?),
+        None => None,
+    };
+    let (mut regressions, mut checked, mut faulty) =
+        check::regressions("measured", &measured_scores);
+    if let Some(h) = &holdout_scores {
+        let (r, c, f) = check::regressions("held out", h);
+        regressions.extend(r);
+        checked += c;
+        faulty += f;
+    }
+    let mut model_file = "model.onnx".to_string();
+    if !regressions.is_empty() && !o.accept_regression {
+        let (from, to) = (o.out.join("model.onnx"), o.out.join(check::REJECTED_MODEL));
+        std::fs::rename(&from, &to)
+            .with_context(|| format!("moving {} to {}", from.display(), to.display()))?;
+        model_file = check::REJECTED_MODEL.to_string();
+    }
+    for r in &regressions {
+        eprintln!("SELF-CHECK FAILED: {}", r.line());
+    }
+    Ok((
+        measured_scores,
+        holdout_scores,
+        check::SelfCheck {
+            regressions,
+            checked,
+            faulty,
+            accepted_by_flag: o.accept_regression,
+            model_file,
+        },
+    ))
+}
+
+/// Calibrate, and simulate the zero-shot dataset (the plan on the uncalibrated rig)
+/// alongside on the same cores (it needs nothing from the calibration). Returns the
+/// calibrated rig, the calibration summary, the zero-shot dataset's features and the wall
+/// seconds of each branch.
+#[allow(clippy::type_complexity)]
+fn calibrate_and_zero_shot(
+    pre: &preflight::Checked,
+    o: &AdaptOptions,
+    work: &Path,
+) -> Result<(
+    RigConfig,
+    serde_json::Value,
+    Option<Vec<RecordingFeatures>>,
+    f64,
+    f64,
+)> {
+    let rig = &pre.rig;
+    let (cal, zero) = std::thread::scope(|s| {
+        let zero = o.baseline_model.is_none().then(|| {
+            s.spawn(|| {
+                let t = Instant::now();
+                let r = simulate_and_featurise(rig, &pre.plan, &work.join("uncalibrated"), o);
+                (r, t.elapsed().as_secs_f64())
+            })
+        });
+        let t = Instant::now();
+        let c = calibrate_step(&o.rig, rig, &o.measured, pre.calibration_seconds, &o.out);
+        let cal_s = t.elapsed().as_secs_f64();
+        (
+            (c, cal_s),
+            zero.map(|h| h.join().expect("the zero-shot simulation panicked")),
+        )
+    });
+    let ((cal_rig, summary), cal_s) = (cal.0?, cal.1);
+    let (recs0, zero_s) = match zero {
+        Some((r, s)) => (Some(r?.1), s),
+        None => (None, 0.0),
+    };
+    Ok((cal_rig, summary, recs0, cal_s, zero_s))
+}
+
+/// Run the whole adaptation; writes `o.out` and returns what the report holds.
+pub fn adapt(o: &AdaptOptions) -> Result<AdaptOutcome> {
+    let mut clock = Stopwatch::start();
+    let steps = step_bar(o.progress, 7);
+    steps.set_message("checking the inputs and the plan");
+    let pre = preflight::check(o)?;
+    std::fs::create_dir_all(&o.out)
+        .with_context(|| format!("cannot create output folder {}", o.out.display()))?;
+    let rig = &pre.rig;
+    clock.lap("check inputs and plan (featurise the labelled recordings, simulate one)");
+    steps.inc(1);
+
+    steps.set_message("calibrating; simulating the uncalibrated rig alongside");
+    let work = o.out.join("datasets");
+    let (cal_rig, calibration, recs0, cal_s, zero_s) = calibrate_and_zero_shot(&pre, o, &work)?;
+    clock.lap(&if recs0.is_some() {
+        format!("calibrate ({cal_s:.1} s wall) with the zero-shot dataset simulated alongside ({zero_s:.1} s wall)")
+    } else {
+        "calibrate".to_string()
+    });
+    steps.inc(1);
+
+    steps.set_message("shaping the plan with the labelled faults");
+    let (the_plan, shaped) = if o.plan.is_none() {
+        let faults: Vec<(String, String, f64, &crate::recording::Recording)> = pre
+            .recordings
+            .iter()
+            .map(|(n, l, r, rec)| (n.clone(), l.clone(), *r, rec))
+            .collect();
+        shape::shape(&pre.plan, &cal_rig, &faults)?
+    } else {
+        (pre.plan.clone(), Vec::new())
+    };
+    std::fs::write(o.out.join("plan.toml"), toml::to_string(&the_plan)?)?;
+    if !shaped.is_empty() {
+        std::fs::write(
+            o.out.join("plan-zero-shot.toml"),
+            toml::to_string(&pre.plan)?,
+        )?;
+    }
+    clock.lap("shape the plan with the labelled faults");
+    steps.inc(1);
+
+    steps.set_message("simulating the calibrated rig");
+    let (summary, recs) = simulate_and_featurise(&cal_rig, &the_plan, &work.join("calibrated"), o)?;
+    clock.lap("simulate (calibrated rig)");
+    steps.inc(1);
+
+    steps.set_message(format!(
+        "training {} seeds and the zero-shot model",
+        o.seeds
+    ));
+    let labels = class_labels(pre.range.labels.iter().any(|l| l == "ball"));
+    let trained = train_step(&recs, recs0.as_deref(), (rig, &cal_rig), &labels, o)?;
+    let n_models = o.seeds as usize + usize::from(recs0.is_some());
+    clock.lap(&format!(
+        "train ({n_models} models in parallel, {} threads)",
+        rayon::current_num_threads()
+    ));
+    steps.inc(1);
+
+    steps.set_message("aligning the model to the machine's healthy recordings");
+    let (seeds, chosen_seed) = (trained.seeds.clone(), trained.chosen_seed);
+    let (models, alignment) = align_step(trained.models, &pre.measured)?;
+    let trained = Trained { models, ..trained };
+    let (after, before, before_name) = write_models(trained, rig, o)?;
     clock.lap("align and write");
     steps.inc(1);
 
-    // 6. score
-    steps.set_message("scoring the labelled recordings");
-    let measured_scores = score_set(&o.measured, &rig, &before, &after, o.progress)?;
-    let holdout_scores = match &o.holdout {
-        Some(h) => Some(score_set(h, &rig, &before, &after, o.progress)?),
-        None => None,
-    };
-    clock.lap("score");
+    steps.set_message("scoring the labelled recordings and checking the adapted model");
+    let (measured_scores, holdout_scores, self_check) = score_and_check(&pre, &before, &after, o)?;
+    clock.lap("score and self-check");
     steps.inc(1);
     steps.finish_and_clear();
     if !o.keep_datasets {
@@ -483,9 +592,12 @@ pub fn adapt(o: &AdaptOptions) -> Result<AdaptOutcome> {
         rig_id: rig.machine.id.clone(),
         measured: o.measured.display().to_string(),
         calibration,
-        measured_range: range,
-        plan_source,
+        measured_range: pre.range.clone(),
+        calibration_seconds: pre.calibration_seconds,
+        plan_source: pre.plan_source.clone(),
+        plan_speeds: pre.plan_speeds.clone(),
         plan: the_plan,
+        shaped,
         dataset_recordings: summary.recordings,
         dataset_seconds: summary.seconds,
         labels,
@@ -500,6 +612,7 @@ pub fn adapt(o: &AdaptOptions) -> Result<AdaptOutcome> {
         alignment,
         measured_scores,
         holdout_scores,
+        self_check,
         timings: clock.steps,
         total_s,
         total_cpu_s,

@@ -1,7 +1,8 @@
 //! The `rigmon adapt` report folder: `report.json` (everything in [`AdaptOutcome`]),
-//! `report.md` (calibration error before/after, simulated validation per seed, every
-//! labelled recording's diagnosis before/after/rule, wall and CPU time per step) and confusion-matrix PNGs
-//! (`confusion_{before,after,rule}.png`, with a `holdout_` prefix for the held-out set).
+//! `report.md` (the self-check first, then calibration error before/after, the plan's speeds
+//! and the cases the labelled faults shaped, simulated validation per seed, every labelled
+//! recording's diagnosis before/after/rule, wall and CPU time per step) and confusion-matrix
+//! PNGs (`confusion_{before,after,rule}.png`, with a `holdout_` prefix for the held-out set).
 
 use super::{AdaptOutcome, SetScores};
 use crate::evaluate::Evaluation;
@@ -102,11 +103,70 @@ fn set_md(title: &str, s: &SetScores) -> String {
     m + "\n"
 }
 
+/// The self-check section: loud when the adapted model misses a labelled fault.
+fn self_check_md(c: &super::check::SelfCheck) -> String {
+    if c.passed() {
+        return format!(
+            "## Self-check: passed\n\nThe adapted model misses none of the {} labelled faults among the {} labelled recordings it was given (measured and held out); written as `{}`.\n\n",
+            c.faulty, c.checked, c.model_file
+        );
+    }
+    let mut m = format!(
+        "## SELF-CHECK FAILED: the adapted model misses {} of the {} labelled faults it was given\n\n",
+        c.regressions.len(),
+        c.faulty
+    );
+    m += if c.accepted_by_flag {
+        "**Written as `model.onnx` anyway, because `--accept-regression` was given.**\n\n"
+    } else {
+        "**The model was NOT written as `model.onnx`: it is `model.rejected.onnx`, and adapt exited with a non-zero status. `--accept-regression` ships it anyway.**\n\n"
+    };
+    for r in &c.regressions {
+        let _ = writeln!(m, "- **{}**", r.line());
+    }
+    m + "\n"
+}
+
+/// The plan's speeds and what the labelled faults added.
+fn plan_md(o: &AdaptOutcome) -> String {
+    let mut m = format!(
+        "Speeds from {}. Calibration analysed {:.2} s of each measured recording.\n\n",
+        o.plan_speeds, o.calibration_seconds
+    );
+    if o.shaped.is_empty() {
+        return m;
+    }
+    m += "Cases shaped by the labelled faults (the zero-shot model's plan has none: `plan-zero-shot.toml`):\n\n\
+| recording | label | rpm | family band / median (measured) | fitted defect width | twin's band / median | case (recordings) |\n|---|---|---|---|---|---|---|\n";
+    for s in &o.shaped {
+        let _ = writeln!(
+            m,
+            "| {} | {} | {:.0} | {:.2} | {} | {} | {} ({}) |",
+            s.recording,
+            s.label,
+            s.rpm,
+            s.measured_ratio,
+            s.fitted_width_mm.map_or_else(
+                || "not fitted (no band stands 3x above the median)".to_string(),
+                |w| format!(
+                    "{w:.3} mm{}",
+                    if s.at_grid_edge { " (grid edge)" } else { "" }
+                )
+            ),
+            s.simulated_ratio
+                .map_or_else(|| "-".to_string(), |r| format!("{r:.2}")),
+            s.case,
+            s.recordings
+        );
+    }
+    m + "\n"
+}
+
 /// The Markdown report.
 pub fn markdown(o: &AdaptOutcome) -> String {
     let mut m = format!(
         "# rigmon adapt: {}\n\nRig file `{}`, measured recordings `{}` ({} to {:.0} rpm, sample rates {:?} Hz, labels {:?}). \
-Measured data calibrated the simulator and is scored below; it did not train the classifier.\n\n",
+Measured data calibrated the simulator, shaped the plan and is scored below; it did not train the classifier.\n\n",
         o.rig_id,
         o.rig,
         o.measured,
@@ -115,6 +175,7 @@ Measured data calibrated the simulator and is scored below; it did not train the
         o.measured_range.sample_rates_hz,
         o.measured_range.labels
     );
+    m += &self_check_md(&o.self_check);
     let c = &o.calibration;
     let _ = write!(
         m,
@@ -140,13 +201,15 @@ Calibrated rig file: `rig.toml`; full report: `calibration/report.md`.\n\n",
     );
     let _ = write!(
         m,
-        "## Simulation and training\n\nPlan: {} (`plan.toml`), {} recordings, {:.0} s of signal, classes {}. {}.\n\n| seed | simulated validation, balanced (records) | records | windows | epochs (best) |\n|---|---|---|---|---|\n",
+        "## Simulation and training\n\nPlan: {} (`plan.toml`), {} recordings, {:.0} s of signal, classes {}. {}.\n\n",
         o.plan_source,
         o.dataset_recordings,
         o.dataset_seconds,
         o.labels.join(", "),
         o.selection
     );
+    m += &plan_md(o);
+    m += "| seed | simulated validation, balanced (records) | records | windows | epochs (best) |\n|---|---|---|---|---|\n";
     for s in &o.seeds {
         let _ = writeln!(
             m,

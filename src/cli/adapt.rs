@@ -56,6 +56,11 @@ pub struct Args {
     /// Print report.json on stdout.
     #[arg(long)]
     pub json: bool,
+    /// Write model.onnx even when the adapted model misses a labelled fault (the self-check
+    /// still reports it); without it such a model is written as model.rejected.onnx and
+    /// adapt exits with a non-zero status.
+    #[arg(long)]
+    pub accept_regression: bool,
 }
 
 pub fn run(a: Args) -> Result<()> {
@@ -74,12 +79,33 @@ pub fn run(a: Args) -> Result<()> {
         keep_datasets: a.keep_datasets,
         threads: a.threads,
         progress: !a.quiet,
+        accept_regression: a.accept_regression,
     };
     let r = adapt(&o)?;
     if a.json {
         println!("{}", serde_json::to_string(&r)?);
-        return Ok(());
+    } else {
+        print_summary(&r, &a.output);
     }
+    let c = &r.self_check;
+    if !c.passed() {
+        let what = format!(
+            "SELF-CHECK FAILED: the adapted model misses {} of the {} labelled faults it was given (report.md, section Self-check)",
+            c.regressions.len(),
+            c.faulty
+        );
+        if !c.accepted_by_flag {
+            anyhow::bail!(
+                "{what}; it was written as {}, not model.onnx (--accept-regression ships it anyway)",
+                c.model_file
+            );
+        }
+        eprintln!("{what}; written as model.onnx anyway (--accept-regression)");
+    }
+    Ok(())
+}
+
+fn print_summary(r: &crate::adapt::AdaptOutcome, output: &std::path::Path) {
     let show = |name: &str, s: &crate::adapt::SetScores| {
         println!("{name} ({}):", s.manifest);
         for (k, e) in [
@@ -119,10 +145,10 @@ pub fn run(a: Args) -> Result<()> {
         show("held out", h);
     }
     println!(
-        "wrote {} (model.onnx, rig.toml, report.md, report.json, *.png) in {:.1} s wall, {:.1} s CPU",
-        a.output.display(),
+        "wrote {} ({}, rig.toml, report.md, report.json, *.png) in {:.1} s wall, {:.1} s CPU",
+        output.display(),
+        r.self_check.model_file,
         r.total_s,
         r.total_cpu_s
     );
-    Ok(())
 }

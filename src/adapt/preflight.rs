@@ -1,0 +1,236 @@
+//! Everything `rigmon adapt` can know is wrong, refused before minutes of work start: the
+//! rig file and its `[simulation]` section, the manifests, every listed file (it exists, it
+//! imports, the rig's speed source reads a speed from it over the span calibration analyses,
+//! it gives at least one whole feature window), the plan (derived from the machine's speeds
+//! or given; no standing shaft, no speed the rig file does not allow:
+//! [`super::plan::check_speeds`]) and one simulated recording of the plan at its slowest
+//! speed, featurised as training will featurise it. What it loads is kept for the later
+//! steps (labelled recordings featurised once, the measured recordings with their speeds).
+
+use super::plan::{self, MeasuredRange};
+use super::AdaptOptions;
+use crate::calibrate::measured;
+use crate::config::RigConfig;
+use crate::manifest::{read_manifest, ManifestEntry};
+use crate::recording::Recording;
+use crate::sim::plan::Plan;
+use crate::train::dataset::RecordingFeatures;
+use crate::train::featurise::featurise_all;
+use anyhow::{bail, Context, Result};
+use indicatif::ProgressBar;
+use std::path::Path;
+
+/// A manifest's rows, featurised (the model and the rule score these).
+pub struct LabelledSet {
+    pub manifest: std::path::PathBuf,
+    pub entries: Vec<ManifestEntry>,
+    pub features: Vec<RecordingFeatures>,
+}
+
+/// What the checks loaded.
+pub struct Checked {
+    pub rig: RigConfig,
+    pub measured: LabelledSet,
+    /// The measured recordings over their spans: (name, label, speed rpm, recording).
+    pub recordings: Vec<(String, String, f64, Recording)>,
+    pub holdout: Option<LabelledSet>,
+    pub range: MeasuredRange,
+    /// Seconds of each measured recording calibration analyses.
+    pub calibration_seconds: f64,
+    pub plan: Plan,
+    pub plan_source: String,
+    /// Where the plan's speeds come from.
+    pub plan_speeds: String,
+}
+
+/// Rows of `manifest`, each file present, featurised (every error names the file).
+fn labelled_set(manifest: &Path, rig: &RigConfig, what: &str) -> Result<LabelledSet> {
+    let entries = read_manifest(manifest)?;
+    if entries.is_empty() {
+        bail!(
+            "{}: no recordings listed; give at least one {what} recording of the machine",
+            manifest.display()
+        );
+    }
+    for e in &entries {
+        if !e.path.is_file() {
+            bail!(
+                "{}:{}: {} does not exist (paths are relative to the manifest's folder)",
+                manifest.display(),
+                e.line,
+                e.path.display()
+            );
+        }
+    }
+    let features = featurise_all(&entries, rig, &ProgressBar::hidden())
+        .with_context(|| format!("{what} recordings of {}", manifest.display()))?;
+    Ok(LabelledSet {
+        manifest: manifest.to_path_buf(),
+        entries,
+        features,
+    })
+}
+
+/// Load a measured row over its span and read its mean speed as the analysis stage does
+/// ([`measured::mean_rpm`], the rig's speed source over the whole piece) from the first
+/// `seconds` of it, as calibration reads it. When the speed source reads no speed from so
+/// little signal (an estimate needs a few revolutions at the rig's lowest speed), the piece
+/// is doubled, up to the whole span, until it does. Returns the speed, the seconds it
+/// needed and the recording over its whole span; a span from which no speed can be read is
+/// refused here, naming the file and the fix.
+fn measured_speed(
+    e: &ManifestEntry,
+    rig: &RigConfig,
+    seconds: f64,
+) -> Result<(f64, f64, Recording)> {
+    let mut rec = crate::importers::load(&e.path, rig, &e.import_options())
+        .with_context(|| format!("loading {}", e.path.display()))?;
+    let (a, b) = e.span.unwrap_or((0.0, f64::INFINITY));
+    measured::cut(&mut rec, a, b - a);
+    let whole = rec.duration_s();
+    let mut s = seconds.min(whole);
+    loop {
+        let mut piece = rec.clone();
+        measured::cut(&mut piece, 0.0, s);
+        let read = measured::mean_rpm(&piece, rig).and_then(|rpm| {
+            anyhow::ensure!(rpm.is_finite() && rpm > 0.0, "its speed reads {rpm} rpm");
+            Ok(rpm)
+        });
+        match read {
+            Ok(rpm) => return Ok((rpm, s, rec)),
+            Err(err) if s >= whole => {
+                return Err(err).with_context(|| {
+                    format!(
+                        "{}: no speed can be read from its {whole:.2} s (the rig file's [speed]: {:?}); \
+                         give a longer recording or span, or a speed source that reads it",
+                        e.display_name(),
+                        rig.speed
+                    )
+                })
+            }
+            Err(_) => s = (2.0 * s).min(whole),
+        }
+    }
+}
+
+/// The plan's slowest recording, simulated and featurised as training will: a plan whose
+/// recordings give no feature window on this rig fails here, not after the whole dataset.
+fn dry_run(plan: &Plan, rig: &RigConfig) -> Result<()> {
+    let runs = plan.expand()?;
+    let slowest = runs
+        .iter()
+        .min_by(|a, b| {
+            let lo = |r: &crate::sim::plan::PlannedRun| {
+                r.scenario.profile.range_rpm(r.scenario.seconds).0
+            };
+            lo(a).total_cmp(&lo(b))
+        })
+        .context("the plan has no recording")?;
+    let s = &slowest.scenario;
+    let why = || {
+        format!(
+            "plan {:?}: its slowest recording ({}, {:.0} rpm, {} s) cannot be featurised on rig {:?}; \
+             fix the plan (speeds, seconds) or the rig file before simulating the dataset",
+            plan.name,
+            slowest.stem,
+            s.profile.range_rpm(s.seconds).0,
+            s.seconds,
+            rig.machine.id
+        )
+    };
+    let rec = crate::sim::simulate(rig, s).with_context(why)?;
+    let wins = crate::analysis::extract_recording(&rec, rig).with_context(why)?;
+    let usable = wins.iter().any(|w| {
+        let f = w.classifier_features(rig);
+        f.len() == rig.features.n_bins() && f.iter().all(|v| v.is_finite())
+    });
+    if !usable {
+        return Err(anyhow::anyhow!(
+            "{} windows computed, none usable",
+            wins.len()
+        ))
+        .with_context(why);
+    }
+    Ok(())
+}
+
+/// Refuse a plan without a recording of every class the model will predict (healthy, the
+/// two race faults, and ball when a measured recording is labelled `ball`): training would
+/// stop on it after the whole dataset is simulated.
+fn check_classes(plan: &Plan, range: &MeasuredRange) -> Result<()> {
+    let labels = crate::train::fit::class_labels(range.labels.iter().any(|l| l == "ball"));
+    let runs = plan.expand()?;
+    let missing: Vec<&String> = labels
+        .iter()
+        .filter(|l| {
+            !runs
+                .iter()
+                .any(|r| crate::sim::label_of(&r.scenario.faults) == l.as_str())
+        })
+        .collect();
+    if !missing.is_empty() {
+        bail!(
+            "plan {:?} simulates no {missing:?} recording; the model predicts {} and needs recordings of each: add a [[case]] for each",
+            plan.name,
+            labels.join(", ")
+        );
+    }
+    Ok(())
+}
+
+/// Run every check; returns what they loaded.
+pub fn check(o: &AdaptOptions) -> Result<Checked> {
+    if o.seeds == 0 {
+        bail!("--seeds 0: give at least 1");
+    }
+    let rig = RigConfig::load(&o.rig)?;
+    crate::sim::rig_simulation(&rig)?;
+    let measured = labelled_set(&o.measured, &rig, "measured")?;
+    let holdout = match &o.holdout {
+        Some(h) => Some(labelled_set(h, &rig, "held-out")?),
+        None => None,
+    };
+    let mut loaded = Vec::new();
+    for e in &measured.entries {
+        loaded.push((e, measured_speed(e, &rig, o.seconds)?));
+    }
+    // one span for every recording: the longest any of them needed for its speed
+    let calibration_seconds = loaded
+        .iter()
+        .map(|(_, (_, s, _))| *s)
+        .fold(o.seconds, f64::max);
+    let mut recordings = Vec::new();
+    let mut items = Vec::new();
+    for (e, (rpm, _, mut rec)) in loaded {
+        measured::cut(&mut rec, 0.0, calibration_seconds);
+        items.push((e.display_name(), rpm, rec.sample_rate, e.label.clone()));
+        recordings.push((e.display_name(), e.label.clone(), rpm, rec));
+    }
+    let range = MeasuredRange::of(&items)?;
+    let (plan, plan_source) = match &o.plan {
+        Some(p) => (Plan::load(p)?, p.display().to_string()),
+        None => (
+            plan::derive(&rig, &range, o.recordings, o.sim_seconds)?,
+            "derived".to_string(),
+        ),
+    };
+    plan::check_speeds(&plan, &rig)
+        .with_context(|| format!("checking the plan ({plan_source})"))?;
+    check_classes(&plan, &range).with_context(|| format!("checking the plan ({plan_source})"))?;
+    let plan_speeds = match &o.plan {
+        Some(p) => format!("the given plan {}", p.display()),
+        None => plan::speed_basis(&rig, &range).1,
+    };
+    dry_run(&plan, &rig)?;
+    Ok(Checked {
+        rig,
+        measured,
+        recordings,
+        holdout,
+        range,
+        calibration_seconds,
+        plan,
+        plan_source,
+        plan_speeds,
+    })
+}
