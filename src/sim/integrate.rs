@@ -93,22 +93,25 @@ fn rot((c, s): (f64, f64), (dc, ds): (f64, f64)) -> (f64, f64) {
     (c * dc - s * ds, s * dc + c * ds)
 }
 
-/// Dot product of two equally long rows, on two independent accumulators.
+/// Dot products of both planes at once: lane p of the result is the dot product of lane p
+/// of `a` and `b`, on two independent accumulators per lane (even and odd entries).
 #[inline]
-fn dot(a: &[f64], b: &[f64]) -> f64 {
+fn dot2(a: &[[f64; 2]], b: &[[f64; 2]]) -> [f64; 2] {
     let (ca, cb) = (a.chunks_exact(2), b.chunks_exact(2));
-    let tail: f64 = ca
-        .remainder()
-        .iter()
-        .zip(cb.remainder())
-        .map(|(x, y)| x * y)
-        .sum();
-    let mut acc = [0.0f64; 2];
-    for (x, y) in ca.zip(cb) {
-        acc[0] += x[0] * y[0];
-        acc[1] += x[1] * y[1];
+    let mut tail = [0.0f64; 2];
+    for (x, y) in ca.remainder().iter().zip(cb.remainder()) {
+        for p in 0..2 {
+            tail[p] += x[p] * y[p];
+        }
     }
-    acc[0] + acc[1] + tail
+    let (mut even, mut odd) = ([0.0f64; 2], [0.0f64; 2]);
+    for (x, y) in ca.zip(cb) {
+        for p in 0..2 {
+            even[p] += x[0][p] * y[0][p];
+            odd[p] += x[1][p] * y[1][p];
+        }
+    }
+    [0, 1].map(|p| even[p] + odd[p] + tail[p])
 }
 
 #[inline]
@@ -137,47 +140,48 @@ impl Engine {
         let n = rotor.n;
         let (nde, hn, hd) = (rotor.nde, rotor.nde_housing, rotor.de_housing);
         let (x0, _) = static_equilibrium(rotor, &self.bearing, self.radial_load_n)?;
-        let mut x = [x0, vec![0.0; n]];
-        let mut v = [vec![0.0; n], vec![0.0; n]];
-        let mut v_old = vec![0.0; n];
+        // Both planes side by side: entry [vertical, horizontal] of every DOF, so each
+        // operation of the step runs on the two planes at once (two lanes).
+        let mut x: Vec<[f64; 2]> = x0.iter().map(|&x| [x, 0.0]).collect();
+        let mut v = vec![[0.0f64; 2]; n];
         // constant accelerations: gravity + radial load (vertical plane)
         let mut fg = rotor.gravity.clone();
         fg[nde] -= self.radial_load_n;
         let g_acc = rotor.planes[0].minv.mul_vec(&fg);
-        let col = |p: usize, j: usize| -> Vec<f64> {
-            (0..n).map(|i| rotor.planes[p].minv[(i, j)]).collect()
+        let g_acc: Vec<[f64; 2]> = g_acc.iter().map(|&g| [g, 0.0]).collect();
+        let lanes = |f: &dyn Fn(usize, usize) -> f64| -> Vec<[f64; 2]> {
+            (0..n).map(|i| [f(0, i), f(1, i)]).collect()
         };
-        let bcol: [Vec<f64>; 2] = [0, 1].map(|p| {
-            (0..n)
-                .map(|i| rotor.planes[p].minv[(i, nde)] - rotor.planes[p].minv[(i, hn)])
-                .collect()
-        });
-        let disc_cols: Vec<[Vec<f64>; 2]> = rotor
+        let bcol = lanes(&|p, i| rotor.planes[p].minv[(i, nde)] - rotor.planes[p].minv[(i, hn)]);
+        let disc_cols: Vec<Vec<[f64; 2]>> = rotor
             .discs
             .iter()
-            .map(|&dj| [col(0, dj), col(1, dj)])
+            .map(|&dj| lanes(&|p, i| rotor.planes[p].minv[(i, dj)]))
             .collect();
         let mu = rotor.planes[0].minv[(nde, nde)] + rotor.planes[0].minv[(hn, hn)]
             - 2.0 * rotor.planes[0].minv[(nde, hn)];
-        // [M^-1 K | M^-1 C] row by row, per plane, against the state [x | v]: one dot
-        // product of 2n per row
-        let kc: [Vec<f64>; 2] = [0, 1].map(|p| {
-            let pl = &rotor.planes[p];
-            (0..n)
-                .flat_map(|r| {
-                    pl.minv_k.a[r * n..(r + 1) * n]
-                        .iter()
-                        .chain(&pl.minv_c.a[r * n..(r + 1) * n])
-                        .copied()
+        // [M^-1 K | M^-1 C] row by row, both planes per entry, against the state [x | v]:
+        // one dot product of 2n per row
+        let kc: Vec<[f64; 2]> = (0..n)
+            .flat_map(|r| {
+                (0..2 * n).map(move |j| {
+                    [0, 1].map(|p| {
+                        let pl = &rotor.planes[p];
+                        if j < n {
+                            pl.minv_k.a[r * n + j]
+                        } else {
+                            pl.minv_c.a[r * n + j - n]
+                        }
+                    })
                 })
-                .collect()
-        });
-        let mut state = vec![0.0; 2 * n];
+            })
+            .collect();
+        let mut state = vec![[0.0f64; 2]; 2 * n];
         let disc_phase: Vec<(f64, f64)> =
             rotor.unbalance.iter().map(|&(_, ph)| phasor(ph)).collect();
         let (m_ax, k_ax, c_ax) = rotor.axial;
         let (mut xa, mut va) = (0.0f64, 0.0f64);
-        let mut acc = vec![0.0; n];
+        let mut acc = vec![[0.0f64; 2]; n];
         let mut unb = vec![[0.0f64; 2]; rotor.discs.len()];
         self.bearing.randomize_jitter(rng);
 
@@ -225,7 +229,7 @@ impl Engine {
                 let tau = if wc > 0.0 { TAU / wc } else { 1.0 };
                 self.bearing.update_jitter(rng, k as f64 * dt, tau);
                 // divergence guard
-                let e = ((x[0][nde] - x[0][hn]).powi(2) + (x[1][nde] - x[1][hn]).powi(2)).sqrt();
+                let e = ((x[nde][0] - x[hn][0]).powi(2) + (x[nde][1] - x[hn][1]).powi(2)).sqrt();
                 if !e.is_finite() || e > 1e-2 {
                     bail!("the simulation diverged at t = {t:.4} s (journal excursion {e:.3e} m); check the [simulation] stiffness/damping values or raise oversampling");
                 }
@@ -239,41 +243,41 @@ impl Engine {
             }
 
             // --- bearing forces
-            let e = [x[0][nde] - x[0][hn], x[1][nde] - x[1][hn]];
-            let ev = [v[0][nde] - v[0][hn], v[1][nde] - v[1][hn]];
+            let e = [x[nde][0] - x[hn][0], x[nde][1] - x[hn][1]];
+            let ev = [v[nde][0] - v[hn][0], v[nde][1] - v[hn][1]];
             let cf = self.bearing.forces(e, ev, pc, pir, pp, inv_dt);
             max_loaded = max_loaded.max(cf.loaded);
             for (u, (&a, &dph)) in unb.iter_mut().zip(unb_amp.iter().zip(&disc_phase)) {
                 let (c, s) = rot(ps, dph);
                 *u = [-a * c, a * s];
             }
-            // --- explicit part, both planes
-            let mut hd_acc = [0.0; 2];
-            let mut hn_acc = [0.0; 2];
-            for p in 0..2 {
-                let vp = &mut v[p];
-                v_old.copy_from_slice(vp);
-                state[..n].copy_from_slice(&x[p]);
-                state[n..].copy_from_slice(vp);
-                let fb = cf.elastic[p];
-                for (r, row) in kc[p].chunks_exact(2 * n).enumerate() {
-                    let mut a = if p == 0 { g_acc[r] } else { 0.0 };
-                    a += bcol[p][r] * fb;
-                    a -= dot(row, &state);
-                    for (dc_, u) in disc_cols.iter().zip(&unb) {
-                        a += dc_[p][r] * u[p];
+            // --- explicit part, both planes at once
+            state[..n].copy_from_slice(&x);
+            state[n..].copy_from_slice(&v);
+            let fb = cf.elastic;
+            for (r, row) in kc.chunks_exact(2 * n).enumerate() {
+                let s = dot2(row, &state);
+                let mut a = [0.0; 2];
+                for p in 0..2 {
+                    a[p] = g_acc[r][p] + bcol[r][p] * fb[p];
+                    a[p] -= s[p];
+                }
+                for (dc_, u) in disc_cols.iter().zip(&unb) {
+                    for p in 0..2 {
+                        a[p] += dc_[r][p] * u[p];
                     }
-                    acc[r] = a;
                 }
-                for r in 0..n {
-                    vp[r] += dt * acc[r];
-                }
-                // remember pre-implicit housing velocities for the accelerations
-                hd_acc[p] = v_old[hd];
-                hn_acc[p] = v_old[hn];
+                acc[r] = a;
             }
+            for (vr, ar) in v.iter_mut().zip(&acc) {
+                for p in 0..2 {
+                    vr[p] += dt * ar[p];
+                }
+            }
+            // pre-implicit housing velocities (state holds them), for the accelerations
+            let (hd_old, hn_old) = (state[n + hd], state[n + hn]);
             // --- implicit contact damping on the relative velocity
-            let vr = [v[0][nde] - v[0][hn], v[1][nde] - v[1][hn]];
+            let vr = [v[nde][0] - v[hn][0], v[nde][1] - v[hn][1]];
             let h = dt * mu;
             let (a11, a12, a22) = (1.0 + h * cf.c[0], h * cf.c[1], 1.0 + h * cf.c[2]);
             let r1 = vr[0] + h * cf.b[0];
@@ -284,19 +288,17 @@ impl Engine {
                 -(cf.c[0] * vn[0] + cf.c[1] * vn[1]) + cf.b[0],
                 -(cf.c[1] * vn[0] + cf.c[2] * vn[1]) + cf.b[1],
             ];
+            for ((vr, xr), b) in v.iter_mut().zip(x.iter_mut()).zip(&bcol) {
+                for p in 0..2 {
+                    vr[p] += dt * b[p] * fd[p];
+                    xr[p] += dt * vr[p];
+                }
+            }
+            let mut hd_acc = [0.0; 2];
+            let mut hn_acc = [0.0; 2];
             for p in 0..2 {
-                let vp = &mut v[p];
-                if fd[p] != 0.0 {
-                    for r in 0..n {
-                        vp[r] += dt * bcol[p][r] * fd[p];
-                    }
-                }
-                let xp = &mut x[p];
-                for r in 0..n {
-                    xp[r] += dt * vp[r];
-                }
-                hd_acc[p] = (vp[hd] - hd_acc[p]) * inv_dt;
-                hn_acc[p] = (vp[hn] - hn_acc[p]) * inv_dt;
+                hd_acc[p] = (v[hd][p] - hd_old[p]) * inv_dt;
+                hn_acc[p] = (v[hn][p] - hn_old[p]) * inv_dt;
             }
             // --- axial housing DOF
             let aa = (cf.axial - k_ax * xa - c_ax * va) / m_ax;
