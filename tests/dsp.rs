@@ -334,6 +334,7 @@ fn cwru_estimated_speed_within_one_percent() {
     rig.speed = SpeedConfig::Estimate {
         min_rpm: 300.0,
         max_rpm: 3600.0,
+        check_within_percent: 10.0,
     };
     for c in &CWRU {
         let rec = load_cwru(c.file, &rig);

@@ -180,7 +180,7 @@ impl RigConfig {
                 bail!("speed.check_within_percent = {check_within_percent}: use 0 (do not check the stored speed) to 20 (5 is typical)");
             }
         }
-        if let SpeedConfig::Fixed { rpm } = self.speed {
+        if let SpeedConfig::Fixed { rpm, .. } = self.speed {
             if !(rpm.is_finite() && rpm > 0.0) {
                 bail!("speed.rpm = {rpm}: must be a positive number");
             }

@@ -160,6 +160,8 @@ impl Analyzer {
             beyond_baseline: None,
             rpm: None,
             speed_source: analysis.speed_source.to_string(),
+            speed_confidence: analysis.speed_confidence,
+            speed_rival_rpm: analysis.speed_rival_rpm,
             velocity: analysis.velocity_mm_s,
         };
         match analysis.features {
@@ -234,6 +236,14 @@ impl Analyzer {
             quality.flag("speed_out_of_range");
             bad_classifier = true;
         }
+        if q.speed_uncertain {
+            quality.flag("speed_uncertain");
+            bad_classifier = true;
+        }
+        if q.speed_ambiguous {
+            // advisory: classified, the rival speed is in the message
+            quality.flag("speed_ambiguous");
+        }
         quality.dsp = serde_json::to_value(q).unwrap_or_default();
         bad_classifier
     }
@@ -291,6 +301,8 @@ impl Analyzer {
             publish_time_ns: now_ns(),
             rpm: c.rpm,
             speed_source: c.speed_source,
+            speed_confidence: c.speed_confidence,
+            speed_rival_rpm: c.speed_rival_rpm,
             quality: c.quality,
             probabilities: labels
                 .iter()
@@ -401,6 +413,8 @@ struct Classified {
     beyond_baseline: Option<bool>,
     rpm: Option<f64>,
     speed_source: String,
+    speed_confidence: Option<f64>,
+    speed_rival_rpm: Option<f64>,
     /// Broadband velocity RMS of the classifier channel, mm/s.
     velocity: Option<f64>,
 }
