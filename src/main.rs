@@ -19,7 +19,7 @@ struct Cli {
 
 #[derive(Subcommand, Debug)]
 enum Command {
-    /// Convert a recording (CWRU/MFPT .mat, WAV, CSV) into a rigmon MCAP file.
+    /// Convert a recording (any-layout .mat, WAV, CSV) into a rigmon MCAP file.
     Import(cli::import::Args),
     /// Print envelope-order-spectrum features per window as JSON Lines.
     Features(cli::features::Args),

@@ -72,6 +72,7 @@ fn recording(syn: &Synthetic, shaft: f64, tacho: TachoForm, rpm: Option<f64>) ->
         ],
         tacho,
         rpm,
+        nominal_rpm: None,
         provenance: Provenance {
             source_path: "synthetic".into(),
             format: "simulated".into(),

@@ -13,7 +13,7 @@ use std::path::PathBuf;
 /// Arguments of `rigmon features`.
 #[derive(clap::Args, Debug)]
 pub struct Args {
-    /// Recording: rigmon .mcap, CWRU/MFPT .mat, .wav or .csv.
+    /// Recording: rigmon .mcap, any-layout .mat, .wav or .csv.
     pub recording: PathBuf,
     /// Rig file (channels, speed source, feature recipe).
     #[arg(long)]

@@ -15,7 +15,7 @@ use std::time::Duration;
 /// Arguments of `rigmon replay`.
 #[derive(clap::Args, Debug)]
 pub struct Args {
-    /// The recording: rigmon MCAP, CWRU/MFPT .mat, WAV or CSV.
+    /// The recording: rigmon MCAP, any-layout .mat, WAV or CSV.
     pub file: PathBuf,
     /// Rig file.
     #[arg(long, default_value = "config/lut-rig.toml")]

@@ -61,6 +61,10 @@ pub struct Acquisition {
     /// Sample rate in Hz; `None` means "taken from the recording" (e.g. CWRU files).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub sample_rate_hz: Option<f64>,
+    /// MAT files: the scalar variable (or struct field, `"meta.fs"`) holding the sample rate
+    /// in Hz.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub mat_rate_variable: Option<String>,
 }
 
 /// What a channel measures.
@@ -86,6 +90,14 @@ pub struct ChannelConfig {
     /// Raw value x sensitivity = value in `unit`.
     #[serde(default = "one")]
     pub sensitivity: f64,
+    /// MAT files: the variable (or struct field, `"bearing.gs"`) holding this channel's
+    /// samples ([`crate::importers::mat_layout`]).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub mat_variable: Option<String>,
+    /// MAT files: the column (from 1) of a samples x channels matrix `mat_variable` that is
+    /// this channel.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub mat_column: Option<usize>,
 }
 
 fn one() -> f64 {
@@ -216,6 +228,53 @@ impl RigConfig {
                 self.channel_names()
             );
         }
+        self.validate_mat_keys()?;
+        Ok(())
+    }
+
+    /// The MAT layout keys (`mat_variable`, `mat_column`, `mat_rate_variable`): well-formed
+    /// variable paths, columns from 1, no variable read twice, and once any channel names its
+    /// variable, the classifier channel must too.
+    fn validate_mat_keys(&self) -> Result<()> {
+        if let Some(v) = &self.acquisition.mat_rate_variable {
+            check_mat_path("acquisition.mat_rate_variable", v)?;
+        }
+        let mut seen: Vec<(&str, usize, &str)> = Vec::new();
+        for c in &self.channels {
+            let key = format!("channels {:?}: mat_variable", c.name);
+            match (&c.mat_variable, c.mat_column) {
+                (None, Some(_)) => bail!(
+                    "channels {:?}: mat_column needs mat_variable (the matrix it is a column of)",
+                    c.name
+                ),
+                (_, Some(0)) => bail!(
+                    "channels {:?}: mat_column = 0: columns count from 1 (as in MATLAB)",
+                    c.name
+                ),
+                (Some(v), col) => {
+                    check_mat_path(&key, v)?;
+                    let col = col.unwrap_or(1);
+                    if let Some((_, _, other)) =
+                        seen.iter().find(|(w, k, _)| *w == v.as_str() && *k == col)
+                    {
+                        bail!(
+                            "channels {other:?} and {:?} both read mat_variable = {v:?} (column {col}); each channel needs its own variable or mat_column",
+                            c.name
+                        );
+                    }
+                    seen.push((v, col, &c.name));
+                }
+                (None, None) => {}
+            }
+        }
+        if let (false, Some(c)) = (seen.is_empty(), self.classifier_channel()) {
+            if c.mat_variable.is_none() {
+                bail!(
+                    "channels {:?} feeds the classifier but names no mat_variable while other channels do; add mat_variable = \"<variable>\" to it",
+                    c.name
+                );
+            }
+        }
         Ok(())
     }
 
@@ -266,6 +325,17 @@ fn first_non_finite(v: &toml::Value, path: &str) -> Option<String> {
             .find_map(|(i, x)| first_non_finite(x, &format!("{path}[{i}]"))),
         _ => None,
     }
+}
+
+/// A MAT variable path: a variable name, or struct fields joined by dots (`bearing.gs`).
+fn check_mat_path(key: &str, path: &str) -> Result<()> {
+    if path
+        .split('.')
+        .any(|s| s.is_empty() || s.contains(char::is_whitespace))
+    {
+        bail!("{key} = {path:?}: expected a MAT variable name, or a struct field path such as \"bearing.gs\" (no spaces, no empty parts)");
+    }
+    Ok(())
 }
 
 /// Resolve a path given in a config file relative to that file's folder.

@@ -258,6 +258,7 @@ mod tests {
             channels: vec![ch("DE", x), ch("FE", vec![0.0; n]), ch("BA", vec![0.0; n])],
             tacho: None,
             rpm: Some(1800.0),
+            nominal_rpm: None,
             provenance: Provenance {
                 source_path: "synthetic".into(),
                 format: "simulated".into(),
