@@ -342,8 +342,8 @@ impl SpeedSource {
 }
 
 /// The nominal speed stated beside a recording (a hint, checked against the vibration).
-fn nominal_rpm(_rec: &Recording) -> Option<f64> {
-    None
+pub fn nominal_rpm(rec: &Recording) -> Option<f64> {
+    rec.nominal_rpm.as_ref().map(|n| n.rpm)
 }
 
 /// Speed read from the vibration alone (no hint, no tacho) needs [`HISTORY_REVS`]

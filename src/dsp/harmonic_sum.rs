@@ -30,6 +30,10 @@ pub struct Whitened {
     /// Leave out harmonics that sit on a 50/60 Hz mains line (the streaming tracker: a mains
     /// line must not vote for a fundamental it happens to be a multiple of).
     pub skip_mains: bool,
+    /// Read the prominence between bins by linear interpolation (the streaming tracker: the
+    /// harmonic sum then varies smoothly with the fundamental, so its peak can be refined
+    /// below the search grid); else the nearest bin.
+    pub interpolate: bool,
 }
 
 /// FFT plans (cached per length by the planner) and buffers for whitened spectra.
@@ -140,8 +144,19 @@ fn on_mains_harmonic(f: f64, tol: f64) -> bool {
 }
 
 impl Whitened {
-    /// Prominence at `f` (the nearest bin; -inf beyond the spectrum).
+    /// Prominence at `f` (the nearest bin, or interpolated; -inf beyond the spectrum).
     pub fn at(&self, f: f64) -> f64 {
+        if self.interpolate {
+            let x = f / self.df;
+            let i = x.floor() as usize;
+            return match (self.prom.get(i), self.prom.get(i + 1)) {
+                (Some(&a), Some(&b)) => {
+                    let w = x - i as f64;
+                    a + w * (b - a)
+                }
+                _ => f64::NEG_INFINITY,
+            };
+        }
         let i = (f / self.df).round() as usize;
         self.prom.get(i).copied().unwrap_or(f64::NEG_INFINITY)
     }
@@ -248,6 +263,7 @@ mod tests {
             df,
             prom: vec![0.0; 2000],
             skip_mains: false,
+            interpolate: false,
         };
         w.prom[500] = 10.0;
         assert!(w.full(10.0) > 1.9, "50 Hz is the 5th harmonic of 10 Hz");

@@ -203,6 +203,7 @@ impl SpeedTracker {
             whitener: Whitener::new(),
             spec: Whitened {
                 skip_mains: true,
+                interpolate: true,
                 ..Whitened::default()
             },
             warped: Vec::with_capacity(cap),
@@ -474,8 +475,11 @@ impl SpeedTracker {
                 self.lock = Some(Lock {
                     hz,
                     t: t_end,
-                    // an octave rival or a barely clear line is followed, not yet trusted
-                    confirmed: status == SpeedStatus::Hint || confidence >= LOCK_CONFIDENCE,
+                    // a barely clear line is followed, not yet trusted; an octave rival
+                    // does not unsettle a line that was already being followed
+                    confirmed: status == SpeedStatus::Hint
+                        || confidence >= LOCK_CONFIDENCE
+                        || (c.followed && c.clear().min(c.filled()) >= LOCK_CONFIDENCE),
                     trend: if status == SpeedStatus::Tracking {
                         c.trend
                     } else {
