@@ -41,6 +41,8 @@ enum Command {
     Evaluate(cli::evaluate::Args),
     /// Align a model to one machine's healthy recordings (reference levels; no training).
     Align(cli::align::Args),
+    /// Model files: `stamp` one with the identity of the rig it was trained for.
+    Model(cli::model::Args),
     /// 2-D t-SNE/PCA picture of feature windows by class and domain.
     Embed(cli::embed::Args),
     /// Run the monitoring daemon from a config file.
@@ -76,6 +78,7 @@ fn main() -> std::process::ExitCode {
         Command::Finetune(a) => cli::finetune::run(a),
         Command::Evaluate(a) => cli::evaluate::run(a),
         Command::Align(a) => cli::align::run(a),
+        Command::Model(a) => cli::model::run(a),
         Command::Embed(a) => cli::embed::run(a),
         Command::Run(a) => cli::run::run(a),
         Command::Replay(a) => cli::replay::run(a),

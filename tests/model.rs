@@ -352,10 +352,11 @@ fn rigmon(args: &[&str]) -> String {
     String::from_utf8_lossy(&out.stdout).to_string()
 }
 
-/// The shipped models: valid for the reference tooling, metadata for their rig, small.
+/// The shipped models: valid for the reference tooling, metadata for their rig (identity
+/// keys included), small.
 #[test]
 fn shipped_models_pass_the_onnx_checks() {
-    for name in ["lut-rig", "cwru-de"] {
+    for name in ["lut-rig", "cwru-de", "cwru-fe"] {
         let p = manifest_dir().join(format!("models/{name}.onnx"));
         let clf = OnnxClassifier::load(&p).unwrap();
         let m = clf.meta();
@@ -368,6 +369,14 @@ fn shipped_models_pass_the_onnx_checks() {
         );
         let rig = RigConfig::load(&manifest_dir().join(format!("config/{name}.toml"))).unwrap();
         clf.check_rig(&rig).unwrap();
+        assert_eq!(m.lowpass_hz, Some(rig.features.lowpass_hz), "{name}");
+        assert_eq!(m.window_s, Some(rig.features.window_s), "{name}");
+        assert_eq!(
+            m.bearing_orders,
+            Some(rigmon::model::identity::bearing_orders(&rig)),
+            "{name}"
+        );
+        assert!(clf.foreign_to(&rig).is_empty(), "{name}");
         assert!(std::fs::metadata(&p).unwrap().len() < 400_000);
         let card =
             std::fs::read_to_string(manifest_dir().join(format!("models/{name}.md"))).unwrap();
@@ -717,4 +726,280 @@ fn rule_baseline_beside_the_model_on_real_cwru_records() {
         ),
         (Some(m), Some(f))
     );
+}
+
+/// `rigmon <args>`: (exit code, stdout, stderr).
+fn rigmon_out(args: &[&str]) -> (Option<i32>, String, String) {
+    let out = Command::new(env!("CARGO_BIN_EXE_rigmon"))
+        .args(args)
+        .output()
+        .unwrap();
+    (
+        out.status.code(),
+        String::from_utf8_lossy(&out.stdout).into_owned(),
+        String::from_utf8_lossy(&out.stderr).into_owned(),
+    )
+}
+
+fn path_str(rel: &str) -> String {
+    manifest_dir().join(rel).display().to_string()
+}
+
+/// Issue 25, finding 1: a model trained for another rig (the CWRU drive-end model on the LUT
+/// rig) is refused by every command that takes a model, naming both values, and runs only when
+/// allowed on purpose, then flagged in every health message. Before, `replay` ran it, rc 0,
+/// and ended `unknown` on an outer-race fault.
+#[test]
+fn a_model_for_another_rig_is_refused_naming_both_values_unless_allowed() {
+    let replay = path_str("replay/lut-outer_race-588rpm.mcap");
+    let (lut, cwru) = (
+        path_str("config/lut-rig.toml"),
+        path_str("models/cwru-de.onnx"),
+    );
+    let (rc, _, err) = rigmon_out(&[
+        "replay", &replay, "--rig", &lut, "--model", &cwru, "--quiet",
+    ]);
+    assert_eq!(rc, Some(1), "{err}");
+    for want in [
+        "rig_id: model cwru-de, rig file lut-rig",
+        "axis: model DE, rig file vertical",
+        "bearing_orders: model bpfo 3.585",
+        "rig file bpfo 4.590",
+        "--allow-foreign-model",
+    ] {
+        assert!(err.contains(want), "{want:?} not in: {err}");
+    }
+
+    // evaluate, align and finetune refuse it before any work, the same way.
+    let dir = tempfile::tempdir().unwrap();
+    let csv = dir.path().join("labels.csv");
+    std::fs::write(
+        &csv,
+        format!(
+            "path,label\n{},healthy\n{replay},outer_race\n",
+            path_str("replay/lut-healthy-588rpm.mcap")
+        ),
+    )
+    .unwrap();
+    let (csv, out) = (
+        csv.display().to_string(),
+        dir.path().join("out.onnx").display().to_string(),
+    );
+    for args in [
+        vec![
+            "evaluate",
+            "--model",
+            &cwru,
+            "--rig",
+            &lut,
+            "--manifest",
+            &csv,
+        ],
+        vec![
+            "align",
+            "--model",
+            &cwru,
+            "--rig",
+            &lut,
+            "--healthy",
+            &csv,
+            "-o",
+            &out,
+        ],
+        vec![
+            "finetune",
+            "--model",
+            &cwru,
+            "--rig",
+            &lut,
+            "--manifest",
+            &csv,
+            "-o",
+            &out,
+        ],
+    ] {
+        let (rc, _, err) = rigmon_out(&args);
+        assert_eq!(rc, Some(1), "{args:?}: {err}");
+        assert!(
+            err.contains("rig_id: model cwru-de, rig file lut-rig"),
+            "{args:?}: {err}"
+        );
+    }
+
+    // Allowed on purpose: it runs, and every health message says how the model differs.
+    let (rc, stdout, err) = rigmon_out(&[
+        "replay",
+        &replay,
+        "--rig",
+        &lut,
+        "--model",
+        &cwru,
+        "--json",
+        "--allow-foreign-model",
+    ]);
+    assert_eq!(rc, Some(0), "{err}");
+    let msgs: Vec<serde_json::Value> = stdout
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap())
+        .collect();
+    assert!(msgs.len() >= 10, "{} messages", msgs.len());
+    for m in &msgs {
+        let foreign = m["model"]["foreign"].as_array().expect("model.foreign");
+        assert!(
+            foreign
+                .iter()
+                .any(|f| f == "rig_id: model cwru-de, rig file lut-rig"),
+            "{}",
+            m["model"]
+        );
+    }
+    let (_, text, _) = rigmon_out(&[
+        "replay",
+        &replay,
+        "--rig",
+        &lut,
+        "--model",
+        &cwru,
+        "--allow-foreign-model",
+    ]);
+    assert!(
+        text.lines().all(|l| l.ends_with("FOREIGN MODEL")),
+        "every line flags it: {text}"
+    );
+    // The rig's own model carries no flag.
+    let (rc, stdout, err) = rigmon_out(&[
+        "replay",
+        &replay,
+        "--rig",
+        &lut,
+        "--model",
+        &path_str("models/lut-rig.onnx"),
+        "--json",
+    ]);
+    assert_eq!(rc, Some(0), "{err}");
+    assert!(!stdout.contains("foreign"), "{stdout}");
+}
+
+/// Issue 25, finding 1: the bearing and the recipe are part of a model's identity. A rig file
+/// with one ball less than the model's bearing (8 instead of the 6205's 9), another envelope
+/// low-pass or another window is refused, naming both values. Before, `balls = 8` passed and
+/// no shipped model stored its low-pass.
+#[test]
+fn bearing_orders_lowpass_and_window_are_checked() {
+    let model = OnnxClassifier::load(&manifest_dir().join("models/cwru-de.onnx")).unwrap();
+    let text = std::fs::read_to_string(manifest_dir().join("config/cwru-de.toml")).unwrap();
+    let rig = RigConfig::parse(&text).unwrap();
+    model.check_rig(&rig).unwrap();
+    for (from, to, want) in [
+        ("balls = 9", "balls = 8", "bearing_orders: model bpfo 3.585"),
+        (
+            "lowpass_hz = 4000.0",
+            "lowpass_hz = 3000.0",
+            "lowpass_hz: model 4000 Hz, rig file 3000 Hz",
+        ),
+        (
+            "window_s = 1.0",
+            "window_s = 2.0",
+            "window_s: model 1 s, rig file 2 s",
+        ),
+    ] {
+        assert!(text.contains(from), "{from}");
+        let other = RigConfig::parse(&text.replacen(from, to, 1)).unwrap();
+        let e = format!("{:#}", model.check_rig(&other).unwrap_err());
+        assert!(e.contains(want), "{want:?} not in {e}");
+        // Allowed on purpose, the same difference is returned for the health messages.
+        let found = model
+            .check_identity(&other, Path::new("other.toml"), true)
+            .unwrap();
+        assert_eq!(found.len(), 1, "{found:?}");
+    }
+    // A pitch diameter 1 % off (the thesis' 48 vs 48.5 mm question) is the same bearing
+    // (orders within a quarter bin).
+    let close = RigConfig::parse(&text.replacen(
+        "pitch_diameter_mm = 39.04",
+        "pitch_diameter_mm = 39.43",
+        1,
+    ))
+    .unwrap();
+    model.check_rig(&close).unwrap();
+}
+
+/// Issue 25, finding 1: a model written before the identity keys existed is refused with the
+/// command that fixes it; `rigmon model stamp` adds them from the rig file it was trained for
+/// and changes nothing else (graph and weights bit-identical, still a valid ONNX file), and
+/// refuses to stamp it for another rig. Before, such a model was accepted unchecked and there
+/// was no stamp.
+#[test]
+fn unstamped_models_are_refused_until_stamped_with_their_own_rig() {
+    use prost::Message;
+    use rigmon::model::export::IDENTITY_KEYS;
+    use tract_onnx::pb;
+    let dir = tempfile::tempdir().unwrap();
+    let shipped = manifest_dir().join("models/cwru-de.onnx");
+    let mut proto = pb::ModelProto::decode(&std::fs::read(&shipped).unwrap()[..]).unwrap();
+    proto
+        .metadata_props
+        .retain(|e| !IDENTITY_KEYS.contains(&e.key.as_str()));
+    let old = dir.path().join("old.onnx");
+    std::fs::write(&old, proto.encode_to_vec()).unwrap();
+    let graph = proto.graph.clone().unwrap().encode_to_vec();
+
+    let rig_file = path_str("config/cwru-de.toml");
+    let rig = RigConfig::load(Path::new(&rig_file)).unwrap();
+    let e = format!(
+        "{:#}",
+        OnnxClassifier::load(&old)
+            .unwrap()
+            .check_identity(&rig, Path::new(&rig_file), false)
+            .unwrap_err()
+    );
+    let fix = format!("rigmon model stamp {} --rig {rig_file}", old.display());
+    assert!(e.contains(&fix), "{fix:?} not in {e}");
+
+    // Stamping it for another rig would be false: refused, file untouched.
+    let (rc, _, err) = rigmon_out(&[
+        "model",
+        "stamp",
+        old.to_str().unwrap(),
+        "--rig",
+        &path_str("config/lut-rig.toml"),
+    ]);
+    assert_eq!(rc, Some(1), "{err}");
+    assert!(
+        err.contains("rig_id: model cwru-de, rig file lut-rig"),
+        "{err}"
+    );
+
+    let stamped = dir.path().join("stamped.onnx");
+    let (rc, out, err) = rigmon_out(&[
+        "model",
+        "stamp",
+        old.to_str().unwrap(),
+        "--rig",
+        &rig_file,
+        "-o",
+        stamped.to_str().unwrap(),
+    ]);
+    assert_eq!(rc, Some(0), "{err}");
+    assert!(
+        out.contains("added lowpass_hz, window_s, bearing_orders"),
+        "{out}"
+    );
+    let back = pb::ModelProto::decode(&std::fs::read(&stamped).unwrap()[..]).unwrap();
+    assert_eq!(
+        back.graph.unwrap().encode_to_vec(),
+        graph,
+        "the graph must stay bit-identical"
+    );
+    let clf = OnnxClassifier::load(&stamped).unwrap();
+    clf.check_rig(&rig).unwrap();
+    // The stamp restores exactly what the shipped model carries.
+    assert_eq!(
+        clf.meta(),
+        &rigmon::model::ModelMeta {
+            sha256: clf.meta().sha256.clone(),
+            ..OnnxClassifier::load(&shipped).unwrap().meta().clone()
+        }
+    );
+    python_check(&stamped, None);
 }

@@ -234,7 +234,8 @@ pub fn run(opts: &BenchOptions) -> Result<()> {
     let port = free_port()?;
     let endpoint = format!("tcp/127.0.0.1:{port}");
     let config: DaemonConfig = toml::from_str(&format!(
-        "rig = {:?}\n[model]\npath = {:?}\n[source]\ntype = \"file\"\npath = \"(load generator)\"\n\
+        // The LUT model serves the LUT rig renamed `<id>-load`: a foreign model on purpose.
+        "rig = {:?}\n[model]\npath = {:?}\nallow_foreign = true\n[source]\ntype = \"file\"\npath = \"(load generator)\"\n\
          [pipeline]\nspectrum = false\n[zenoh]\nmode = \"peer\"\nlisten = [{:?}]\nmulticast_scouting = false\n\
          [recording]\nenabled = false\n",
         rig_file, model, endpoint

@@ -35,6 +35,10 @@ pub struct Args {
     /// Print one JSON object instead of text.
     #[arg(long)]
     pub json: bool,
+    /// Use a model trained for another rig on purpose (its rig id, axis, bearing orders or
+    /// recipe differ from the rig file's); refused otherwise.
+    #[arg(long)]
+    pub allow_foreign_model: bool,
     /// Draw the whole-record and per-window confusion matrices to this PNG (the per-window one
     /// goes next to it as `<name>.windows.png`, the rule's as `<name>.rule.png`).
     #[arg(long)]
@@ -73,7 +77,7 @@ pub fn run(args: Args) -> Result<()> {
     let mut scored = None;
     if let Some(path) = &args.model {
         let clf = OnnxClassifier::load(path)?;
-        clf.check_rig(&rig)?;
+        clf.check_identity(&rig, &args.rig, args.allow_foreign_model)?;
         let recs = featurise_all(&entries, &rig, &ProgressBar::hidden())?;
         let mo = model_outcomes(&clf, &recs, &rig)?;
         let ev = score(&clf.meta().labels, &mo.outcomes);

@@ -28,6 +28,8 @@ pub struct Analyzer {
     stage: AnalysisStage,
     model: OnnxClassifier,
     model_id: String,
+    /// How the model differs from this rig (a foreign model allowed on purpose), else empty.
+    foreign: Vec<String>,
     health: HealthStateMachine,
     /// Rig acceleration channel names, in source order.
     names: Vec<String>,
@@ -55,7 +57,7 @@ impl Analyzer {
         start_time_ns: u64,
     ) -> Result<Self> {
         model
-            .check_rig(rig)
+            .check_layout(rig)
             .with_context(|| format!("model {model_id}"))?;
         let health = HealthStateMachine::new(policy, &model.meta().labels)?;
         let chans: Vec<(String, String)> = rig
@@ -79,6 +81,7 @@ impl Analyzer {
         let speed = SpeedSource::new(&rig.speed, sample_rate, nominal_rpm)?;
         Ok(Analyzer {
             stage: AnalysisStage::new(rig, sample_rate, &chans, absent, speed)?,
+            foreign: foreign_to(&model, rig),
             model,
             model_id: model_id.to_string(),
             health,
@@ -116,8 +119,9 @@ impl Analyzer {
         model_id: &str,
         policy: HealthPolicy,
     ) -> Result<()> {
-        model.check_rig(&self.rig)?;
+        model.check_layout(&self.rig)?;
         self.health.reconfigure(policy, &model.meta().labels)?;
+        self.foreign = foreign_to(&model, &self.rig);
         self.model = model;
         self.model_id = model_id.to_string();
         Ok(())
@@ -335,6 +339,7 @@ impl Analyzer {
                 id: self.model_id.clone(),
                 sha256: self.model.meta().sha256.clone(),
                 labels,
+                foreign: self.foreign.clone(),
             },
             calibration_id: self.calibration_id(),
             software_version: env!("CARGO_PKG_VERSION").to_string(),
@@ -434,6 +439,16 @@ fn stream_quality(analysis: &WindowAnalysis) -> QualityReport {
         quality.flag("nan");
     }
     quality
+}
+
+/// How `model` differs from `rig` (empty when trained for it). Its identity was checked when
+/// it was loaded: a difference here is a foreign model allowed on purpose.
+fn foreign_to(model: &OnnxClassifier, rig: &RigConfig) -> Vec<String> {
+    model
+        .foreign_to(rig)
+        .iter()
+        .map(ToString::to_string)
+        .collect()
 }
 
 /// Wall clock, ns since the Unix epoch.

@@ -68,7 +68,12 @@ impl Pipeline {
         notifier.status("starting: loading rig, model and source");
         let config = opts.config.clone();
         let rig = config.load_rig()?;
-        let model = reload::load_model(&config.model.path, &rig)?;
+        let model = reload::load_model(
+            &config.model.path,
+            &rig,
+            &config.rig,
+            config.model.allow_foreign,
+        )?;
         let model_path = config.model.path.clone();
         let info = SourceInfo::of(source);
         let start_ns = now_ns();

@@ -67,13 +67,9 @@ impl FeaturePipeline {
         speed: &SpeedConfig,
         sample_rate: f64,
     ) -> Result<Self> {
-        if !(sample_rate.is_finite() && sample_rate > 0.0) {
-            bail!("sample rate {sample_rate} Hz: must be a positive number");
-        }
-        let len = (f.window_s * sample_rate).round() as usize;
-        if len < 64 {
-            bail!("features.window_s = {} s at {sample_rate} Hz gives {len} samples; need at least 64", f.window_s);
-        }
+        // Bounded before anything is sized by it (window, hop, low-pass below Nyquist).
+        f.check_at_rate(sample_rate)?;
+        let len = f.window_samples(sample_rate)?;
         let rpm_limits = match *speed {
             SpeedConfig::Estimate {
                 min_rpm, max_rpm, ..

@@ -145,6 +145,11 @@ pub struct ModelInfo {
     /// SHA-256 of the ONNX file.
     pub sha256: String,
     pub labels: Vec<String>,
+    /// How the model differs from the rig it serves (rig id, axis, bearing orders, low-pass,
+    /// window: `"rig_id: model cwru-de, rig file lut-rig"`), when a model trained for another
+    /// rig was allowed on purpose (`[model] allow_foreign`); absent otherwise.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub foreign: Vec<String>,
 }
 
 impl HealthMessage {
@@ -188,6 +193,9 @@ impl HealthMessage {
             s.push_str("  ok");
         } else {
             let _ = write!(s, "  {}", self.quality.flags.join(","));
+        }
+        if !self.model.foreign.is_empty() {
+            s.push_str("  FOREIGN MODEL");
         }
         s
     }
@@ -257,6 +265,7 @@ mod tests {
                 id: "lut-rig".into(),
                 sha256: "ab".into(),
                 labels,
+                foreign: Vec::new(),
             },
             calibration_id: None,
             software_version: "0.1.0".into(),
