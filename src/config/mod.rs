@@ -194,6 +194,7 @@ impl RigConfig {
                 bail!("speed.rpm = {rpm}: must be a positive number");
             }
         }
+        self.check_speed_hints()?;
         self.check_recipe_bounds()?;
         if self.classifier_channel().is_none() {
             bail!(
@@ -252,6 +253,29 @@ impl RigConfig {
         Ok(())
     }
 
+    /// `[speed]` keys that bound a search from the vibration: the band a fixed or nominal
+    /// speed is checked in, and an estimate's range.
+    fn check_speed_hints(&self) -> Result<()> {
+        match self.speed {
+            SpeedConfig::Fixed {
+                check_within_percent,
+                ..
+            }
+            | SpeedConfig::Estimate {
+                check_within_percent,
+                ..
+            } if !(0.0..=50.0).contains(&check_within_percent) => bail!(
+                "speed.check_within_percent = {check_within_percent}: use 0 (do not check the stated speed) to 50 (10 is the default: nominal motor speeds are often a few per cent off)"
+            ),
+            SpeedConfig::Estimate {
+                min_rpm, max_rpm, ..
+            } if !(min_rpm > 0.0 && max_rpm > min_rpm) => bail!(
+                "speed.min_rpm = {min_rpm}, speed.max_rpm = {max_rpm}: need 0 < min_rpm < max_rpm (the machine's operating range)"
+            ),
+            _ => Ok(()),
+        }
+    }
+
     /// The recipe at the rig's own sample rate (when it sets one) and at the speeds `[speed]`
     /// names (a fixed rpm, the top of an estimate's range): window and hop in samples, the
     /// low-pass below Nyquist, the highest order inside the low-pass band.
@@ -263,7 +287,14 @@ impl RigConfig {
                 .with_context(|| format!("at acquisition.sample_rate_hz = {fs}"))?;
         }
         match self.speed {
-            SpeedConfig::Fixed { rpm } => self.features.check_speed(rpm, "speed.rpm", fs),
+            SpeedConfig::Fixed {
+                rpm,
+                check_within_percent,
+            } => self.features.check_speed(
+                rpm * (1.0 + check_within_percent.max(0.0) / 100.0),
+                "speed.rpm (with speed.check_within_percent)",
+                fs,
+            ),
             SpeedConfig::Estimate { max_rpm, .. } => {
                 self.features.check_speed(max_rpm, "speed.max_rpm", fs)
             }

@@ -287,7 +287,14 @@ impl SpeedTracker {
     fn follow(&mut self, lock: Lock, n: usize) -> Candidate {
         let last = self.hist.len();
         let min_n = (MIN_REVS / self.fmax * self.fs_d).ceil() as usize;
-        let r0 = lock.trend;
+        // the trend is held as a constant change in Hz per second (a linear run-up), so
+        // relative to the speed now it is smaller than it was relative to the last speed
+        let pred = lock.hz * (1.0 + lock.trend * (self.t_newest() - lock.t));
+        let r0 = if pred > 0.0 {
+            lock.trend * lock.hz / pred
+        } else {
+            lock.trend
+        };
         // steady: the whole history (finest lines); changing: 20 revolutions of it, or half
         // of it if that is longer (a longer span lifts a line above the noise)
         let m = if r0.abs() < 0.002 {
