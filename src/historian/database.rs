@@ -27,8 +27,8 @@ pub struct DatabaseSettings {
     pub password_file: Option<PathBuf>,
 }
 
-/// A resolved connection target.
-#[derive(Clone)]
+/// A resolved connection target (its Debug leaves the password out).
+#[derive(Clone, Debug)]
 pub struct Target {
     config: Config,
     describe: String,
@@ -63,6 +63,10 @@ impl DatabaseSettings {
         };
         if env("PGPASSWORD").is_some() {
             tracing::warn!("PGPASSWORD is set and ignored: put the password in a pgpass file (PGPASSFILE) or [database] password_file");
+        }
+        if self.url.as_deref().is_some_and(|u| !url_has_port(u)) {
+            // libpq takes PGPORT for a URL without a port; the URL parser put in 5432.
+            c = without_ports(&c);
         }
         fill_from_env(&mut c, env)?;
         let describe = describe(&c);
@@ -100,6 +104,39 @@ impl DatabaseSettings {
             c.get_user().unwrap_or(""),
         )
     }
+}
+
+/// Whether `postgresql://user@host:port/db` names a port.
+fn url_has_port(url: &str) -> bool {
+    let rest = url.split_once("://").map_or(url, |(_, r)| r);
+    let authority = rest.split(['/', '?']).next().unwrap_or("");
+    let hostport = authority.rsplit_once('@').map_or(authority, |(_, h)| h);
+    match hostport.strip_prefix('[') {
+        Some(v6) => v6.contains("]:"),
+        None => hostport.contains(':'),
+    }
+}
+
+/// The same config with no ports (so PGPORT or 5432 fill them in).
+fn without_ports(c: &Config) -> Config {
+    let mut n = Config::new();
+    for h in c.get_hosts() {
+        match h {
+            Host::Tcp(t) => n.host(t),
+            Host::Unix(p) => n.host_path(p),
+        };
+    }
+    if let Some(u) = c.get_user() {
+        n.user(u);
+    }
+    if let Some(d) = c.get_dbname() {
+        n.dbname(d);
+    }
+    if let Some(a) = c.get_application_name() {
+        n.application_name(a);
+    }
+    n.ssl_mode(c.get_ssl_mode());
+    n
 }
 
 fn check_ssl(mode: SslMode, what: &str) -> Result<()> {
@@ -280,6 +317,14 @@ mod tests {
         assert_eq!(
             s.resolve_with(&e).unwrap().describe(),
             "other@db.plant:6543/plant"
+        );
+        let s = DatabaseSettings {
+            url: Some("postgresql://other@db.plant:7000/plant".into()),
+            ..Default::default()
+        };
+        assert_eq!(
+            s.resolve_with(&e).unwrap().describe(),
+            "other@db.plant:7000/plant"
         );
     }
 

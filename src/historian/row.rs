@@ -351,7 +351,7 @@ mod tests {
         let r = WindowRow::parse(msg.to_string().as_bytes(), "lab").unwrap();
         assert_eq!(r.point.key(), "lut-rig/shaft/nde");
         assert_eq!(r.point.site, "lab");
-        assert_eq!(r.run_start_ns, 1_000_000_000_000_000_000);
+        assert_eq!(r.run_start_ns, 1_000_000_000_000_000);
         assert_eq!(r.state_since, time_of(1_000_004_000_000_000));
         assert_eq!(r.p, [Some(0.1), Some(0.9), None, None]);
         assert!(r.p_other.as_ref().unwrap().get("misalignment").is_some());

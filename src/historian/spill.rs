@@ -244,6 +244,20 @@ impl Spill {
                 offset: 0,
             };
         }
+        // Nothing readable left (a torn tail at most): every segment is done with.
+        if !self.segments.is_empty() && self.read_one(self.read)?.is_none() {
+            for &(n, _) in &self.segments {
+                std::fs::remove_file(segment_path(&self.dir, n))
+                    .with_context(|| format!("removing spill segment {n}"))?;
+            }
+            let next = self.segments.last().map_or(self.read.segment, |s| s.0 + 1);
+            self.segments.clear();
+            self.writer = None;
+            self.read = Cursor {
+                segment: next,
+                offset: 0,
+            };
+        }
         if self.segments.is_empty() {
             self.records = 0;
         }
