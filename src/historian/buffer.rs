@@ -5,39 +5,12 @@
 //! so the order never changes. A batch is only removed for good when the writer says it was
 //! committed ([`Buffer::commit`]).
 
+pub use super::incoming::{Incoming, Kind};
 use super::spill::{Cursor, Spill};
 use std::collections::VecDeque;
 use std::path::Path;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::Mutex;
-
-/// What a message is.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-#[repr(u8)]
-pub enum Kind {
-    Health = 1,
-    Status = 2,
-}
-
-impl Kind {
-    pub fn from_u8(v: u8) -> Kind {
-        if v == 2 {
-            Kind::Status
-        } else {
-            Kind::Health
-        }
-    }
-}
-
-/// One message as it came from Zenoh (or from a daemon's recent history).
-#[derive(Debug, Clone)]
-pub struct Incoming {
-    pub kind: Kind,
-    pub key: String,
-    pub payload: Vec<u8>,
-    /// Fetched to fill a gap (not live).
-    pub recovered: bool,
-}
 
 /// Where a batch came from, to commit it.
 #[derive(Debug, Clone, Copy)]

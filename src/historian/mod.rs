@@ -16,6 +16,7 @@ pub mod buffer;
 pub mod config;
 pub mod database;
 pub mod history;
+pub mod incoming;
 pub mod intake;
 pub mod latency;
 pub mod migrations;

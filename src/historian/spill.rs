@@ -4,7 +4,7 @@
 //! so what is spilled survives a historian restart or crash (a torn last record is skipped).
 //! Record: `u32` length (LE), then kind (1 byte), key length (`u16` LE), key, payload.
 
-use super::buffer::{Incoming, Kind};
+use super::incoming::{Incoming, Kind};
 use anyhow::{bail, Context, Result};
 use std::fs::{File, OpenOptions};
 use std::io::{Read, Seek, SeekFrom, Write};
