@@ -285,6 +285,7 @@ impl Analyzer {
             rig: self.rig.machine.id.clone(),
             asset: self.rig.machine.asset.clone(),
             point: self.rig.machine.point.clone(),
+            site: self.rig.machine.site.clone(),
             seq: self.seq,
             window: WindowTimes {
                 start_s: view.t_start,

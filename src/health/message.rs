@@ -22,6 +22,9 @@ pub struct HealthMessage {
     pub rig: String,
     pub asset: String,
     pub point: String,
+    /// The rig file's `[machine] site`, when it names one (added in schema version 1).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub site: Option<String>,
     /// Window counter since the daemon started (gaps mean windows were not computed).
     pub seq: u64,
     pub window: WindowTimes,
@@ -219,6 +222,7 @@ mod tests {
             rig: "lut-rig".into(),
             asset: "shaft".into(),
             point: "nde".into(),
+            site: None,
             seq: 3,
             window: WindowTimes {
                 start_s: 1.5,
