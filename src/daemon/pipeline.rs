@@ -151,19 +151,15 @@ impl Pipeline {
         self.drain_windows(block_at);
     }
 
-    /// The source has ended: the last windows no longer wait for their lookahead.
-    pub fn on_source_end(&mut self) {
-        self.windower.finish();
-        self.drain_windows(Instant::now());
-    }
-
     /// Analyse every window the cutter has ready and update the pipeline counters.
     fn drain_windows(&mut self, block_at: Instant) {
+        let fs = self.source.sample_rate;
         while let Some(view) = self.windower.window() {
+            let (end_s, after_end_ms) = (view.t_end, view.after_end as f64 / fs * 1e3);
             let out = self.analyzer.analyze(&view);
             drop(view);
             self.windower.advance();
-            self.on_window(out, block_at);
+            self.on_window(out, block_at, end_s, after_end_ms);
         }
         let ws = self.windower.stats();
         self.pipe.samples_in = ws.samples_in;
@@ -173,12 +169,19 @@ impl Pipeline {
         self.pipe.window_errors = self.analyzer.errors;
     }
 
-    /// One window's results: count them, log a state change, emit to the sinks.
-    fn on_window(&mut self, out: WindowOutput, block_at: Instant) {
+    /// One window's results (`end_s`: its end on the pipeline clock; `after_end_ms`: signal
+    /// past it that had arrived): count them, log a state change, emit to the sinks.
+    fn on_window(&mut self, out: WindowOutput, block_at: Instant, end_s: f64, after_end_ms: f64) {
         let msg = out.health;
         let latency_ms = block_at.elapsed().as_secs_f64() * 1e3;
         self.pipe.latency_ms_last = latency_ms;
         self.pipe.latency_ms_max = self.pipe.latency_ms_max.max(latency_ms);
+        self.pipe.after_end_ms_max = self.pipe.after_end_ms_max.max(after_end_ms);
+        let budget = &mut self.pipe.last_window;
+        budget.end_s = end_s;
+        budget.speed_source.clone_from(&msg.speed_source);
+        budget.after_end_ms = after_end_ms;
+        budget.processing_ms = latency_ms;
         self.latencies.record(latency_ms);
         self.counts.count(&msg);
         if msg.state_changed {
