@@ -4,10 +4,13 @@
 //! the loop ([`Pipeline::on_tick`]: backlog, watchdog, status cadence) and the end
 //! ([`Pipeline::finish`]: last status, sinks closed, summary). It also drives sd_notify
 //! (READY, WATCHDOG on progress, STATUS, RELOADING, STOPPING). Every call into the analysis
-//! stage ([`Analyzer`], [`Windower`]) is in this file.
+//! stage ([`Analyzer`], [`Windower`]) is in this file. Building it (source open, then model
+//! loaded) and the first block in end three start-up phases, whose code is dropped at once
+//! ([`code_pages::end_of_phase`]).
 
 use super::analyze::{now_ns, Analyzer, WindowOutput};
 use super::backlog::Backlog;
+use super::code_pages;
 use super::config::DaemonConfig;
 use super::intake::SourceInfo;
 use super::latency::LatencyHistogram;
@@ -64,11 +67,14 @@ impl Pipeline {
         stats: Arc<SourceStats>,
         started: Instant,
     ) -> Result<Pipeline> {
+        // The config read and the source opened (a file replay has read its recording).
+        code_pages::end_of_phase("config and source");
         let mut notifier = Notifier::from_env();
         notifier.status("starting: loading rig, model and source");
         let config = opts.config.clone();
         let rig = config.load_rig()?;
         let model = reload::load_model(&config.model.path, &rig)?;
+        code_pages::end_of_phase("model loaded");
         let model_path = config.model.path.clone();
         let info = SourceInfo::of(source);
         let start_ns = now_ns();
@@ -138,6 +144,10 @@ impl Pipeline {
 
     /// A block arrived: cut every window it completes and hand the results to the sinks.
     pub fn on_block(&mut self, block: SampleBlock) {
+        if self.windower.next_sample().is_none() {
+            // Sinks open, source running: drop the code that took (no window is waiting yet).
+            code_pages::end_of_phase("start-up");
+        }
         let block_at = Instant::now();
         self.notifier.progress();
         let block = Arc::new(block);
@@ -276,6 +286,8 @@ impl Pipeline {
                 needs_restart
             );
         }
+        // Loading the new model ran tract's parser and optimiser again.
+        code_pages::end_of_phase("reload");
         tracing::info!(
             "reload: now using model {} ({})",
             self.model.id,
