@@ -13,8 +13,8 @@
 //! confirms it has arrived; an edge delivered by the source, once the sample it falls in
 //! has). So no window waits for signal past its end, and its edges, hence its speed and
 //! features, do not depend on how the samples were cut into blocks: a whole recording and a
-//! live stream give the same windows. docs/benchmarks.md measures what extrapolating costs
-//! against waiting for the next edge.
+//! live stream give the same windows. What extrapolating costs against the speed from every
+//! edge is measured in `tests/features_identity.rs` (docs/benchmarks.md, "Latency").
 //!
 //! The buffers are allocated once (window + largest block) and slid with `copy_within`.
 
