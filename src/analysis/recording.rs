@@ -67,7 +67,11 @@ fn extract(rec: &Recording, rig: &RigConfig, speed: SpeedSource) -> Result<Vec<F
     let mut windower = Windower::for_rig(&rig.speed, &rig.features, fs, channels.len())?;
     let hop = windower.spec().hop;
     let mut out = Vec::with_capacity((rec.len() - n) / hop + 1);
-    let mut drain = |windower: &mut Windower, out: &mut Vec<FeatureWindow>| -> Result<()> {
+    let mut start = 0;
+    while start < rec.len() {
+        let end = (start + BLOCK).min(rec.len());
+        windower.push(&block(rec, start, end));
+        // Every window is complete once its last sample is in: none waits for a later block.
         while let Some(view) = windower.window() {
             let a = stage.analyse(&view);
             drop(view);
@@ -79,18 +83,8 @@ fn extract(rec: &Recording, rig: &RigConfig, speed: SpeedSource) -> Result<Vec<F
                     .with_context(|| format!("{what}: window at t = {t:.3} s"))?,
             );
         }
-        Ok(())
-    };
-    let mut start = 0;
-    while start < rec.len() {
-        let end = (start + BLOCK).min(rec.len());
-        windower.push(&block(rec, start, end));
-        drain(&mut windower, &mut out)?;
         start = end;
     }
-    // The end of the recording: the last windows do not wait for their lookahead.
-    windower.finish();
-    drain(&mut windower, &mut out)?;
     Ok(out)
 }
 
