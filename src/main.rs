@@ -57,6 +57,14 @@ enum Command {
     Emulate(cli::emulate::Args),
     /// Benchmarks with ratios against a baseline in the same run.
     Bench(cli::bench::Args),
+    /// The fleet historian: health and status from the Zenoh mesh into PostgreSQL.
+    Historian(cli::historian::Args),
+    /// A point's stored history over Zenoh (from a historian): lines, JSON or a trend PNG.
+    History(cli::history::Args),
+    /// List state-change events (alarms) from the historian's database.
+    Alarms(cli::alarms::ListArgs),
+    /// Acknowledge an alarm: who and why.
+    Ack(cli::alarms::AckArgs),
 }
 
 fn main() -> std::process::ExitCode {
@@ -86,6 +94,10 @@ fn main() -> std::process::ExitCode {
         Command::Devices(a) => cli::devices::run(a),
         Command::Emulate(a) => cli::emulate::run(a),
         Command::Bench(a) => cli::bench::run(a),
+        Command::Historian(a) => cli::historian::run(a),
+        Command::History(a) => cli::history::run(a),
+        Command::Alarms(a) => cli::alarms::list(a),
+        Command::Ack(a) => cli::alarms::ack(a),
     };
     match result {
         Ok(()) => std::process::ExitCode::SUCCESS,

@@ -483,8 +483,15 @@ fn speed_from_the_vibration_alone_follows_the_simulator() {
     let mut cases: Vec<(String, Scenario)> = [300.0, 600.0, 1800.0]
         .iter()
         .map(|&rpm| {
-            let faults: &[Fault] = if rpm == 600.0 { &[Fault::OuterRace] } else { &[] };
-            (format!("{rpm} rpm"), Scenario::constant(faults, rpm, 8.0, 3))
+            let faults: &[Fault] = if rpm == 600.0 {
+                &[Fault::OuterRace]
+            } else {
+                &[]
+            };
+            (
+                format!("{rpm} rpm"),
+                Scenario::constant(faults, rpm, 8.0, 3),
+            )
         })
         .collect();
     let mut ramp = Scenario::constant(&[], 300.0, 20.0, 5);

@@ -48,6 +48,9 @@ pub struct Machine {
     pub asset: String,
     #[serde(default = "default_point")]
     pub point: String,
+    /// Site (plant, lab) the machine belongs to: the top of the fleet historian's asset tree.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub site: Option<String>,
 }
 
 fn default_asset() -> String {

@@ -74,10 +74,7 @@ pub fn run_with_source(opts: DaemonOptions, source: Box<dyn Source>) -> Result<S
         match intake.receive() {
             Received::Block(block) => pipeline.on_block(block),
             Received::Nothing => {}
-            Received::Ended => {
-                pipeline.on_source_end();
-                break intake.join();
-            }
+            Received::Ended => break intake.join(),
         }
         pipeline.on_tick(intake.backlog(), stopping);
     };

@@ -1,7 +1,8 @@
 //! ONNX writer and reader for [`TrainedModel`] (via the `tract_onnx::pb` protobuf types):
 //! opset 13, IR version 8, input `features` `[N, n_bins]` (raw RMS bins), outputs
 //! `probabilities` `[N, classes]` and `novelty` `[N]` (an aligned model adds the healthy-
-//! baseline gate and a third output `baseline_distance` `[N]`), all normalisation inside the graph,
+//! baseline gate, a third output `baseline_distance` `[N]` and a fourth `baseline_deviation`
+//! `[N, n_bins]`), all normalisation inside the graph,
 //! metadata in `metadata_props`. The reader only understands graphs this writer made
 //! (fine-tuning reads a shipped model back to retrain its output layer). [`stamp_bytes`]
 //! writes a model's identity keys for a rig file and changes nothing else.
@@ -33,6 +34,9 @@ pub const OUT_PROBS: &str = "probabilities";
 pub const OUT_NOVELTY: &str = "novelty";
 /// Third output of an aligned model: distance from the machine's healthy baseline.
 pub const OUT_BASELINE: &str = "baseline_distance";
+/// Fourth output of an aligned model: each bin's deviation from the machine's healthy
+/// reference in units of the baseline's pooled spread (what the distance is taken over).
+pub const OUT_DEVIATION: &str = "baseline_deviation";
 
 fn f32_tensor(name: &str, dims: &[usize], data: impl IntoIterator<Item = f32>) -> pb::TensorProto {
     let raw: Vec<u8> = data.into_iter().flat_map(|v| v.to_le_bytes()).collect();
@@ -266,6 +270,7 @@ pub fn to_proto(m: &TrainedModel) -> pb::ModelProto {
         let healthy = m.meta.labels.iter().position(|l| l == "healthy");
         baseline_gate(b, healthy, n_in, n_cls, &mut init, &mut nodes);
         outputs.push(value_info(OUT_BASELINE, &[Dim::Batch]));
+        outputs.push(value_info(OUT_DEVIATION, &[Dim::Batch, Dim::Fixed(n_in)]));
     }
     let graph = pb::GraphProto {
         name: "rigmon_classifier".into(),
@@ -332,6 +337,13 @@ fn baseline_gate(
             "baseline_scale",
             &["b_dev", "baseline_inv_spread"],
             &["b_scaled"],
+            vec![],
+        ),
+        node(
+            "Identity",
+            "baseline_deviation",
+            &["b_scaled"],
+            &[OUT_DEVIATION],
             vec![],
         ),
         node(

@@ -35,6 +35,11 @@ pub struct Prediction {
     /// `baseline_distance` above the aligned model's threshold: the window is not healthy
     /// for this machine (None for a model that is not aligned).
     pub beyond_baseline: Option<bool>,
+    /// Each feature bin's deviation from the machine's healthy reference, in units of the
+    /// baseline's pooled spread (aligned models written since the graph's fourth output
+    /// `baseline_deviation` exists; [`super::evidence`] reads the fault-family bins of it).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub baseline_deviation: Option<Vec<f32>>,
 }
 
 /// A classifier loaded from an ONNX file, ready to run one window at a time.
@@ -191,11 +196,22 @@ impl OnnxClassifier {
                 .copied(),
             None => None,
         };
+        let baseline_deviation = match out.get(3) {
+            Some(t) => Some(
+                t.to_plain_array_view::<f32>()
+                    .map_err(|e| anyhow!("{e:#}"))?
+                    .iter()
+                    .copied()
+                    .collect(),
+            ),
+            None => None,
+        };
         let beyond_baseline = baseline_distance
             .zip(self.meta.baseline_threshold())
             .map(|(d, t)| d.is_nan() || d > t);
         Ok(Prediction {
             baseline_distance,
+            baseline_deviation,
             beyond_baseline,
             unknown: novelty.is_nan() || novelty > self.meta.novelty_threshold,
             probs,

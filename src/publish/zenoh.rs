@@ -61,6 +61,14 @@ pub struct ZenohSettings {
     /// Access-control list (`[zenoh.acl]`).
     #[serde(default, skip_serializing_if = "AclSettings::is_empty")]
     pub acl: AclSettings,
+    /// Health messages kept for late joiners on `<base>/recent` (a historian catching up
+    /// after a restart); 0 turns the cache off. See [`super::recent`].
+    #[serde(default = "default_history_windows")]
+    pub history_windows: usize,
+}
+
+fn default_history_windows() -> usize {
+    super::recent::DEFAULT_WINDOWS
 }
 
 fn yes() -> bool {
@@ -86,6 +94,7 @@ impl Default for ZenohSettings {
             auth: AuthSettings::default(),
             tls: TlsSettings::default(),
             acl: AclSettings::default(),
+            history_windows: default_history_windows(),
         }
     }
 }
@@ -445,6 +454,7 @@ pub struct ZenohPublisher {
     queries: Arc<std::sync::atomic::AtomicU64>,
     duplicates: Arc<std::sync::atomic::AtomicU64>,
     stats: PublishStats,
+    recent: Option<super::recent::RecentHistory>,
     _token: zenoh::liveliness::LivelinessToken,
     _watch: zenoh::pubsub::Subscriber<()>,
     _queryables: Vec<zenoh::query::Queryable<()>>,
@@ -468,7 +478,14 @@ impl ZenohPublisher {
                 settings.reach()
             );
         }
-        Self::declare(session, base, config_json)
+        let mut publisher = Self::declare(session, base, config_json)?;
+        publisher.recent = super::recent::RecentHistory::declare(
+            &publisher.session,
+            base,
+            settings.history_windows,
+            publisher.queries.clone(),
+        )?;
+        Ok(publisher)
     }
 
     fn declare(session: zenoh::Session, base: &str, config_json: Vec<u8>) -> Result<Self> {
@@ -518,6 +535,14 @@ impl ZenohPublisher {
             let q = session
                 .declare_queryable(key.clone())
                 .callback(move |query| {
+                    // `_time=[..]` asks for history: historians answer that, not the daemon.
+                    if query
+                        .parameters()
+                        .get(super::time_range::PARAMETER)
+                        .is_some()
+                    {
+                        return;
+                    }
                     let payload = match &store {
                         Store::Health(m) => m.lock().ok().and_then(|g| g.clone()),
                         Store::Config(m) => m.lock().ok().map(|g| g.clone()),
@@ -545,6 +570,7 @@ impl ZenohPublisher {
             queries,
             duplicates,
             stats: PublishStats::default(),
+            recent: None,
             _token: token,
             _watch: watch,
             _queryables: queryables,
@@ -564,6 +590,9 @@ impl ZenohPublisher {
         match self.health.put(json.clone()).wait() {
             Ok(()) => self.stats.health += 1,
             Err(e) => self.error("health", e),
+        }
+        if let Some(r) = &self.recent {
+            r.push(&json);
         }
         if let Ok(mut g) = self.latest_health.lock() {
             *g = Some(json);
