@@ -70,6 +70,8 @@ fn window(tag: &str, i: usize, seq: u64, run_ns: u64) -> HealthMessage {
         publish_time_ns: 0,
         rpm: Some(1480.0 + 10.0 * f64::from(wobble)),
         speed_source: "tacho".into(),
+        speed_confidence: None,
+        speed_rival_rpm: None,
         quality: QualityReport {
             ok: true,
             ..Default::default()
@@ -78,6 +80,9 @@ fn window(tag: &str, i: usize, seq: u64, run_ns: u64) -> HealthMessage {
         window_state: labels[0].clone(),
         unknown_reason: None,
         alarm_despite: None,
+        decision: Default::default(),
+        overruled: None,
+        evidence: None,
         state: labels[0].clone(),
         state_since_s: 0.5,
         state_changed: seq == 1,
@@ -105,6 +110,7 @@ fn window(tag: &str, i: usize, seq: u64, run_ns: u64) -> HealthMessage {
             id: "bench".into(),
             sha256: "0".repeat(64),
             labels,
+            foreign: Vec::new(),
         },
         calibration_id: None,
         software_version: env!("CARGO_PKG_VERSION").to_string(),

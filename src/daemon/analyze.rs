@@ -246,7 +246,6 @@ impl Analyzer {
         }
         if q.speed_uncertain {
             quality.flag("speed_uncertain");
-            bad_classifier = true;
         }
         if q.speed_ambiguous {
             // advisory: classified, the rival speed is in the message
