@@ -32,7 +32,7 @@ use crate::sim::plan::Plan;
 use crate::train::dataset::RecordingFeatures;
 use crate::train::featurise::featurise_all;
 use crate::train::fit::{class_labels, fit, FitReport};
-use crate::train::score::{model_outcomes, rule_outcomes};
+use crate::train::score::{model_outcomes, rule_labels, rule_outcomes};
 use crate::train::trainer::TrainConfig;
 use anyhow::{bail, Context, Result};
 use indicatif::{ProgressBar, ProgressStyle};
@@ -253,13 +253,8 @@ fn train_seed(
 /// trained when none is labelled healthy.
 fn align_step(
     models: Vec<TrainedModel>,
-    measured: &LabelledSet,
+    healthy: &[RecordingFeatures],
 ) -> Result<(Vec<TrainedModel>, Option<serde_json::Value>)> {
-    let healthy: Vec<&RecordingFeatures> = measured
-        .features
-        .iter()
-        .filter(|r| r.label == "healthy")
-        .collect();
     if healthy.is_empty() {
         tracing::warn!(
             "no measured recording is labelled healthy: the model is not aligned to the machine"
@@ -300,21 +295,16 @@ fn score_set(
     before: &OnnxClassifier,
     after: &OnnxClassifier,
 ) -> Result<SetScores> {
-    let b = model_outcomes(before, &set.features, rig)?;
-    let a = model_outcomes(after, &set.features, rig)?;
-    let labels = after.meta().labels.clone();
-    let kept: Vec<ManifestEntry> = set
-        .entries
-        .iter()
-        .filter(|e| a.outcomes.iter().any(|o| o.path == e.display_name()))
-        .cloned()
-        .collect();
+    let b = model_outcomes(before, &set.scored, rig)?;
+    let a = model_outcomes(after, &set.scored, rig)?;
+    let kept = a.scored(&set.scored);
+    let labels = rule_labels(&a.labels, &kept);
     let rule = EnvelopeRule::for_rig(rig, RuleSettings::default());
-    let r = rule_outcomes(&rule, &kept, rig, &labels, &ProgressBar::hidden())?;
+    let r = rule_outcomes(&rule, &kept, &labels)?;
     Ok(SetScores {
         manifest: set.manifest.display().to_string(),
-        before: score(&before.meta().labels, &b.outcomes),
-        after: score(&labels, &a.outcomes),
+        before: score(&b.labels, &b.outcomes),
+        after: score(&a.labels, &a.outcomes),
         rule: score(&labels, &r),
     })
 }
@@ -571,7 +561,7 @@ pub fn adapt(o: &AdaptOptions) -> Result<AdaptOutcome> {
 
     steps.set_message("aligning the model to the machine's healthy recordings");
     let (seeds, chosen_seed) = (trained.seeds.clone(), trained.chosen_seed);
-    let (models, alignment) = align_step(trained.models, &pre.measured)?;
+    let (models, alignment) = align_step(trained.models, &pre.healthy)?;
     let trained = Trained { models, ..trained };
     let (after, before, before_name) = write_models(trained, rig, o)?;
     clock.lap("align and write");

@@ -80,21 +80,40 @@ impl MeasuredRange {
 }
 
 /// The speeds a plan may simulate on this rig, rpm, and why: `[speed] estimate` declares
-/// its operating range; a `fixed` speed is read for every window, so a simulated recording
-/// must turn at it (within one feature bin at the highest order: `bin_width_order /
-/// max_order`). `None`: the rig file does not bound the speed (tacho, edges, stored rpm).
+/// its operating range; a `fixed` speed checked against the 1x line is followed within
+/// `check_within_percent`, an unchecked one is read for every window, so a simulated
+/// recording must turn at it (within one feature bin at the highest order: `bin_width_order
+/// / max_order`). `None`: the rig file does not bound the speed (tacho, edges, stored rpm).
 pub fn allowed_speeds(rig: &RigConfig) -> Option<([f64; 2], String)> {
     match rig.speed {
-        SpeedConfig::Estimate { min_rpm, max_rpm } => Some((
+        SpeedConfig::Estimate {
+            min_rpm, max_rpm, ..
+        } => Some((
             [min_rpm, max_rpm],
             format!("the rig file's [speed] estimate range {min_rpm}-{max_rpm} rpm"),
         )),
-        SpeedConfig::Fixed { rpm } => {
-            let tol = rig.features.bin_width_order / rig.features.max_order;
+        SpeedConfig::Fixed {
+            rpm,
+            check_within_percent,
+        } => {
+            // a fixed speed checked against the 1x line is followed within the check's
+            // range; an unchecked one is read for every window, so a recording must turn
+            // at it within one feature bin at the highest order
+            let (tol, why) = if check_within_percent > 0.0 {
+                (
+                    0.01 * check_within_percent,
+                    "the 1x check follows the shaft within it",
+                )
+            } else {
+                (
+                    rig.features.bin_width_order / rig.features.max_order,
+                    "every window is read at it; this keeps the highest order within one bin",
+                )
+            };
             Some((
                 [rpm * (1.0 - tol), rpm * (1.0 + tol)],
                 format!(
-                    "the rig file's fixed speed {rpm} rpm (every window is read at it; +-{:.1} % keeps the highest order within one bin)",
+                    "the rig file's fixed speed {rpm} rpm +-{:.1} % ({why})",
                     100.0 * tol
                 ),
             ))
@@ -110,7 +129,7 @@ pub fn plannable_speeds(rig: &RigConfig) -> Option<[f64; 2]> {
     let ([a, b], _) = allowed_speeds(rig)?;
     let f = SPEED_FLUCTUATION[1];
     Some(match rig.speed {
-        SpeedConfig::Fixed { rpm } => [rpm, rpm],
+        SpeedConfig::Fixed { rpm, .. } => [rpm, rpm],
         _ => [a / (1.0 - f), b / (1.0 + f)],
     })
 }
@@ -119,7 +138,7 @@ pub fn plannable_speeds(rig: &RigConfig) -> Option<[f64; 2]> {
 /// else the measured speeds -[`RPM_BELOW`] / +[`RPM_ABOVE`]).
 pub fn speed_basis(rig: &RigConfig, range: &MeasuredRange) -> ([f64; 2], String) {
     match (&rig.speed, allowed_speeds(rig), plannable_speeds(rig)) {
-        (SpeedConfig::Fixed { rpm }, Some(_), _) => (
+        (SpeedConfig::Fixed { rpm, .. }, Some(_), _) => (
             [*rpm, *rpm],
             format!("the rig file's fixed speed {rpm} rpm"),
         ),
@@ -331,6 +350,7 @@ mod tests {
         rig.speed = SpeedConfig::Estimate {
             min_rpm: 500.0,
             max_rpm: 1500.0,
+            check_within_percent: 0.0,
         };
         // recordings at 900 rpm only: the plan still covers what the rig file declares
         let r = MeasuredRange::of(&[("h".into(), 900.0, 51_200.0, "healthy".into())]).unwrap();
@@ -347,7 +367,10 @@ mod tests {
             p.description
         );
         // a fixed speed is simulated at that speed
-        rig.speed = SpeedConfig::Fixed { rpm: 900.0 };
+        rig.speed = SpeedConfig::Fixed {
+            rpm: 900.0,
+            check_within_percent: 0.0,
+        };
         assert_eq!(
             derive(&rig, &r, 10, 2.0).unwrap().random.rpm,
             Some([900.0, 900.0])
@@ -381,6 +404,7 @@ mod tests {
         rig.speed = SpeedConfig::Estimate {
             min_rpm: 500.0,
             max_rpm: 1500.0,
+            check_within_percent: 0.0,
         };
         for c in &mut p.cases {
             c.rpm = None;

@@ -16,21 +16,24 @@ use crate::recording::Recording;
 use crate::sim::plan::Plan;
 use crate::train::dataset::RecordingFeatures;
 use crate::train::featurise::featurise_all;
+use crate::train::score::{analyse_all, ScoredRecording};
 use anyhow::{bail, Context, Result};
 use indicatif::ProgressBar;
 use std::path::Path;
 
-/// A manifest's rows, featurised (the model and the rule score these).
+/// A manifest's rows, cut into the daemon's windows (the models and the rule score these).
 pub struct LabelledSet {
     pub manifest: std::path::PathBuf,
     pub entries: Vec<ManifestEntry>,
-    pub features: Vec<RecordingFeatures>,
+    pub scored: Vec<ScoredRecording>,
 }
 
 /// What the checks loaded.
 pub struct Checked {
     pub rig: RigConfig,
     pub measured: LabelledSet,
+    /// The measured recordings labelled healthy, featurised (the model is aligned to them).
+    pub healthy: Vec<RecordingFeatures>,
     /// The measured recordings over their spans: (name, label, speed rpm, recording).
     pub recordings: Vec<(String, String, f64, Recording)>,
     pub holdout: Option<LabelledSet>,
@@ -62,12 +65,12 @@ fn labelled_set(manifest: &Path, rig: &RigConfig, what: &str) -> Result<Labelled
             );
         }
     }
-    let features = featurise_all(&entries, rig, &ProgressBar::hidden())
+    let scored = analyse_all(&entries, rig, &ProgressBar::hidden())
         .with_context(|| format!("{what} recordings of {}", manifest.display()))?;
     Ok(LabelledSet {
         manifest: manifest.to_path_buf(),
         entries,
-        features,
+        scored,
     })
 }
 
@@ -186,6 +189,14 @@ pub fn check(o: &AdaptOptions) -> Result<Checked> {
     let rig = RigConfig::load(&o.rig)?;
     crate::sim::rig_simulation(&rig)?;
     let measured = labelled_set(&o.measured, &rig, "measured")?;
+    let healthy_rows: Vec<ManifestEntry> = measured
+        .entries
+        .iter()
+        .filter(|e| e.label == "healthy")
+        .cloned()
+        .collect();
+    let healthy = featurise_all(&healthy_rows, &rig, &ProgressBar::hidden())
+        .with_context(|| format!("healthy recordings of {}", o.measured.display()))?;
     let holdout = match &o.holdout {
         Some(h) => Some(labelled_set(h, &rig, "held-out")?),
         None => None,
@@ -225,6 +236,7 @@ pub fn check(o: &AdaptOptions) -> Result<Checked> {
     Ok(Checked {
         rig,
         measured,
+        healthy,
         recordings,
         holdout,
         range,

@@ -15,7 +15,7 @@
 
 use super::plan::plannable_speeds;
 use crate::config::RigConfig;
-use crate::model::rule::{EnvelopeRule, RuleSettings};
+use crate::model::rule::RuleSettings;
 use crate::recording::Recording;
 use crate::sim::plan::{Plan, PlanCase, RandomRanges};
 use crate::sim::{Fault, Scenario};
@@ -54,25 +54,18 @@ pub struct ShapedFault {
     pub recordings: usize,
 }
 
-/// The rule's statistic for `label`'s fault family: the band at the fault order and at
-/// twice it, over the median band; median over the recording's windows.
+/// The rule's statistic for `label`'s fault family, as the analysis stage measures it on
+/// every window ([`crate::dsp::fault_band_ratios::FaultBandRatios`]: the band at the fault
+/// order and at twice it, over the median band); median over the recording's windows.
 pub fn family_ratio(rec: &Recording, rig: &RigConfig, label: &str) -> Result<f64> {
-    let o = rig.bearing.fault_orders();
-    let orders = match label {
-        // the rule's first pair of bands, moved to the ball-spin family
-        "ball" => crate::bearing::FaultOrders {
-            bpfo: o.two_bsf,
-            ..o
-        },
-        _ => o,
-    };
-    let rule = EnvelopeRule::new(orders, RuleSettings::default(), rig.features.max_order);
-    let verdicts = rule.judge_recording(rec, rig)?;
-    let mut v: Vec<f64> = verdicts
+    let windows = crate::analysis::analyse_recording(rec, rig)?;
+    let mut v: Vec<f64> = windows
         .iter()
-        .map(|w| match label {
-            "inner_race" => w.ratios[2].max(w.ratios[3]),
-            _ => w.ratios[0].max(w.ratios[1]),
+        .filter_map(|w| w.fault_bands.as_ref())
+        .map(|b| match label {
+            "inner_race" => b.inner_race(),
+            "ball" => b.ball(),
+            _ => b.outer_race(),
         })
         .collect();
     anyhow::ensure!(!v.is_empty(), "no window to measure");

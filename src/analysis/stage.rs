@@ -1,7 +1,8 @@
 //! One window in, everything the model and health stages need out: the window's samples
 //! checked (dropouts, NaN), its shaft speed from the [`SpeedSource`], the envelope order
-//! spectrum features with their quality flags, and the ISO 20816-3 velocity RMS of the
-//! classifier channel. The daemon and whole recordings (`rigmon features`, training,
+//! spectrum features with their quality flags, the classifier channel's band ratios at the
+//! bearing's fault orders (what the rule baseline judges), and the ISO 20816-3 velocity RMS of
+//! the classifier channel. The daemon and whole recordings (`rigmon features`, training,
 //! evaluation) both go through [`AnalysisStage::analyse`], so a model is served the features
 //! it was trained on. Buffers are made once and reused.
 
@@ -9,6 +10,7 @@ use super::speed_source::SpeedSource;
 use super::velocity::VelocityRms;
 use super::windows::WindowView;
 use crate::config::RigConfig;
+use crate::dsp::fault_band_ratios::{FaultBandMeter, FaultBandRatios};
 use crate::dsp::features::{FeaturePipeline, FeatureWindow};
 use anyhow::Result;
 
@@ -55,7 +57,15 @@ pub struct WindowAnalysis {
     pub tacho_lost: bool,
     /// Name of the speed source before a window has been computed (tacho, edges, ...).
     pub speed_source: &'static str,
+    /// How sure the vibration tracker is of the window's speed (0-1; None for speeds not
+    /// read from the vibration).
+    pub speed_confidence: Option<f64>,
+    /// Half or twice the speed, when the vibration supports it nearly as well, rpm.
+    pub speed_rival_rpm: Option<f64>,
     pub features: Result<FeatureWindow, WindowError>,
+    /// The classifier channel's band ratios at the bearing's fault orders, from the envelope
+    /// order spectrum its features were summed from (None without features).
+    pub fault_bands: Option<FaultBandRatios>,
     /// Broadband velocity RMS of the classifier channel, mm/s (None for a unit that is not
     /// an acceleration or a window with non-finite samples).
     pub velocity_mm_s: Option<f64>,
@@ -74,6 +84,8 @@ pub struct AnalysisStage {
     classifier: Option<usize>,
     /// Sanitised copies of the window (NaN -> 0), one per channel.
     scratch: Vec<Vec<f32>>,
+    /// Band ratios at the bearing's fault orders, measured on the classifier channel.
+    fault_bands: FaultBandMeter,
     /// Pass non-finite samples to the pipeline, which then refuses the window (whole
     /// recordings: a NaN in a training file is an error to fix, not a flag).
     strict: bool,
@@ -96,7 +108,9 @@ impl AnalysisStage {
             .classifier_channel()
             .and_then(|c| names.iter().position(|n| n == &c.name))
             .filter(|&k| !absent.contains(&names[k]));
+        let o = rig.bearing.fault_orders();
         Ok(AnalysisStage {
+            fault_bands: FaultBandMeter::new(o.bpfo, o.bpfi, o.two_bsf, rig.features.max_order),
             pipeline,
             speed,
             velocity: VelocityRms::new(len, sample_rate),
@@ -160,10 +174,14 @@ impl AnalysisStage {
             .or_else(|| self.absent.iter().position(|a| !a))
             .map_or(&[][..], |k| self.scratch[k].as_slice());
         let mut tacho_lost = false;
-        let features = match self.speed.track(view.edges(), signal) {
+        let (mut speed_confidence, mut speed_rival_rpm) = (None, None);
+        let mut fault_bands = None;
+        let features = match self.speed.track(view, signal) {
             Err(e) => Err(WindowError::NoSpeed(e)),
-            Ok(track) => {
-                tacho_lost = self.speed.lost_pulses(&track, view.t_start, view.t_end);
+            Ok(speed) => {
+                let track = &speed.track;
+                (speed_confidence, speed_rival_rpm) = (speed.confidence, speed.rival_rpm);
+                tacho_lost = self.speed.lost_pulses(track, view.t_start, view.t_end);
                 let (names, absent, scratch) = (&self.names, &self.absent, &self.scratch);
                 let chans: Vec<(&str, &[f32])> = (0..names.len())
                     .filter(|&k| !absent[k])
@@ -176,8 +194,23 @@ impl AnalysisStage {
                         (names[k].as_str(), x)
                     })
                     .collect();
+                let meter = &mut self.fault_bands;
+                let mut measure =
+                    |step: f64, lines: &[f32]| fault_bands = Some(meter.measure(step, lines));
+                let probe = self.classifier.map(|k| {
+                    (
+                        names[k].as_str(),
+                        &mut measure as &mut dyn FnMut(f64, &[f32]),
+                    )
+                });
                 self.pipeline
-                    .process_window(view.t_start, &chans, &track)
+                    .process_window_probed(view.t_start, &chans, track, probe)
+                    .map(|mut fw| {
+                        fw.quality.speed_uncertain = speed.uncertain;
+                        fw.quality.speed_ambiguous = speed.rival_rpm.is_some();
+                        fw.speed_confidence = speed.confidence.map(|c| c as f32);
+                        fw
+                    })
                     .map_err(WindowError::Features)
             }
         };
@@ -192,7 +225,10 @@ impl AnalysisStage {
             classifier_nan,
             tacho_lost,
             speed_source: self.speed.source_name(),
+            speed_confidence,
+            speed_rival_rpm,
             features,
+            fault_bands,
             velocity_mm_s,
         }
     }

@@ -1,4 +1,4 @@
-//! `rigmon import <file> --rig <toml> -o <out.mcap>`: read a CWRU/MFPT `.mat`, WAV, CSV (or
+//! `rigmon import <file> --rig <toml> -o <out.mcap>`: read a `.mat` (any layout), WAV, CSV (or
 //! rigmon MCAP) recording and write it in the rigmon MCAP layout; prints a one-line summary.
 
 use crate::config::RigConfig;

@@ -118,6 +118,7 @@ pub fn load(path: &Path, rig: &RigConfig, opts: &ImportOptions) -> Result<Record
         channels,
         tacho,
         rpm: opts.rpm,
+        nominal_rpm: None,
         provenance: Provenance {
             source_path: p.to_string(),
             format: "wav".into(),

@@ -382,6 +382,7 @@ pub fn read_recording_bytes(bytes: &[u8]) -> Result<Recording> {
         channels,
         tacho,
         rpm,
+        nominal_rpm: None,
         provenance,
         metadata: labels,
     })
