@@ -309,6 +309,9 @@ fn score_set(
     })
 }
 
+/// One trained model with its training report and simulated validation.
+type SeedRun = (TrainedModel, FitReport, Evaluation);
+
 /// The trained models: every seed's (in seed order), the kept seed and the zero-shot model.
 struct Trained {
     seeds: Vec<SeedResult>,
@@ -332,7 +335,7 @@ fn train_step(
     let pb = file_bar(o.progress, n_jobs * o.epochs, "train");
     // job 0 is the zero-shot model, jobs 1.. the seeds
     let jobs: Vec<u64> = (u64::from(recs0.is_none())..=o.seeds).collect();
-    let trained: Vec<(u64, Result<(TrainedModel, FitReport, Evaluation)>)> = jobs
+    let trained: Vec<(u64, Result<SeedRun>)> = jobs
         .par_iter()
         .map(|&job| {
             let r = match (job, recs0) {
