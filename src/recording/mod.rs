@@ -77,6 +77,20 @@ pub struct Recording {
 }
 
 impl Recording {
+    /// True when rigmon's simulator produced it (also after a round trip through a file:
+    /// its metadata keeps the scenario).
+    pub fn is_simulated(&self) -> bool {
+        self.provenance.format.contains("simulat")
+            || self
+                .metadata
+                .keys()
+                .any(|k| k.starts_with("sim") || k == "scenario")
+            || self
+                .metadata
+                .get("source")
+                .is_some_and(|s| s.contains("simulat"))
+    }
+
     /// Number of samples per channel.
     pub fn len(&self) -> usize {
         self.channels.first().map_or(0, |c| c.samples.len())
