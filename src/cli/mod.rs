@@ -14,6 +14,7 @@ pub mod features;
 pub mod finetune;
 pub mod import;
 pub mod inspect;
+pub mod repair;
 pub mod replay;
 pub mod run;
 pub mod simulate;
