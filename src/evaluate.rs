@@ -1,15 +1,15 @@
 //! Whole-record scoring of a classifier on labelled recordings: per-window accuracy,
 //! whole-record accuracy (majority vote of the windows), balanced accuracy (mean recall over
-//! the classes present), confusion matrices, the unknown (novelty) rate and the alarm counts
-//! (missed alarms: a faulty record called healthy; false alarms: a healthy record called
-//! faulty). Pure arithmetic on per-window predictions, so training, fine-tuning and
-//! `rigmon evaluate` share it. For a model file the record also carries what the daemon would
-//! say ([`daemon_outcome`]: the windows through the same health state machine): a faulty
+//! the classes present), confusion matrices, the unknown rate and the alarm counts (missed
+//! alarms: a faulty record called healthy; false alarms: a healthy record called faulty).
+//! Pure arithmetic on per-window outcomes, so training, fine-tuning and `rigmon evaluate`
+//! share it. For a model file the windows' classes are the daemon's own window verdicts and
+//! the record carries the state the daemon ends in ([`DaemonOutcome`], made by
+//! [`crate::train::score`] through the daemon's verdict and health state machine): a faulty
 //! record the daemon leaves `healthy` or `unknown` is a missed alarm even when the majority
 //! vote names its fault, so `evaluate` and `rigmon run` cannot disagree.
 
-use crate::health::{HealthPolicy, HealthStateMachine, WindowVerdict, UNKNOWN};
-use anyhow::Result;
+use crate::health::UNKNOWN;
 use serde::Serialize;
 
 /// Per-window outcomes of one labelled recording.
@@ -18,69 +18,33 @@ pub struct RecordOutcome {
     pub path: String,
     /// True class index (into the label list).
     pub label: usize,
-    /// Predicted class index per window.
+    /// Class index per window that has a class (a window whose quality forbids a verdict has
+    /// none and votes for nothing).
     pub predicted: Vec<usize>,
-    /// Novelty flag per window.
+    /// Per such window: its state is `unknown` (novel or doubtful and not clearly a fault).
     pub unknown: Vec<bool>,
     /// Mean rpm of the recording (reported only).
     pub rpm: f64,
-    /// What the daemon's health state machine makes of the windows (None when the outcomes
-    /// do not come from a model file, e.g. the rule baseline).
+    /// What the daemon's verdict and health state machine make of the windows (None when the
+    /// outcomes do not come from a model file, e.g. the rule baseline).
     pub daemon: Option<DaemonOutcome>,
 }
 
-/// One window as the daemon's health state machine sees it.
-#[derive(Debug, Clone)]
-pub struct WindowEvidence {
-    pub probs: Vec<f32>,
-    pub novelty: f32,
-    /// Beyond the machine's healthy baseline (None: the model is not aligned).
-    pub beyond_baseline: Option<bool>,
-}
-
-/// A record's windows run through the daemon's health state machine.
-#[derive(Debug, Clone, PartialEq, Serialize)]
+/// A record's windows as the daemon judges them (its verdict and health state machine).
+#[derive(Debug, Clone, Default, PartialEq, Serialize)]
 pub struct DaemonOutcome {
     /// The smoothed state after the record's last window.
     pub state: String,
-    /// Windows whose window state is `unknown`.
+    /// Windows whose state is `unknown` for novelty or low confidence.
     pub unknown_windows: usize,
+    /// Windows whose data quality forbids a verdict (`unknown`, `bad_quality`).
+    pub bad_quality_windows: usize,
     /// Windows kept as a fault although novel or doubtful (`alarm_despite` in the message).
     pub alarm_despite_windows: usize,
-}
-
-/// Feed a record's windows (ending at `window_s + i * hop_s` s) to a fresh
-/// [`HealthStateMachine`] with `policy`, as `rigmon replay` would with that `[health]`.
-pub fn daemon_outcome(
-    labels: &[String],
-    windows: &[WindowEvidence],
-    novelty_threshold: f32,
-    window_s: f64,
-    hop_s: f64,
-    policy: &HealthPolicy,
-) -> Result<DaemonOutcome> {
-    let mut sm = HealthStateMachine::new(policy.clone(), labels)?;
-    let threshold = policy.novelty_threshold.unwrap_or(novelty_threshold);
-    let mut out = DaemonOutcome {
-        state: UNKNOWN.to_string(),
-        unknown_windows: 0,
-        alarm_despite_windows: 0,
-    };
-    for (i, w) in windows.iter().enumerate() {
-        let s = sm.update(&WindowVerdict {
-            t_end: window_s + hop_s * i as f64,
-            labels,
-            probs: &w.probs,
-            novelty: if w.novelty.is_nan() { 0.0 } else { w.novelty },
-            novelty_threshold: threshold,
-            bad_quality: false,
-            beyond_baseline: w.beyond_baseline,
-        });
-        out.unknown_windows += usize::from(s.unknown_reason.is_some());
-        out.alarm_despite_windows += usize::from(s.alarm_despite.is_some());
-        out.state = s.state;
-    }
-    Ok(out)
+    /// Windows whose class the fault-family evidence decided, overruling the classifier.
+    pub evidence_windows: usize,
+    /// Every window's state, in order (what `replay --json` prints as `window_state`).
+    pub window_states: Vec<String>,
 }
 
 /// A confusion matrix: `matrix[true][predicted]`.
@@ -133,9 +97,11 @@ impl Confusion {
 pub struct RecordResult {
     pub path: String,
     pub label: String,
-    /// Majority vote of the windows (see [`majority`]).
+    /// Majority vote of the windows with a class (see [`majority`]); `unknown` when no window
+    /// has one.
     pub predicted: String,
     pub correct: bool,
+    /// Windows with a class (those voting).
     pub windows: usize,
     pub window_accuracy: f64,
     /// Fraction of windows whose novelty score exceeded the threshold.
@@ -150,6 +116,13 @@ pub struct RecordResult {
     /// as a fault although novel or doubtful; null for the rule baseline.
     pub daemon_unknown_rate: Option<f64>,
     pub alarm_despite_rate: Option<f64>,
+    /// Windows the daemon calls `unknown` for their data quality, and windows whose class the
+    /// fault-family evidence decided; null for the rule baseline.
+    pub bad_quality_windows: Option<usize>,
+    pub evidence_windows: Option<usize>,
+    /// The daemon's state of every window, in order (empty for the rule baseline).
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub window_states: Vec<String>,
     /// Counted in `missed_alarms` / `false_alarms` (majority vote or daemon state).
     pub missed_alarm: bool,
     pub false_alarm: bool,
@@ -169,8 +142,10 @@ pub struct Evaluation {
     pub window_accuracy: f64,
     /// Mean recall over the classes present, per window.
     pub window_balanced_accuracy: f64,
-    /// Fraction of windows flagged unknown by the novelty score.
+    /// Fraction of the windows with a class whose state is `unknown` (novel or doubtful).
     pub unknown_rate: f64,
+    /// Windows whose data quality forbids a verdict (not in the window figures).
+    pub bad_quality_windows: usize,
     /// Faulty records (any label but `healthy`) called healthy by the majority vote, or left
     /// `healthy` or `unknown` by the daemon's state machine (no alarm for the user). Calling a
     /// fault another fault is wrong but still an alarm, so it is not counted here.
@@ -227,19 +202,20 @@ pub fn alarms(cm: &Confusion) -> (usize, usize) {
 fn record_alarms(
     labels: &[String],
     label: usize,
-    pred: usize,
+    pred: Option<usize>,
     daemon: Option<&DaemonOutcome>,
 ) -> (bool, bool) {
     let Some(h) = labels.iter().position(|l| l == "healthy") else {
         return (false, false);
     };
     let state = daemon.map(|d| d.state.as_str());
+    // `pred` None: no window had a class, so no vote raised an alarm
     if label == h {
         let daemon_fault = state.is_some_and(|s| s != UNKNOWN && s != labels[h]);
-        (false, pred != h || daemon_fault)
+        (false, pred.is_some_and(|p| p != h) || daemon_fault)
     } else {
         let daemon_silent = state.is_some_and(|s| s == UNKNOWN || s == labels[h]);
-        (pred == h || daemon_silent, false)
+        (pred.is_none_or(|p| p == h) || daemon_silent, false)
     }
 }
 
@@ -248,7 +224,7 @@ pub fn score(labels: &[String], outcomes: &[RecordOutcome]) -> Evaluation {
     let k = labels.len();
     let mut rec_cm = Confusion::new(labels);
     let mut win_cm = Confusion::new(labels);
-    let (mut n_unknown, mut n_windows) = (0usize, 0usize);
+    let (mut n_unknown, mut n_windows, mut n_bad) = (0usize, 0usize, 0usize);
     let (mut n_missed, mut n_false, mut n_unknown_states) = (0usize, 0usize, 0usize);
     let mut records = Vec::new();
     for o in outcomes {
@@ -256,10 +232,14 @@ pub fn score(labels: &[String], outcomes: &[RecordOutcome]) -> Evaluation {
             win_cm.matrix[o.label][p] += 1;
         }
         let (pred, votes) = majority(&o.predicted, k);
-        rec_cm.matrix[o.label][pred] += 1;
+        let pred = (!o.predicted.is_empty()).then_some(pred);
+        if let Some(p) = pred {
+            rec_cm.matrix[o.label][p] += 1;
+        }
         let unk = o.unknown.iter().filter(|&&u| u).count();
         n_unknown += unk;
         n_windows += o.predicted.len();
+        n_bad += o.daemon.as_ref().map_or(0, |d| d.bad_quality_windows);
         let n = o.predicted.len().max(1) as f64;
         let (missed_alarm, false_alarm) = record_alarms(labels, o.label, pred, o.daemon.as_ref());
         n_missed += usize::from(missed_alarm);
@@ -268,8 +248,8 @@ pub fn score(labels: &[String], outcomes: &[RecordOutcome]) -> Evaluation {
         records.push(RecordResult {
             path: o.path.clone(),
             label: labels[o.label].clone(),
-            predicted: labels[pred].clone(),
-            correct: pred == o.label,
+            predicted: pred.map_or(UNKNOWN.to_string(), |p| labels[p].clone()),
+            correct: pred == Some(o.label),
             windows: o.predicted.len(),
             window_accuracy: votes[o.label] as f64 / n,
             unknown_rate: unk as f64 / n,
@@ -281,6 +261,13 @@ pub fn score(labels: &[String], outcomes: &[RecordOutcome]) -> Evaluation {
                 .daemon
                 .as_ref()
                 .map(|d| d.alarm_despite_windows as f64 / n),
+            bad_quality_windows: o.daemon.as_ref().map(|d| d.bad_quality_windows),
+            evidence_windows: o.daemon.as_ref().map(|d| d.evidence_windows),
+            window_states: o
+                .daemon
+                .as_ref()
+                .map(|d| d.window_states.clone())
+                .unwrap_or_default(),
             missed_alarm,
             false_alarm,
         });
@@ -300,6 +287,7 @@ pub fn score(labels: &[String], outcomes: &[RecordOutcome]) -> Evaluation {
         } else {
             n_unknown as f64 / n_windows as f64
         },
+        bad_quality_windows: n_bad,
         missed_alarms: n_missed,
         false_alarms: n_false,
         majority_missed_alarms,
@@ -337,6 +325,12 @@ pub fn summary(e: &Evaluation) -> String {
         "missed alarms (faulty record called healthy): {}   false alarms (healthy record called faulty): {}   (windows: {} / {})\n",
         e.missed_alarms, e.false_alarms, e.window_missed_alarms, e.window_false_alarms
     );
+    if e.bad_quality_windows > 0 {
+        s += &format!(
+            "windows unknown for their data quality (no vote): {}\n",
+            e.bad_quality_windows
+        );
+    }
     if e.records.iter().any(|r| r.state.is_some()) {
         s += &format!(
             "daemon states (default [health]): {} record(s) end unknown; majority vote alone: {} missed, {} false alarms\n",
@@ -457,45 +451,11 @@ mod tests {
     #[test]
     fn a_faulty_record_the_daemon_leaves_unknown_is_a_missed_alarm() {
         let labels = labels();
-        // 19 windows the network is sure are outer race, all novel (beyond the training set).
-        let novel_or = |beyond| {
-            (0..19)
-                .map(|_| WindowEvidence {
-                    probs: vec![0.0, 0.6, 0.4],
-                    novelty: 20.0,
-                    beyond_baseline: beyond,
-                })
-                .collect::<Vec<_>>()
+        let daemon = |state: &str, unknown_windows| DaemonOutcome {
+            state: state.into(),
+            unknown_windows,
+            ..DaemonOutcome::default()
         };
-        let policy = HealthPolicy::default();
-        // Not aligned (no baseline) and only 0.6 sure: the daemon says unknown.
-        let silent = daemon_outcome(&labels, &novel_or(None), 10.0, 1.0, 0.5, &policy).unwrap();
-        assert_eq!(silent.state, "unknown");
-        assert_eq!(silent.unknown_windows, 19);
-        // Beyond the machine's healthy baseline: an alarm, flagged.
-        let alarm =
-            daemon_outcome(&labels, &novel_or(Some(true)), 10.0, 1.0, 0.5, &policy).unwrap();
-        assert_eq!(alarm.state, "outer_race");
-        assert_eq!(
-            (alarm.unknown_windows, alarm.alarm_despite_windows),
-            (0, 19)
-        );
-        let healthy = daemon_outcome(
-            &labels,
-            &vec![
-                WindowEvidence {
-                    probs: vec![0.9, 0.05, 0.05],
-                    novelty: 2.0,
-                    beyond_baseline: Some(false),
-                };
-                6
-            ],
-            10.0,
-            1.0,
-            0.5,
-            &policy,
-        )
-        .unwrap();
         let rec = |label, daemon| RecordOutcome {
             path: "x".into(),
             label,
@@ -504,7 +464,14 @@ mod tests {
             rpm: 0.0,
             daemon: Some(daemon),
         };
-        let e = score(&labels, &[rec(1, silent), rec(1, alarm), rec(0, healthy)]);
+        let e = score(
+            &labels,
+            &[
+                rec(1, daemon("unknown", 19)),
+                rec(1, daemon("outer_race", 0)),
+                rec(0, daemon("healthy", 0)),
+            ],
+        );
         // The votes say outer race for both faulty records; the daemon stays silent on one.
         assert_eq!(e.record_accuracy, 1.0);
         assert_eq!((e.majority_missed_alarms, e.majority_false_alarms), (0, 0));
@@ -515,7 +482,28 @@ mod tests {
         assert!(e.records[0].missed_alarm && !e.records[1].missed_alarm);
         assert_eq!(e.records[1].state.as_deref(), Some("outer_race"));
         assert_eq!(e.records[2].state.as_deref(), Some("healthy"));
-        assert_eq!(e.records[1].alarm_despite_rate, Some(1.0));
         assert!(summary(&e).contains("daemon state unknown"));
+    }
+
+    #[test]
+    fn a_record_without_a_verdict_raises_no_alarm() {
+        // every window of a faulty record was clipped: no class, the daemon says unknown
+        let o = RecordOutcome {
+            path: "clipped".into(),
+            label: 2,
+            predicted: vec![],
+            unknown: vec![],
+            rpm: 0.0,
+            daemon: Some(DaemonOutcome {
+                state: "unknown".into(),
+                bad_quality_windows: 7,
+                ..DaemonOutcome::default()
+            }),
+        };
+        let e = score(&labels(), &[o]);
+        assert_eq!(e.records[0].predicted, "unknown");
+        assert!(!e.records[0].correct && e.records[0].missed_alarm);
+        assert_eq!((e.missed_alarms, e.bad_quality_windows), (1, 7));
+        assert_eq!(e.confusion.matrix.iter().flatten().sum::<usize>(), 0);
     }
 }

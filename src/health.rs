@@ -1,27 +1,30 @@
 //! Health state machine: per-window verdicts -> a smoothed machine state with hysteresis.
 //!
-//! Each window gets a *window state*: the classifier's label, or `unknown` when the data
-//! quality is bad, the window is novel (out of the training distribution) or the top
-//! probability is below `min_confidence`. A window that is clearly not healthy is never
-//! `unknown` for novelty or low confidence: when it stands beyond the machine's healthy
-//! baseline (an aligned model's gate, [`crate::model::baseline`]) or the classifier gives a
-//! fault class at least `novel_alarm_confidence`, it keeps its fault class and carries the
-//! reason it would otherwise have been unknown in `alarm_despite`. Faults on a real machine
-//! are often stronger than anything simulated, so a distance-to-training-set test calls them
-//! novel; answering `unknown` there would hide the alarm. The *smoothed state* changes only when one state
-//! wins at least `k` of the last `n` window states (k-of-n voting) and has kept winning for
-//! `dwell_s` seconds of signal (dwell time). Going to `unknown` uses `unknown_dwell_s`
-//! (default 0: stop claiming a state as soon as the votes say the data cannot be trusted).
-//! Before the first vote is won the smoothed state is `unknown`.
+//! Each window gets a *window verdict* from the one mapping in [`verdict`] (data quality,
+//! the classifier's probabilities and novelty, the machine's healthy baseline and the
+//! fault-family evidence, under this policy): its class, or `unknown` when the data quality
+//! is bad, or when the window is novel or doubtful and nothing shows it is clearly a fault.
+//! Faults on a real machine are often stronger than anything simulated, so a
+//! distance-to-training-set test calls them novel; answering `unknown` there would hide the
+//! alarm, so a window beyond the machine's healthy baseline, a confident fault, or a fault
+//! the spectrum's fault-family bins support keeps its class, flagged `alarm_despite`. The
+//! *smoothed state* changes only when one state wins at least `k` of the last `n` window
+//! states (k-of-n voting) and has kept winning for `dwell_s` seconds of signal (dwell time).
+//! Going to `unknown` uses `unknown_dwell_s` (default 0: stop claiming a state as soon as the
+//! votes say the data cannot be trusted). Before the first vote is won the smoothed state is
+//! `unknown`.
 //!
 //! The published message is in [`message`]; the ISO 20816-3 velocity zones in [`iso20816`].
 
 pub mod iso20816;
 pub mod message;
+pub mod verdict;
 
+use crate::model::evidence::{EvidenceHistory, FamilyEvidence};
 use anyhow::{bail, Result};
 use serde::{Deserialize, Serialize};
 use std::collections::VecDeque;
+pub use verdict::{judge, Basis, WindowInput, WindowVerdict};
 
 /// The state name used when no class can be trusted.
 pub const UNKNOWN: &str = "unknown";
@@ -52,6 +55,11 @@ pub struct HealthPolicy {
     /// Override the model's novelty threshold (None = use the model's own).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub novelty_threshold: Option<f32>,
+    /// Standard deviations above the machine's healthy level at which a fault family's bins
+    /// confirm or overrule the classifier (aligned models; [`verdict`]). `inf` switches the
+    /// evidence off.
+    #[serde(default = "default_evidence_z")]
+    pub evidence_z: f32,
     /// ISO 20816-3 zone limits for the velocity RMS advisory.
     #[serde(default)]
     pub iso20816: iso20816::ZoneConfig,
@@ -72,6 +80,15 @@ fn default_min_conf() -> f32 {
 fn default_novel_alarm_conf() -> f32 {
     0.9
 }
+fn default_evidence_z() -> f32 {
+    DEFAULT_EVIDENCE_Z
+}
+
+/// Default `evidence_z` (see [`HealthPolicy::evidence_z`]): three standard deviations, a
+/// one-sided 0.13 % per family and window on healthy data; chosen on the study's own generator
+/// and simulator draws (docs/diagnosis.md), where the machines' held-out healthy windows
+/// reached at most 2.5 and weak inner-race faults 3.1-5.4.
+pub const DEFAULT_EVIDENCE_Z: f32 = 3.0;
 
 impl Default for HealthPolicy {
     fn default() -> Self {
@@ -83,6 +100,7 @@ impl Default for HealthPolicy {
             min_confidence: default_min_conf(),
             novel_alarm_confidence: default_novel_alarm_conf(),
             novelty_threshold: None,
+            evidence_z: default_evidence_z(),
             iso20816: iso20816::ZoneConfig::default(),
         }
     }
@@ -121,26 +139,14 @@ impl HealthPolicy {
                 self.novel_alarm_confidence
             );
         }
+        if self.evidence_z.is_nan() || self.evidence_z <= 0.0 {
+            bail!(
+                "health.evidence_z = {}: must be > 0 (inf switches the fault-family evidence off)",
+                self.evidence_z
+            );
+        }
         self.iso20816.validate()
     }
-}
-
-/// What one window says, before smoothing.
-#[derive(Debug, Clone, PartialEq)]
-pub struct WindowVerdict<'a> {
-    /// End of the window on the sample clock, s.
-    pub t_end: f64,
-    /// Class labels (model order) and their probabilities.
-    pub labels: &'a [String],
-    pub probs: &'a [f32],
-    /// Novelty score and the threshold above which the window is novel.
-    pub novelty: f32,
-    pub novelty_threshold: f32,
-    /// True when the data quality forbids a verdict (NaN, dropout, clipping, lost tacho).
-    pub bad_quality: bool,
-    /// The window stands beyond the machine's healthy baseline (None: the model carries no
-    /// baseline, i.e. it is not aligned to a machine).
-    pub beyond_baseline: Option<bool>,
 }
 
 /// Why a window is `unknown` (None when it has a class).
@@ -166,12 +172,13 @@ impl UnknownReason {
 /// The state machine's answer for one window.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Smoothed {
-    /// This window's own state.
+    /// This window's verdict ([`verdict::judge`]).
+    pub window: WindowVerdict,
+    /// This window's own state (its class or `unknown`).
     pub window_state: String,
-    pub unknown_reason: Option<UnknownReason>,
-    /// The window kept its fault class although it would be `unknown` for this reason
-    /// (novelty or low confidence): it is clearly not healthy.
-    pub alarm_despite: Option<UnknownReason>,
+    /// The fault-family evidence the verdict used: accumulated over the last `vote_n`
+    /// windows that had one (None: the model gives none).
+    pub evidence: Option<FamilyEvidence>,
     /// The smoothed state after this window.
     pub state: String,
     /// Mean probability of the smoothed state over the vote history (for `unknown`: the
@@ -200,6 +207,9 @@ pub struct HealthStateMachine {
     candidate: Option<(usize, f64)>,
     /// False until the first state has been adopted (leaving start-up needs no dwell).
     started: bool,
+    /// The last `vote_n` windows' fault-family evidence, and how far apart windows are.
+    evidence: EvidenceHistory,
+    hop_fraction: f64,
 }
 
 impl HealthStateMachine {
@@ -222,7 +232,16 @@ impl HealthStateMachine {
             since_s: 0.0,
             candidate: None,
             started: false,
+            evidence: EvidenceHistory::new(n),
+            hop_fraction: 0.5,
         })
+    }
+
+    /// Windows are `hop_fraction` x their length apart (`hop_s / window_s`; 0.5 unless told):
+    /// how correlated consecutive windows' evidence is.
+    pub fn set_hop_fraction(&mut self, hop_fraction: f64) {
+        self.hop_fraction = hop_fraction;
+        self.evidence.set_hop_fraction(hop_fraction);
     }
 
     pub fn policy(&self) -> &HealthPolicy {
@@ -237,29 +256,51 @@ impl HealthStateMachine {
     /// Swap in a new policy and/or label set (SIGHUP reload). The vote history is kept when
     /// the labels are the same, cleared (state -> unknown) when they differ.
     pub fn reconfigure(&mut self, policy: HealthPolicy, labels: &[String]) -> Result<()> {
-        let fresh = HealthStateMachine::new(policy, labels)?;
+        let mut fresh = HealthStateMachine::new(policy, labels)?;
+        fresh.set_hop_fraction(self.hop_fraction);
         if fresh.names == self.names {
             self.policy = fresh.policy;
             while self.votes.len() > self.policy.vote_n {
                 self.votes.pop_front();
                 self.probs.pop_front();
             }
+            // another model or policy: its evidence starts afresh
+            self.evidence = fresh.evidence;
         } else {
             *self = fresh;
         }
         Ok(())
     }
 
-    /// Feed one window; returns its window state and the smoothed state.
-    pub fn update(&mut self, v: &WindowVerdict) -> Smoothed {
-        let (top, top_p) = v.probs.iter().copied().enumerate().fold(
-            (0usize, f32::NEG_INFINITY),
-            |best, (i, p)| if p > best.1 { (i, p) } else { best },
-        );
-        let (reason, alarm_despite) = self.judge(v, top, top_p);
-        let vote = match reason {
-            Some(_) => 0,
-            None => self.intern(&v.labels[top.min(v.labels.len().saturating_sub(1))]),
+    /// Judge one window ending at `t_end` ([`verdict::judge`] under this machine's policy)
+    /// and feed its verdict; the daemon and every offline score go through here.
+    ///
+    /// The window's fault-family evidence is first accumulated with the last windows'
+    /// ([`EvidenceHistory`]) and the verdict judges the accumulated evidence; a window whose
+    /// quality forbids a verdict adds none.
+    pub fn observe(&mut self, t_end: f64, w: &WindowInput) -> Smoothed {
+        let evidence = match (w.evidence, w.quality) {
+            (Some(e), None) => Some(self.evidence.push(e)),
+            _ => None,
+        };
+        let verdict = judge(&WindowInput { evidence, ..*w }, &self.policy);
+        let mut s = self.update(t_end, verdict, w.probs, w.labels);
+        s.evidence = evidence;
+        s
+    }
+
+    /// Feed one window's verdict (and the probabilities behind it, for the confidence);
+    /// returns the smoothed state.
+    pub fn update(
+        &mut self,
+        t_end: f64,
+        verdict: WindowVerdict,
+        probs: &[f32],
+        labels: &[String],
+    ) -> Smoothed {
+        let vote = match (&verdict.class, verdict.unknown_reason) {
+            (Some(c), None) => self.intern(c),
+            _ => 0,
         };
 
         // Record the vote and the probabilities (recycling the oldest buffer).
@@ -267,10 +308,10 @@ impl HealthStateMachine {
             self.votes.pop_front();
             self.probs.pop_front().unwrap_or_default()
         } else {
-            Vec::with_capacity(v.probs.len())
+            Vec::with_capacity(probs.len())
         };
         buf.clear();
-        buf.extend_from_slice(v.probs);
+        buf.extend_from_slice(probs);
         self.votes.push_back(vote);
         self.probs.push_back(buf);
 
@@ -282,7 +323,7 @@ impl HealthStateMachine {
             Some(w) if w != self.state => {
                 let since = match self.candidate {
                     Some((c, t)) if c == w => t,
-                    _ => v.t_end,
+                    _ => t_end,
                 };
                 self.candidate = Some((w, since));
                 let dwell = if w == 0 {
@@ -291,10 +332,10 @@ impl HealthStateMachine {
                     self.policy.dwell_s
                 };
                 // Leaving the start-up `unknown` needs no dwell beyond the vote itself.
-                if !self.started || v.t_end - since + 1e-9 >= dwell {
+                if !self.started || t_end - since + 1e-9 >= dwell {
                     self.started = true;
                     self.state = w;
-                    self.since_s = v.t_end;
+                    self.since_s = t_end;
                     self.candidate = None;
                     changed = true;
                 }
@@ -304,45 +345,12 @@ impl HealthStateMachine {
 
         Smoothed {
             window_state: self.names[vote].clone(),
-            unknown_reason: reason,
-            alarm_despite,
+            evidence: None,
+            window: verdict,
             state: self.names[self.state].clone(),
-            confidence: self.confidence(v.labels),
+            confidence: self.confidence(labels),
             changed,
             since_s: self.since_s,
-        }
-    }
-
-    /// Why the window is `unknown` (None: it has a class), and, when a clearly faulty window
-    /// keeps its fault class, the reason it would otherwise have been `unknown`.
-    fn judge(
-        &self,
-        v: &WindowVerdict,
-        top: usize,
-        top_p: f32,
-    ) -> (Option<UnknownReason>, Option<UnknownReason>) {
-        if v.bad_quality || v.probs.is_empty() || !top_p.is_finite() {
-            return (Some(UnknownReason::BadQuality), None);
-        }
-        let doubt = if !v.novelty.is_finite() || v.novelty > v.novelty_threshold {
-            Some(UnknownReason::Novelty)
-        } else if top_p < self.policy.min_confidence {
-            Some(UnknownReason::LowConfidence)
-        } else {
-            None
-        };
-        let Some(doubt) = doubt else {
-            return (None, None);
-        };
-        let fault = v.labels.get(top).is_some_and(|l| l != "healthy");
-        // Beyond the healthy baseline the gate has already zeroed `healthy`: every class
-        // left is a fault, so the window is an alarm whatever the network's doubt.
-        let clearly_faulty = fault
-            && (v.beyond_baseline == Some(true) || top_p >= self.policy.novel_alarm_confidence);
-        if clearly_faulty {
-            (None, Some(doubt))
-        } else {
-            (Some(doubt), None)
         }
     }
 
@@ -405,15 +413,18 @@ mod tests {
                 } else {
                     s
                 });
-                sm.update(&WindowVerdict {
-                    t_end: 1.0 + 0.5 * i as f64,
-                    labels: &labels,
-                    probs: &p,
-                    novelty: if *s == "novel" { 5.0 } else { 0.1 },
-                    novelty_threshold: 1.0,
-                    bad_quality: *s == "nan",
-                    beyond_baseline: None,
-                })
+                sm.observe(
+                    1.0 + 0.5 * i as f64,
+                    &WindowInput {
+                        labels: &labels,
+                        probs: &p,
+                        novelty: if *s == "novel" { 5.0 } else { 0.1 },
+                        model_novelty_threshold: 1.0,
+                        quality: (*s == "nan").then_some("nan"),
+                        beyond_baseline: None,
+                        evidence: None,
+                    },
+                )
             })
             .collect()
     }
@@ -523,8 +534,11 @@ mod tests {
         seq.extend(["novel"; 3]);
         let out = run(HealthPolicy::default(), &seq);
         assert_eq!(out[4].window_state, "unknown");
-        assert_eq!(out[4].unknown_reason, Some(UnknownReason::BadQuality));
-        assert_eq!(out[8].unknown_reason, Some(UnknownReason::Novelty));
+        assert_eq!(
+            out[4].window.unknown_reason,
+            Some(UnknownReason::BadQuality)
+        );
+        assert_eq!(out[8].window.unknown_reason, Some(UnknownReason::Novelty));
         // 3 unknown votes of 5 at index 6 -> unknown at once (unknown_dwell_s = 0).
         assert_eq!(out[5].state, "healthy");
         assert_eq!(out[6].state, "unknown");
@@ -543,17 +557,20 @@ mod tests {
             &labels,
         )
         .unwrap();
-        let s = sm.update(&WindowVerdict {
-            t_end: 1.0,
-            labels: &labels,
-            probs: &[0.4, 0.3, 0.2, 0.1],
-            novelty: 0.0,
-            novelty_threshold: 1.0,
-            bad_quality: false,
-            beyond_baseline: None,
-        });
+        let s = sm.observe(
+            1.0,
+            &WindowInput {
+                labels: &labels,
+                probs: &[0.4, 0.3, 0.2, 0.1],
+                novelty: 0.0,
+                model_novelty_threshold: 1.0,
+                quality: None,
+                beyond_baseline: None,
+                evidence: None,
+            },
+        );
         assert_eq!(s.window_state, "unknown");
-        assert_eq!(s.unknown_reason, Some(UnknownReason::LowConfidence));
+        assert_eq!(s.window.unknown_reason, Some(UnknownReason::LowConfidence));
     }
 
     /// Feed `n` windows of one verdict; returns the last answer.
@@ -562,15 +579,18 @@ mod tests {
         let mut sm = HealthStateMachine::new(HealthPolicy::default(), &labels).unwrap();
         let mut last = None;
         for i in 0..n {
-            last = Some(sm.update(&WindowVerdict {
-                t_end: 1.0 + 0.5 * i as f64,
-                labels: &labels,
-                probs,
-                novelty,
-                novelty_threshold: 10.0,
-                bad_quality: false,
-                beyond_baseline: beyond,
-            }));
+            last = Some(sm.observe(
+                1.0 + 0.5 * i as f64,
+                &WindowInput {
+                    labels: &labels,
+                    probs,
+                    novelty,
+                    model_novelty_threshold: 10.0,
+                    quality: None,
+                    beyond_baseline: beyond,
+                    evidence: None,
+                },
+            ));
         }
         last.unwrap()
     }
@@ -584,12 +604,12 @@ mod tests {
             (s.window_state.as_str(), s.state.as_str()),
             ("outer_race", "outer_race")
         );
-        assert_eq!(s.unknown_reason, None);
-        assert_eq!(s.alarm_despite, Some(UnknownReason::Novelty));
+        assert_eq!(s.window.unknown_reason, None);
+        assert_eq!(s.window.alarm_despite, Some(UnknownReason::Novelty));
         // Beyond the baseline, faults split between two classes are still an alarm.
         let s = feed(&[0.0, 0.45, 0.4, 0.15], 5.0, Some(true), 6);
         assert_eq!(s.state, "outer_race");
-        assert_eq!(s.alarm_despite, Some(UnknownReason::LowConfidence));
+        assert_eq!(s.window.alarm_despite, Some(UnknownReason::LowConfidence));
         // Without a baseline a confident novel fault is an alarm, a doubtful one is unknown.
         assert_eq!(
             feed(&[0.02, 0.95, 0.02, 0.01], 20.0, None, 6).state,
@@ -597,7 +617,7 @@ mod tests {
         );
         let s = feed(&[0.2, 0.6, 0.1, 0.1], 20.0, None, 6);
         assert_eq!(s.state, "unknown");
-        assert_eq!(s.unknown_reason, Some(UnknownReason::Novelty));
+        assert_eq!(s.window.unknown_reason, Some(UnknownReason::Novelty));
     }
 
     #[test]
@@ -605,7 +625,7 @@ mod tests {
         // Inside the healthy baseline a novel window is never called healthy nor a fault.
         let s = feed(&[0.95, 0.03, 0.01, 0.01], 20.0, Some(false), 6);
         assert_eq!(s.state, "unknown");
-        assert_eq!(s.unknown_reason, Some(UnknownReason::Novelty));
+        assert_eq!(s.window.unknown_reason, Some(UnknownReason::Novelty));
         let s = feed(&[0.05, 0.92, 0.02, 0.01], 20.0, Some(false), 6);
         assert_eq!(
             s.state, "outer_race",
@@ -613,7 +633,10 @@ mod tests {
         );
         // A healthy, familiar window stays healthy and carries no flag.
         let s = feed(&[0.97, 0.01, 0.01, 0.01], 2.0, Some(false), 6);
-        assert_eq!((s.state.as_str(), s.alarm_despite), ("healthy", None));
+        assert_eq!(
+            (s.state.as_str(), s.window.alarm_despite),
+            ("healthy", None)
+        );
     }
 
     #[test]
@@ -639,15 +662,18 @@ mod tests {
         let mut sm = HealthStateMachine::new(HealthPolicy::default(), &labels).unwrap();
         let p = probs_for("ball");
         for i in 0..3 {
-            sm.update(&WindowVerdict {
-                t_end: i as f64,
-                labels: &labels,
-                probs: &p,
-                novelty: 0.0,
-                novelty_threshold: 1.0,
-                bad_quality: false,
-                beyond_baseline: None,
-            });
+            sm.observe(
+                i as f64,
+                &WindowInput {
+                    labels: &labels,
+                    probs: &p,
+                    novelty: 0.0,
+                    model_novelty_threshold: 1.0,
+                    quality: None,
+                    beyond_baseline: None,
+                    evidence: None,
+                },
+            );
         }
         assert_eq!(sm.state(), "ball");
         sm.reconfigure(

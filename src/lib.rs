@@ -6,6 +6,7 @@
 //! sit beside the stream and produce models; [`calibrate`] fits the simulator to measured
 //! recordings (residual views, effect catalog, held-out acceptance, calibrated rig file);
 //! [`adapt`] chains calibration, simulation and training for one measured machine.
+//! [`historian`] keeps a fleet's health in PostgreSQL, fed over the Zenoh mesh.
 //! Lower modules never import higher ones.
 
 pub mod acquire;
@@ -21,6 +22,7 @@ pub mod dsp;
 pub mod embed;
 pub mod evaluate;
 pub mod health;
+pub mod historian;
 pub mod importers;
 pub mod manifest;
 pub mod model;

@@ -19,7 +19,7 @@ struct Cli {
 
 #[derive(Subcommand, Debug)]
 enum Command {
-    /// Convert a recording (CWRU/MFPT .mat, WAV, CSV) into a rigmon MCAP file.
+    /// Convert a recording (any-layout .mat, WAV, CSV) into a rigmon MCAP file.
     Import(cli::import::Args),
     /// Rewrite a damaged, cut or unfinished MCAP file as a clean one any MCAP reader opens.
     Repair(cli::repair::Args),
@@ -43,6 +43,8 @@ enum Command {
     Evaluate(cli::evaluate::Args),
     /// Align a model to one machine's healthy recordings (reference levels; no training).
     Align(cli::align::Args),
+    /// Model files: `stamp` one with the identity of the rig it was trained for.
+    Model(cli::model::Args),
     /// 2-D t-SNE/PCA picture of feature windows by class and domain.
     Embed(cli::embed::Args),
     /// Run the monitoring daemon from a config file.
@@ -57,6 +59,14 @@ enum Command {
     Emulate(cli::emulate::Args),
     /// Benchmarks with ratios against a baseline in the same run.
     Bench(cli::bench::Args),
+    /// The fleet historian: health and status from the Zenoh mesh into PostgreSQL.
+    Historian(cli::historian::Args),
+    /// A point's stored history over Zenoh (from a historian): lines, JSON or a trend PNG.
+    History(cli::history::Args),
+    /// List state-change events (alarms) from the historian's database.
+    Alarms(cli::alarms::ListArgs),
+    /// Acknowledge an alarm: who and why.
+    Ack(cli::alarms::AckArgs),
 }
 
 fn main() -> std::process::ExitCode {
@@ -79,6 +89,7 @@ fn main() -> std::process::ExitCode {
         Command::Finetune(a) => cli::finetune::run(a),
         Command::Evaluate(a) => cli::evaluate::run(a),
         Command::Align(a) => cli::align::run(a),
+        Command::Model(a) => cli::model::run(a),
         Command::Embed(a) => cli::embed::run(a),
         Command::Run(a) => cli::run::run(a),
         Command::Replay(a) => cli::replay::run(a),
@@ -86,6 +97,10 @@ fn main() -> std::process::ExitCode {
         Command::Devices(a) => cli::devices::run(a),
         Command::Emulate(a) => cli::emulate::run(a),
         Command::Bench(a) => cli::bench::run(a),
+        Command::Historian(a) => cli::historian::run(a),
+        Command::History(a) => cli::history::run(a),
+        Command::Alarms(a) => cli::alarms::list(a),
+        Command::Ack(a) => cli::alarms::ack(a),
     };
     match result {
         Ok(()) => std::process::ExitCode::SUCCESS,

@@ -1,7 +1,8 @@
 //! The `labels.csv` manifest that names labelled recordings for training, evaluation,
 //! calibration and adaptation: `path,label` columns, relative paths relative to the CSV, an
 //! optional `sample_rate_hz` column for files that do not carry their rate, optional
-//! `start_s`/`end_s` columns to use part of a recording.
+//! `start_s`/`end_s` columns to use part of a recording, an optional `rpm` column with a
+//! recording's nominal speed (a hint the speed stage checks against the vibration).
 
 use crate::importers::ImportOptions;
 use crate::model::ALL_LABELS;
@@ -25,6 +26,10 @@ pub struct ManifestEntry {
     /// this stretch of the recording are used, so one file can be cut into parts (adapt on
     /// one half of a healthy record, score the other).
     pub span: Option<(f64, f64)>,
+    /// The row's `rpm` (when the column exists and the cell is not empty): the nominal shaft
+    /// speed, and where it was written ("labels.csv line 4, column rpm"). A hint, not an
+    /// override: the vibration decides.
+    pub nominal_rpm: Option<(f64, String)>,
 }
 
 impl ManifestEntry {
@@ -44,10 +49,11 @@ impl ManifestEntry {
     }
 
     /// How to import this row's file: its declared sample rate, if any (the importers' one rule
-    /// then settles it against the file and the rig file).
+    /// then settles it against the file and the rig file), and its nominal speed as a hint.
     pub fn import_options(&self) -> ImportOptions {
         ImportOptions {
             declared_sample_rate: self.sample_rate.clone(),
+            nominal_rpm: self.nominal_rpm.clone(),
             ..Default::default()
         }
     }
@@ -63,7 +69,8 @@ pub fn manifest_path(data: &Path) -> PathBuf {
 }
 
 /// Read a manifest. The header must have `path` and `label` columns; an optional
-/// `sample_rate_hz` column gives a row's rate (empty cell: none); other columns are ignored.
+/// `sample_rate_hz` column gives a row's rate, `rpm` its nominal speed (empty cell: none);
+/// other columns are ignored.
 pub fn read_manifest(csv: &Path) -> Result<Vec<ManifestEntry>> {
     let text = std::fs::read_to_string(csv).with_context(|| {
         format!("cannot read manifest {} (expected a CSV with header `path,label`, or a dataset folder holding labels.csv)", csv.display())
@@ -105,6 +112,7 @@ pub fn parse_manifest(text: &str, csv: &Path) -> Result<Vec<ManifestEntry>> {
         cols.iter().position(|c| c.eq_ignore_ascii_case("start_s")),
         cols.iter().position(|c| c.eq_ignore_ascii_case("end_s")),
     );
+    let i_rpm = cols.iter().position(|c| c.eq_ignore_ascii_case("rpm"));
     let csv_name = csv
         .file_name()
         .map_or_else(|| csv.display().to_string(), |n| n.to_string_lossy().into());
@@ -161,6 +169,21 @@ pub fn parse_manifest(text: &str, csv: &Path) -> Result<Vec<ManifestEntry>> {
                 },
             }
         };
+        let nominal_rpm = match i_rpm.map(|k| fields[k].trim_matches('"')) {
+            None | Some("") => None,
+            Some(text) => match text.parse::<f64>() {
+                Ok(rpm) if rpm.is_finite() && rpm > 0.0 => {
+                    Some((rpm, format!("{csv_name} line {}, column rpm", i + 1)))
+                }
+                _ => bail!(
+                    "{}:{}: rpm {:?} is not a positive shaft speed in rpm (leave the cell empty when the \
+                     nominal speed is unknown)",
+                    csv.display(),
+                    i + 1,
+                    text
+                ),
+            },
+        };
         let span = match (seconds(i_start, "start_s")?, seconds(i_end, "end_s")?) {
             (None, None) => None,
             (a, b) => {
@@ -188,6 +211,7 @@ pub fn parse_manifest(text: &str, csv: &Path) -> Result<Vec<ManifestEntry>> {
             line: i + 1,
             sample_rate,
             span,
+            nominal_rpm,
         });
     }
     if out.is_empty() {
@@ -243,6 +267,40 @@ mod tests {
             .unwrap_err()
             .to_string();
         assert!(e.contains("positive"), "{e}");
+    }
+
+    #[test]
+    fn manifest_rpm_column_is_an_optional_hint_per_row() {
+        let csv = Path::new("/data/hit/labels.csv");
+        let m = parse_manifest(
+            "path,label,rpm\nNormal_600.mat,healthy,600\nIR2_900.mat,inner_race,\n",
+            csv,
+        )
+        .unwrap();
+        let hint = Some((600.0, "labels.csv line 2, column rpm".to_string()));
+        assert_eq!(m[0].nominal_rpm, hint);
+        let opts = m[0].import_options();
+        assert_eq!(opts.nominal_rpm, hint);
+        assert_eq!(
+            opts.rpm, None,
+            "a nominal speed is a hint, not the --rpm override"
+        );
+        assert_eq!(m[1].nominal_rpm, None);
+        assert_eq!(m[1].import_options().nominal_rpm, None);
+        let m = parse_manifest("path,label\na.mat,healthy\n", csv).unwrap();
+        assert_eq!(
+            m[0].nominal_rpm, None,
+            "manifests without the column still work"
+        );
+        for bad in ["fast", "-600", "0", "nan"] {
+            let e = parse_manifest(&format!("path,label,rpm\na.mat,healthy,{bad}\n"), csv)
+                .unwrap_err()
+                .to_string();
+            assert!(
+                e.contains("labels.csv:2") && e.contains(&format!("rpm \"{bad}\"")),
+                "{e}"
+            );
+        }
     }
 
     #[test]

@@ -43,6 +43,7 @@ fn lut_recording(seconds: f64) -> Recording {
             unit: "V".into(),
         }),
         rpm: None,
+        nominal_rpm: None,
         provenance: Provenance {
             source_path: "synthetic".into(),
             format: "simulated".into(),

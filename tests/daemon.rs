@@ -516,6 +516,28 @@ fn sighup_swaps_the_model_without_losing_windows_and_rejects_a_bad_one() {
     take(&mut msgs, 3);
     assert!(msgs.iter().all(|m| m.model.sha256 == sha0));
 
+    // A valid model trained for another rig (issue 25, finding 1: before, SIGHUP swapped the
+    // CWRU model in and the outer-race state fell to unknown): rejected, naming both rigs.
+    std::fs::copy(repo().join("models/cwru-de.onnx"), &live_model).unwrap();
+    signal(&child.0, libc::SIGHUP);
+    let mut seen = Vec::new();
+    assert!(
+        wait_line(
+            &err,
+            "rig_id: model cwru-de, rig file lut-rig",
+            Duration::from_secs(20),
+            &mut seen
+        ),
+        "{seen:?}"
+    );
+    assert!(
+        seen.iter().any(|l| l.contains("reload rejected")),
+        "{seen:?}"
+    );
+    take(&mut msgs, 3);
+    assert!(msgs.iter().all(|m| m.model.sha256 == sha0));
+    assert!(msgs.iter().all(|m| m.model.foreign.is_empty()));
+
     // A good new model: swapped in between two windows.
     std::fs::copy(&variant, &live_model).unwrap();
     signal(&child.0, libc::SIGHUP);
@@ -884,4 +906,456 @@ fn serial_emulator_corrupt_frames_and_unplug_are_counted_in_status_and_health_re
     let report = emu_thread.join().unwrap().unwrap();
     assert!(report.corrupted > 0, "{report:?}");
     assert_eq!(report.unplugs, 1, "{report:?}");
+}
+
+/// `rigmon <args>` to completion within `timeout`: (exit code, None when killed by a
+/// signal; stdout; stderr).
+fn rigmon_within(args: &[&str], timeout: Duration) -> (Option<i32>, String, String) {
+    let child = Command::new(bin())
+        .args(args)
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut child = Guard(child);
+    let (out, err) = (
+        lines(child.0.stdout.take().unwrap()),
+        lines(child.0.stderr.take().unwrap()),
+    );
+    let status = wait_exit(&mut child.0, timeout);
+    std::thread::sleep(Duration::from_millis(50));
+    let join = |rx: Receiver<String>| rx.try_iter().collect::<Vec<_>>().join("\n");
+    (status.code(), join(out), join(err))
+}
+
+/// A copy of config/lut-rig.toml in `dir` with one line replaced.
+fn lut_rig_with(dir: &Path, name: &str, from: &str, to: &str) -> PathBuf {
+    let text = std::fs::read_to_string(repo().join("config/lut-rig.toml")).unwrap();
+    assert!(text.contains(from), "{from}");
+    let p = dir.join(name);
+    std::fs::write(&p, text.replacen(from, to, 1)).unwrap();
+    p
+}
+
+/// Issue 25, findings 2, 9, 10 and 12: `run --check` runs exactly the checks `run` runs. For
+/// each broken config it fails with the reason, and `run` fails the same way (exit code 1,
+/// never a signal); errors carry no source paths. Before, `--check` said `ok` for all of
+/// these, `run` then aborted (SIGABRT on `window_s = 1e9`), failed ("is the port already in
+/// use?" with zenoh's source path for port 99999), or ran a wrong-rig model.
+#[test]
+fn run_check_runs_exactly_the_checks_run_runs() {
+    let tmp = tempfile::tempdir().unwrap();
+    let (file, _) = replays().into_iter().next().unwrap();
+    let port = free_port();
+    let good = daemon_config(tmp.path(), &file, &model(), "4.0", port, false);
+    let text = std::fs::read_to_string(&good).unwrap();
+    let (rc, out, err) = rigmon_within(
+        &["run", "--config", good.to_str().unwrap(), "--check"],
+        Duration::from_secs(30),
+    );
+    assert_eq!(rc, Some(0), "{err}");
+    assert!(out.starts_with("ok: rig lut-rig"), "{out}");
+
+    let rig_file = repo().join("config/lut-rig.toml").display().to_string();
+    let huge = lut_rig_with(tmp.path(), "huge.toml", "window_s = 1.0", "window_s = 1e9");
+    let nyquist = lut_rig_with(
+        tmp.path(),
+        "nyq.toml",
+        "lowpass_hz = 4000.0",
+        "lowpass_hz = 9000.0",
+    );
+    let orders = lut_rig_with(
+        tmp.path(),
+        "ord.toml",
+        "max_order = 50.0",
+        "max_order = 4000.0",
+    );
+    let held = std::net::TcpListener::bind("127.0.0.1:0").unwrap();
+    let busy = held.local_addr().unwrap().port();
+    let listen = format!("tcp/127.0.0.1:{port}");
+    let cases = [
+        (
+            "port out of range",
+            text.replace(&listen, "tcp/127.0.0.1:99999"),
+            "port \"99999\" is not a port number",
+        ),
+        (
+            "port in use",
+            text.replace(&listen, &format!("tcp/127.0.0.1:{busy}")),
+            "already listens there",
+        ),
+        (
+            "window_s = 1e9",
+            text.replace(&rig_file, huge.to_str().unwrap()),
+            "features.window_s = 1000000000 s: at most 3600 s",
+        ),
+        (
+            "low-pass past Nyquist",
+            text.replace(&rig_file, nyquist.to_str().unwrap()),
+            "features.lowpass_hz = 9000 Hz is at or above the Nyquist frequency 5000 Hz",
+        ),
+        (
+            "orders past the low-pass",
+            text.replace(&rig_file, orders.to_str().unwrap()),
+            "features.max_order = 4000 puts the highest order at 8000 Hz",
+        ),
+        (
+            "wrong-rig model",
+            text.replace(
+                &model().display().to_string(),
+                &repo().join("models/cwru-de.onnx").display().to_string(),
+            ),
+            "rig_id: model cwru-de, rig file lut-rig",
+        ),
+    ];
+    for (what, config, says) in cases {
+        let p = tmp.path().join("case.toml");
+        std::fs::write(&p, &config).unwrap();
+        for mode in [&["--check"][..], &[][..]] {
+            let mut args = vec!["run", "--config", p.to_str().unwrap()];
+            args.extend(mode);
+            let (rc, _, err) = rigmon_within(&args, Duration::from_secs(30));
+            assert_eq!(rc, Some(1), "{what} {mode:?}: exit {rc:?}: {err}");
+            assert!(err.contains(says), "{what} {mode:?}: {says:?} not in {err}");
+            assert!(
+                !err.contains(".rs:") && !err.contains(".cargo/registry"),
+                "{what} {mode:?}: a source path: {err}"
+            );
+        }
+    }
+    drop(held);
+
+    // The other commands that size a window refuse it the same way instead of aborting.
+    let file = file.to_str().unwrap();
+    let huge = huge.to_str().unwrap();
+    let model = model();
+    for args in [
+        vec!["features", file, "--rig", huge],
+        vec![
+            "replay",
+            file,
+            "--rig",
+            huge,
+            "--model",
+            model.to_str().unwrap(),
+            "--quiet",
+        ],
+    ] {
+        let (rc, _, err) = rigmon_within(&args, Duration::from_secs(30));
+        assert_eq!(rc, Some(1), "{args:?}: {err}");
+        assert!(
+            err.contains("features.window_s") && err.contains("huge.toml"),
+            "{err}"
+        );
+    }
+}
+
+/// Issue 25, finding 9: a recording folder that cannot be created never stops monitoring (as
+/// the docs promise): `run --check` names it and fails, `run` keeps publishing health, says
+/// so in its log and in the status topic (`recording.failed`), retries, and stops cleanly.
+/// Before, `run` exited 1 at start and monitoring never began, while `--check` said `ok`.
+#[test]
+fn a_recording_folder_that_cannot_be_created_never_stops_monitoring() {
+    let tmp = tempfile::tempdir().unwrap();
+    let (file, label) = replays().into_iter().find(|(_, l)| l != "healthy").unwrap();
+    let port = free_port();
+    let cfg = daemon_config(tmp.path(), &file, &model(), "4.0", port, true);
+    // The recording folder lies under a plain file: it cannot be created, even by root.
+    let plain = tmp.path().join("plain");
+    std::fs::write(&plain, b"not a folder").unwrap();
+    let rec = tmp.path().join("rec").display().to_string();
+    let text = std::fs::read_to_string(&cfg).unwrap();
+    std::fs::write(
+        &cfg,
+        text.replace(&rec, &plain.join("rec").display().to_string()),
+    )
+    .unwrap();
+
+    let (rc, _, err) = rigmon_within(
+        &["run", "--config", cfg.to_str().unwrap(), "--check"],
+        Duration::from_secs(30),
+    );
+    assert_eq!(rc, Some(1), "{err}");
+    assert!(
+        err.contains("recording.dir")
+            && err.contains("plain/rec")
+            && err.contains("Not a directory"),
+        "{err}"
+    );
+
+    let child = Command::new(bin())
+        .args(["run", "--config", cfg.to_str().unwrap(), "--print", "json"])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut child = Guard(child);
+    let out = lines(child.0.stdout.take().unwrap());
+    let err = lines(child.0.stderr.take().unwrap());
+    let watch = Command::new(bin())
+        .args(["watch", "--json", "--count", "1", "--connect"])
+        .arg(format!("tcp/127.0.0.1:{port}"))
+        .arg("rigmon/lut-rig/shaft/nde/status")
+        .stdout(Stdio::piped())
+        .stderr(Stdio::null())
+        .spawn()
+        .unwrap();
+    let mut watch = Guard(watch);
+    let status_line = lines(watch.0.stdout.take().unwrap());
+    let mut msgs: Vec<HealthMessage> = Vec::new();
+    // 7 s of wall time at speed 4: past the first retry of the recorder (every 5 s).
+    let deadline = Instant::now() + Duration::from_secs(7);
+    while Instant::now() < deadline {
+        if let Ok(l) = out.recv_timeout(Duration::from_secs(20)) {
+            msgs.push(serde_json::from_str(&l).unwrap());
+        } else {
+            break;
+        }
+    }
+    assert!(
+        msgs.len() >= 20,
+        "monitoring must go on: {} messages",
+        msgs.len()
+    );
+    assert_eq!(msgs.last().unwrap().state, label);
+    let status: serde_json::Value = serde_json::from_str(
+        &status_line
+            .recv_timeout(Duration::from_secs(20))
+            .expect("a status message"),
+    )
+    .unwrap();
+    let failed = status["recording"]["failed"].as_str().unwrap_or_default();
+    assert!(failed.contains("plain/rec"), "{status}");
+    signal(&child.0, libc::SIGTERM);
+    assert!(wait_exit(&mut child.0, Duration::from_secs(15)).success());
+    let log: Vec<String> = err.try_iter().collect();
+    let retries = log
+        .iter()
+        .filter(|l| l.contains("monitoring continues without recording"))
+        .count();
+    assert!(retries >= 2, "a failure and at least one retry: {log:?}");
+    let _ = watch.0.kill();
+}
+
+const PY_BRIDGE: &str = r#"
+import json, sys, time, zenoh
+c = zenoh.Config()
+c.insert_json5("mode", '"router"')
+c.insert_json5("listen/endpoints", json.dumps(["tcp/127.0.0.1:" + sys.argv[1]]))
+c.insert_json5("connect/endpoints", json.dumps(["tcp/127.0.0.1:" + p for p in sys.argv[2:]]))
+c.insert_json5("scouting/multicast/enabled", "false")
+s = zenoh.open(c)
+print("up", flush=True)
+while True:
+    time.sleep(1)
+"#;
+
+/// Issue 25, finding 7: the fleet sees itself. A second daemon with the same machine id that
+/// can see the first is refused at start, naming the key; two that were started apart and
+/// then joined (a router linking them) both announce it; `watch --query` shows both latest
+/// messages and says there are two. Before, both published on one key, interleaved, and
+/// `watch --query` returned one of them.
+#[test]
+fn a_second_daemon_with_the_same_machine_id_is_refused_or_announced() {
+    let tmp = tempfile::tempdir().unwrap();
+    // Two replays at different speeds, so the two daemons' messages can be told apart.
+    let faulty = repo().join("replay/lut-outer_race-588rpm.mcap");
+    let healthy = repo().join("replay/lut-healthy-1188rpm.mcap");
+    let (p1, p2, p3) = (free_port(), free_port(), free_port());
+    let start = |dir: &str, file: &Path, port: u16, extra: &[String]| {
+        let d = tmp.path().join(dir);
+        std::fs::create_dir_all(&d).unwrap();
+        let cfg = daemon_config(&d, file, &model(), "1.0", port, false);
+        let mut c = Guard(
+            Command::new(bin())
+                .args(["run", "--config", cfg.to_str().unwrap(), "--print", "json"])
+                .args(extra)
+                .stdout(Stdio::piped())
+                .stderr(Stdio::piped())
+                .spawn()
+                .unwrap(),
+        );
+        let out = lines(c.0.stdout.take().unwrap());
+        let err = lines(c.0.stderr.take().unwrap());
+        (c, out, err)
+    };
+    let (mut a, a_out, a_err) = start("a", &faulty, p1, &[]);
+    let mut seen = Vec::new();
+    assert!(
+        wait_line(
+            &a_err,
+            "pipeline running",
+            Duration::from_secs(30),
+            &mut seen
+        ),
+        "{seen:?}"
+    );
+
+    // B sees A: refused.
+    let (mut b, _, b_err) = start(
+        "b",
+        &healthy,
+        p2,
+        &[format!("--connect=tcp/127.0.0.1:{p1}")],
+    );
+    let status = wait_exit(&mut b.0, Duration::from_secs(20));
+    let b_log: Vec<String> = b_err.try_iter().collect();
+    assert_eq!(status.code(), Some(1), "{b_log:?}");
+    assert!(
+        b_log
+            .iter()
+            .any(|l| l.contains("another rigmon already publishes as rigmon/lut-rig/shaft/nde")),
+        "{b_log:?}"
+    );
+
+    // C starts alone (it sees nobody), then a router links A and C: both announce it.
+    let (mut c, c_out, c_err) = start("c", &healthy, p2, &[]);
+    let mut seen = Vec::new();
+    assert!(
+        wait_line(
+            &c_err,
+            "pipeline running",
+            Duration::from_secs(30),
+            &mut seen
+        ),
+        "{seen:?}"
+    );
+    let mut r = Command::new("python3")
+        .args([
+            "-c",
+            PY_BRIDGE,
+            &p3.to_string(),
+            &p1.to_string(),
+            &p2.to_string(),
+        ])
+        .stdout(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let up = lines(r.stdout.take().unwrap());
+    let _r = Guard(r);
+    assert_eq!(
+        up.recv_timeout(Duration::from_secs(20)).expect("router"),
+        "up"
+    );
+    for (name, log) in [("A", &a_err), ("C", &c_err)] {
+        let mut seen = Vec::new();
+        assert!(
+            wait_line(
+                log,
+                "another rigmon now publishes as rigmon/lut-rig/shaft/nde too",
+                Duration::from_secs(20),
+                &mut seen
+            ),
+            "{name}: {seen:?}"
+        );
+    }
+    // Each has published (its queryable answers only once it has a message).
+    for out in [&a_out, &c_out] {
+        out.recv_timeout(Duration::from_secs(20))
+            .expect("a health message");
+    }
+    let (rc, out, err) = rigmon_within(
+        &[
+            "watch",
+            "--query",
+            "--json",
+            "--mode",
+            "client",
+            "--connect",
+            &format!("tcp/127.0.0.1:{p3}"),
+            "rigmon/lut-rig/shaft/nde/health",
+        ],
+        Duration::from_secs(30),
+    );
+    assert_eq!(rc, Some(0), "{err}");
+    // Both daemons' latest messages: one at 588 rpm, one at 1188 rpm.
+    let rpms: std::collections::BTreeSet<i64> = out
+        .lines()
+        .filter_map(|l| serde_json::from_str::<HealthMessage>(l).unwrap().rpm)
+        .map(|r| (r / 100.0).round() as i64)
+        .collect();
+    assert_eq!(rpms, [6, 12].into(), "{out}");
+    assert!(
+        err.contains("2 daemons answered for rigmon/lut-rig/shaft/nde/health"),
+        "{err}"
+    );
+    for d in [&mut a, &mut c] {
+        signal(&d.0, libc::SIGTERM);
+        assert!(wait_exit(&mut d.0, Duration::from_secs(15)).success());
+    }
+}
+
+/// Issue 25, finding 8: `rigmon watch` says within a few seconds that nothing is reachable at
+/// its endpoint, keeps waiting, and prints health once a daemon comes up there; `watch
+/// --query` with nothing there fails without claiming a connection. Before, `watch` waited
+/// silently forever and `--query` said "connected to [...]".
+#[test]
+fn watch_says_nothing_is_reachable_and_keeps_waiting() {
+    let tmp = tempfile::tempdir().unwrap();
+    let port = free_port();
+    let ep = format!("tcp/127.0.0.1:{port}");
+    let (rc, _, err) = rigmon_within(
+        &["watch", "--query", "--connect", &ep],
+        Duration::from_secs(30),
+    );
+    assert_eq!(rc, Some(1), "{err}");
+    assert!(err.contains(&format!("nothing reachable at {ep}")), "{err}");
+    assert!(!err.contains("connected to"), "{err}");
+
+    let watch = Command::new(bin())
+        .args(["watch", "--json", "--connect", &ep])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut watch = Guard(watch);
+    let got = lines(watch.0.stdout.take().unwrap());
+    let werr = lines(watch.0.stderr.take().unwrap());
+    let t = Instant::now();
+    let mut seen = Vec::new();
+    assert!(
+        wait_line(
+            &werr,
+            &format!("nothing reachable at {ep}"),
+            Duration::from_secs(10),
+            &mut seen
+        ),
+        "{seen:?}"
+    );
+    println!(
+        "FIGURE watch: 'nothing reachable' after {:.1} s",
+        t.elapsed().as_secs_f64()
+    );
+    assert!(
+        watch.0.try_wait().unwrap().is_none(),
+        "watch must keep waiting"
+    );
+
+    let (file, _) = replays().into_iter().next().unwrap();
+    let cfg = daemon_config(tmp.path(), &file, &model(), "1.0", port, false);
+    let daemon = Command::new(bin())
+        .args(["run", "--config", cfg.to_str().unwrap()])
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .spawn()
+        .unwrap();
+    let mut daemon = Guard(daemon);
+    let first: HealthMessage = serde_json::from_str(
+        &got.recv_timeout(Duration::from_secs(30))
+            .expect("health once the daemon is up"),
+    )
+    .unwrap();
+    assert_eq!(first.rig, "lut-rig");
+    let mut seen = Vec::new();
+    assert!(
+        wait_line(
+            &werr,
+            &format!("connected at {ep}"),
+            Duration::from_secs(5),
+            &mut seen
+        ),
+        "{seen:?}"
+    );
+    signal(&daemon.0, libc::SIGTERM);
+    assert!(wait_exit(&mut daemon.0, Duration::from_secs(15)).success());
 }

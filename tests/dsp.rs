@@ -48,6 +48,7 @@ fn lut_recording(syn: &Synthetic, tacho_as_edges: bool) -> (Recording, Vec<f64>)
         ],
         tacho: Some(tacho),
         rpm: None,
+        nominal_rpm: None,
         provenance: Provenance {
             source_path: "synthetic".into(),
             format: "simulated".into(),

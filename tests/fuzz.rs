@@ -1766,6 +1766,7 @@ fn synthetic(n: usize, tacho: Option<Tacho>) -> Recording {
             .collect(),
         tacho,
         rpm: Some(600.0),
+        nominal_rpm: None,
         provenance: Provenance {
             source_path: "fuzz seed".into(),
             format: "simulated".into(),

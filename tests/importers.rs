@@ -144,6 +144,43 @@ impl Mat {
         self.el(14, &b)
     }
 
+    /// A numeric array of MATLAB class `class` (mxCLASS) whose data is `raw` of data type `ty`.
+    fn numeric(&self, name: &str, class: u32, ty: u32, dims: [u32; 2], raw: &[u8]) -> Vec<u8> {
+        let mut b = self.head(class, &dims, name);
+        b.extend(self.el(ty, raw));
+        self.el(14, &b)
+    }
+
+    /// An int16-class array.
+    fn int16(&self, name: &str, rows: u32, cols: u32, v: &[i16]) -> Vec<u8> {
+        let raw: Vec<u8> = v
+            .iter()
+            .flat_map(|x| {
+                if self.be {
+                    x.to_be_bytes()
+                } else {
+                    x.to_le_bytes()
+                }
+            })
+            .collect();
+        self.numeric(name, 10, 3, [rows, cols], &raw)
+    }
+
+    /// A single-class array.
+    fn single(&self, name: &str, rows: u32, cols: u32, v: &[f32]) -> Vec<u8> {
+        let raw: Vec<u8> = v
+            .iter()
+            .flat_map(|x| {
+                if self.be {
+                    x.to_be_bytes()
+                } else {
+                    x.to_le_bytes()
+                }
+            })
+            .collect();
+        self.numeric(name, 7, 7, [rows, cols], &raw)
+    }
+
     /// A double stored as int16 data (MATLAB's space-saving trick).
     fn double_as_int16(&self, name: &str, v: &[i16]) -> Vec<u8> {
         let mut b = self.head(6, &[v.len() as u32, 1], name);
@@ -1014,6 +1051,703 @@ fn csv_quoted_fields_crlf_and_bom_are_read() {
     );
 }
 
+// ------------------------------------------------------------- any MAT layout
+
+/// The HIT-SM rig file with `edit` applied to its text (one acceleration channel, 51.2 kHz).
+fn hit_rig_with(edit: impl Fn(String) -> String) -> RigConfig {
+    RigConfig::parse(&edit(rig_text("hit-sm-self.toml")))
+        .unwrap_or_else(|e| panic!("edited hit-sm-self.toml: {e:#}"))
+}
+
+/// The HIT-SM rig file naming `Data` and `SampleFrequency` (and no default rate).
+fn data_rig(var: &str, rate_var: &str) -> RigConfig {
+    hit_rig_with(|t| {
+        t.replacen(
+            "sample_rate_hz = 51200.0",
+            &format!("mat_rate_variable = {rate_var:?}"),
+            1,
+        )
+        .replacen(
+            "unit = \"g\"",
+            &format!("unit = \"g\"\nmat_variable = {var:?}"),
+            1,
+        )
+    })
+}
+
+#[test]
+fn any_single_vector_maps_to_a_one_channel_rig_whatever_its_name() {
+    let dir = tempfile::tempdir().unwrap();
+    let hit = rig("hit-sm-self.toml");
+    let x = signal(2000, 3.0);
+    let ints: Vec<i16> = x.iter().map(|&v| (v * 3000.0) as i16).collect();
+    let singles: Vec<f32> = x.iter().map(|&v| v as f32).collect();
+    for be in [false, true] {
+        for z in [false, true] {
+            let m = Mat { be };
+            let wrap = |e: Vec<u8>| if z { m.compressed(&e) } else { e };
+            // (variable, its bytes, the samples expected on the channel)
+            let cases: [(&str, Vec<u8>, Vec<f32>); 4] = [
+                ("VarName5", m.double("VarName5", 2000, 1, &x), as_f32(&x)),
+                (
+                    "inside2d_1200_1",
+                    m.double("inside2d_1200_1", 1, 2000, &x),
+                    as_f32(&x),
+                ),
+                (
+                    "V0",
+                    m.int16("V0", 2000, 1, &ints),
+                    ints.iter().map(|&v| v as f32).collect(),
+                ),
+                (
+                    "outside8d_600_1",
+                    m.single("outside8d_600_1", 1, 2000, &singles),
+                    singles.clone(),
+                ),
+            ];
+            for (name, var, want) in cases {
+                // Scalars and text beside the vector are not signals.
+                let bytes = m.file(&[
+                    wrap(m.text("note", "no layout")),
+                    wrap(var),
+                    wrap(m.double("gain", 1, 1, &[2.0])),
+                ]);
+                let path = write(dir.path(), &format!("{name}_{be}_{z}.mat"), &bytes);
+                let rec = importers::load(&path, &hit, &no_opts())
+                    .unwrap_or_else(|e| panic!("{name} be={be} z={z}: {e:#}"));
+                assert_eq!(rec.channels.len(), 1);
+                let ch = rec.channel("vertical").unwrap();
+                assert_eq!(ch.samples, want, "{name} be={be} z={z}");
+                assert_eq!((ch.unit.as_str(), ch.axis.as_str()), ("g", "vertical"));
+                assert_eq!(rec.sample_rate, 51_200.0);
+                assert_eq!(rec.provenance.format, "mat");
+                let notes = rec.provenance.notes.join("\n");
+                assert_mentions(
+                    &notes,
+                    &[
+                        &format!("variable {name} ("),
+                        "-> rig channel \"vertical\" (the file's only numeric vector)",
+                        "sample rate 51200 Hz from the rig file",
+                        "other variables not read: note (1x9 char), gain (1x1 double)",
+                    ],
+                );
+                assert_eq!(rec.rpm, None);
+                assert_eq!(rec.metadata["rig_id"], "hit-sm-self");
+            }
+        }
+    }
+    // The channel's sensitivity applies; --rpm and --sample-rate work as for other formats.
+    let scaled = hit_rig_with(|t| t.replacen("unit = \"g\"", "unit = \"g\"\nsensitivity = 2.0", 1));
+    let m = Mat { be: false };
+    let p = write(
+        dir.path(),
+        "s.mat",
+        &m.file(&[m.double("VarName7", 64, 1, &x[..64])]),
+    );
+    let opts = ImportOptions {
+        rpm: Some(900.0),
+        sample_rate: Some(25_600.0),
+        ..Default::default()
+    };
+    let rec = importers::load(&p, &scaled, &opts).unwrap();
+    let doubled: Vec<f32> = x[..64].iter().map(|&v| (v * 2.0) as f32).collect();
+    assert_eq!(rec.channels[0].samples, doubled);
+    assert_eq!((rec.rpm, rec.sample_rate), (Some(900.0), 25_600.0));
+}
+
+#[test]
+fn data_and_sample_frequency_map_through_the_rigs_keys() {
+    let dir = tempfile::tempdir().unwrap();
+    let data = signal(3000, 5.0);
+    let time: Vec<f64> = (0..3000).map(|i| i as f64 / 25_600.0).collect();
+    for z in [false, true] {
+        let m = Mat { be: z };
+        let wrap = |e: Vec<u8>| if z { m.compressed(&e) } else { e };
+        // Two vectors: without the keys this file is refused (below); with them, it maps.
+        let bytes = m.file(&[
+            wrap(m.double("Time", 3000, 1, &time)),
+            wrap(m.double("Data", 3000, 1, &data)),
+            wrap(m.int16("SampleFrequency", 1, 1, &[25_600])),
+        ]);
+        let p = write(dir.path(), &format!("daq_{z}.mat"), &bytes);
+        let rec = importers::load(&p, &data_rig("Data", "SampleFrequency"), &no_opts())
+            .unwrap_or_else(|e| panic!("z={z}: {e:#}"));
+        assert_eq!(rec.sample_rate, 25_600.0, "the file's rate variable");
+        assert_eq!(rec.channels[0].samples, as_f32(&data));
+        let notes = rec.provenance.notes.join("\n");
+        assert_mentions(
+            &notes,
+            &[
+                "variable Data (3000x1 double) -> rig channel \"vertical\" (mat_variable)",
+                "sample rate 25600 Hz from the variable SampleFrequency",
+                "other variables not read: Time (3000x1 double)",
+            ],
+        );
+        let e = err_of(importers::load(&p, &rig("hit-sm-self.toml"), &no_opts()));
+        assert_mentions(
+            &e,
+            &[
+                &format!("daq_{z}.mat"),
+                "it holds 2 numeric arrays (Time, Data)",
+                "Time (3000x1 double), Data (3000x1 double), SampleFrequency (1x1 int16)",
+                "[[channels]] name = \"vertical\"",
+                "mat_variable = \"Time\"",
+                "mat_rate_variable",
+                "not a CWRU file",
+                "MFPT",
+            ],
+        );
+    }
+    // A struct field path for the signal and the rate; the rig file's rate is only a default.
+    let m = Mat { be: false };
+    let rec_struct = m.structure(
+        "rec",
+        &[
+            ("accel", m.double("", 1, 500, &data[..500])),
+            ("fs", m.double("", 1, 1, &[12_800.0])),
+        ],
+    );
+    let p = write(
+        dir.path(),
+        "nested.mat",
+        &m.file(&[m.compressed(&rec_struct)]),
+    );
+    let r = data_rig("rec.accel", "rec.fs");
+    let rec = importers::load(&p, &r, &no_opts()).unwrap();
+    assert_eq!((rec.len(), rec.sample_rate), (500, 12_800.0));
+    assert_eq!(rec.channels[0].samples, as_f32(&data[..500]));
+    // Named keys win over CWRU recognition: this rig reads X105_DE_time as its one channel.
+    let p = write(
+        dir.path(),
+        "cwru_named.mat",
+        &m.file(&[
+            m.double("X105_DE_time", 400, 1, &data[..400]),
+            m.double("X105_FE_time", 400, 1, &time[..400]),
+        ]),
+    );
+    let r = hit_rig_with(|t| {
+        t.replacen(
+            "unit = \"g\"",
+            "unit = \"g\"\nmat_variable = \"X105_FE_time\"",
+            1,
+        )
+    });
+    let rec = importers::load(&p, &r, &no_opts()).unwrap();
+    assert_eq!(rec.channels[0].samples, as_f32(&time[..400]));
+    assert_eq!(
+        (rec.provenance.format.as_str(), rec.sample_rate),
+        ("mat", 51_200.0)
+    );
+}
+
+#[test]
+fn matrix_columns_and_a_tacho_map_to_a_multi_channel_rig() {
+    let dir = tempfile::tempdir().unwrap();
+    let n = 1000;
+    // 1000x3, column-major: axial, vertical, horizontal.
+    let cols: Vec<Vec<f64>> = (0..3).map(|k| signal(n, k as f64 + 1.0)).collect();
+    let acc: Vec<f64> = cols.concat();
+    let tacho: Vec<f64> = (0..n)
+        .map(|i| if i % 100 < 50 { 5.0 } else { 0.0 })
+        .collect();
+    let text = rig_text("lut-rig.toml");
+    let mut t = text.clone();
+    for (name, k) in [("axial", 1), ("vertical", 2), ("horizontal", 3)] {
+        t = t.replacen(
+            &format!("name = \"{name}\""),
+            &format!("name = \"{name}\"\nmat_variable = \"Acc\"\nmat_column = {k}"),
+            1,
+        );
+    }
+    t = t.replacen(
+        "name = \"tacho\"",
+        "name = \"tacho\"\nmat_variable = \"Tach\"",
+        1,
+    );
+    let r = RigConfig::parse(&t).unwrap();
+    let m = Mat { be: false };
+    let p = write(
+        dir.path(),
+        "three.mat",
+        &m.file(&[
+            m.double("Acc", n as u32, 3, &acc),
+            m.double("Tach", 1, n as u32, &tacho),
+        ]),
+    );
+    let rec = importers::load(&p, &r, &no_opts()).unwrap();
+    for (k, name) in ["axial", "vertical", "horizontal"].iter().enumerate() {
+        assert_eq!(
+            rec.channel(name).unwrap().samples,
+            as_f32(&cols[k]),
+            "{name}"
+        );
+    }
+    match &rec.tacho {
+        Some(Tacho::Analog { samples, unit }) => {
+            assert_eq!(samples, &as_f32(&tacho));
+            assert_eq!(unit, "V");
+        }
+        other => panic!("tacho {other:?}"),
+    }
+    assert_mentions(
+        &rec.provenance.notes.join("\n"),
+        &["column 2 of variable Acc (1000x3 double) -> rig channel \"vertical\""],
+    );
+    // A matrix without a column, a column out of range, samples along the rows.
+    let one =
+        hit_rig_with(|t| t.replacen("unit = \"g\"", "unit = \"g\"\nmat_variable = \"Acc\"", 1));
+    let e = err_of(importers::load(&p, &one, &no_opts()));
+    assert_mentions(
+        &e,
+        &[
+            "three.mat",
+            "rig channel \"vertical\" (mat_variable = \"Acc\")",
+            "1000x3 double",
+            "set mat_column = 1 to 3",
+        ],
+    );
+    let far = t.replacen("mat_column = 3", "mat_column = 4", 1);
+    let e = err_of(importers::load(
+        &p,
+        &RigConfig::parse(&far).unwrap(),
+        &no_opts(),
+    ));
+    assert_mentions(&e, &["mat_column = 4 but it has 3 columns"]);
+    let p = write(
+        dir.path(),
+        "rows.mat",
+        &m.file(&[
+            m.double("Acc", 3, n as u32, &acc),
+            m.double("Tach", 1, n as u32, &tacho),
+        ]),
+    );
+    let e = err_of(importers::load(&p, &r, &no_opts()));
+    assert_mentions(
+        &e,
+        &[
+            "rows.mat",
+            "3x1000 double",
+            "only 3 samples",
+            "transpose (Acc.')",
+        ],
+    );
+}
+
+#[test]
+fn unmappable_mat_files_say_what_they_hold_and_which_key_to_set() {
+    let dir = tempfile::tempdir().unwrap();
+    let hit = rig("hit-sm-self.toml");
+    let m = Mat { be: false };
+    let x = signal(100, 1.0);
+    let load = |name: &str, els: &[Vec<u8>], r: &RigConfig| {
+        err_of(importers::load(
+            &write(dir.path(), name, &m.file(els)),
+            r,
+            &no_opts(),
+        ))
+    };
+    // No numeric vector at all.
+    let e = load("text.mat", &[m.text("comment", "hello")], &hit);
+    assert_mentions(
+        &e,
+        &[
+            "text.mat",
+            "no real numeric vector",
+            "comment (1x5 char)",
+            "mat_variable",
+        ],
+    );
+    // A matrix is not a vector.
+    let e = load("mx.mat", &[m.double("M", 50, 2, &x)], &hit);
+    assert_mentions(&e, &["M, is a 50x2 double matrix", "mat_column"]);
+    // A named variable the file lacks, a rate variable it lacks, a rate that is a vector.
+    let e = load(
+        "v.mat",
+        &[m.double("Data", 100, 1, &x)],
+        &data_rig("Dat", "fs"),
+    );
+    assert_mentions(
+        &e,
+        &[
+            "v.mat",
+            "missing variable \"Dat\"",
+            "rig channel \"vertical\"",
+            "Data (100x1 double)",
+            "mat_variable",
+        ],
+    );
+    let e = load(
+        "fs.mat",
+        &[m.double("Data", 100, 1, &x)],
+        &data_rig("Data", "fs"),
+    );
+    assert_mentions(
+        &e,
+        &[
+            "fs.mat",
+            "missing variable \"fs\"",
+            "acquisition.mat_rate_variable = \"fs\"",
+            "Data (100x1 double)",
+        ],
+    );
+    let e = load(
+        "fsv.mat",
+        &[
+            m.double("Data", 100, 1, &x),
+            m.double("fs", 1, 2, &[1.0, 2.0]),
+        ],
+        &data_rig("Data", "fs"),
+    );
+    assert_mentions(&e, &["wrong shape", "fs is 1x2 double", "one number"]);
+    // No rate anywhere: the scalars are offered as candidates for the key.
+    let no_rate = hit_rig_with(|t| t.replacen("sample_rate_hz = 51200.0", "", 1));
+    let e = load(
+        "norate.mat",
+        &[
+            m.double("Data", 100, 1, &x),
+            m.double("SampleFrequency", 1, 1, &[51_200.0]),
+        ],
+        &no_rate,
+    );
+    assert_mentions(
+        &e,
+        &[
+            "norate.mat",
+            "sample rate is unknown",
+            "SampleFrequency = 51200",
+            "mat_rate_variable",
+            "--sample-rate",
+        ],
+    );
+    // A text or struct variable named as a channel; a struct path through a non-struct.
+    let e = load("txt.mat", &[m.text("Data", "abc")], &data_rig("Data", "fs"));
+    assert_mentions(
+        &e,
+        &[
+            "wrong shape",
+            "mat_variable = \"Data\"",
+            "1x3 char",
+            "real numbers",
+        ],
+    );
+    let s = m.structure("Data", &[("gs", m.double("", 100, 1, &x))]);
+    let e = load("st.mat", std::slice::from_ref(&s), &data_rig("Data", "fs"));
+    assert_mentions(&e, &["1x1 struct", "mat_variable = \"Data.<field>\""]);
+    let e = load(
+        "nofield.mat",
+        &[s, m.double("fs", 1, 1, &[1e3])],
+        &data_rig("Data.sig", "fs"),
+    );
+    assert_mentions(
+        &e,
+        &["missing field", "Data has no field \"sig\"", "[\"gs\"]"],
+    );
+    let e = load(
+        "notstruct.mat",
+        &[m.double("Data", 100, 1, &x)],
+        &data_rig("Data.sig", "fs"),
+    );
+    assert_mentions(
+        &e,
+        &["Data is 100x1 double, not a 1x1 struct with a field \"sig\""],
+    );
+}
+
+/// The mapping is settled on the variable directory before samples are decoded: a file whose
+/// signal is damaged deep inside its compressed data is refused for its layout, naming its
+/// variables, without decoding; naming the damaged variable then reaches the damage.
+#[test]
+fn mat_layout_is_refused_before_any_sample_is_decoded() {
+    let dir = tempfile::tempdir().unwrap();
+    let m = Mat { be: false };
+    let mut x: u64 = 3;
+    let noise: Vec<f64> = (0..50_000)
+        .map(|_| {
+            x ^= x << 13;
+            x ^= x >> 7;
+            x ^= x << 17;
+            (x % 4096) as f64
+        })
+        .collect();
+    let big = m.compressed(&m.double("Big", 50_000, 1, &noise));
+    let mut bytes = m.file(&[big, m.double("Other", 10, 1, &noise[..10])]);
+    let end = bytes.len() - m.double("Other", 10, 1, &noise[..10]).len();
+    for b in &mut bytes[end - 64..end - 48] {
+        *b ^= 0xa5;
+    }
+    let p = write(dir.path(), "damaged.mat", &bytes);
+    let e = err_of(importers::load(&p, &rig("hit-sm-self.toml"), &no_opts()));
+    assert_mentions(
+        &e,
+        &[
+            "damaged.mat",
+            "Big (50000x1 double), Other (10x1 double)",
+            "mat_variable",
+        ],
+    );
+    let e = err_of(importers::load(&p, &data_rig("Big", "Other"), &no_opts()));
+    assert_mentions(
+        &e,
+        &["damaged.mat", "Other is 10x1 double; expected one number"],
+    );
+    let r = hit_rig_with(|t| t.replacen("unit = \"g\"", "unit = \"g\"\nmat_variable = \"Big\"", 1));
+    let e = err_of(importers::load(&p, &r, &no_opts()));
+    assert_mentions(
+        &e,
+        &["damaged.mat", "MAT file at byte 128", "does not decompress"],
+    );
+}
+
+/// Damaged files of any layout give errors, never a panic, through the directory, the
+/// mapping and the selective decoding.
+#[test]
+fn damaged_any_layout_mat_files_never_panic() {
+    let dir = tempfile::tempdir().unwrap();
+    let rigs = [
+        rig("hit-sm-self.toml"),
+        data_rig("rec.accel", "SampleFrequency"),
+    ];
+    let mut x: u64 = 0x2545_F491_4F6C_DD1D;
+    let mut next = move || {
+        x ^= x << 13;
+        x ^= x >> 7;
+        x ^= x << 17;
+        x
+    };
+    for z in [false, true] {
+        let m = Mat { be: z };
+        let wrap = |e: Vec<u8>| if z { m.compressed(&e) } else { e };
+        let st = m.structure("rec", &[("accel", m.double("", 1, 64, &signal(64, 2.0)))]);
+        let base = m.file(&[
+            wrap(m.double("VarName5", 64, 1, &signal(64, 1.0))),
+            wrap(m.int16("SampleFrequency", 1, 1, &[12_000])),
+            wrap(st),
+        ]);
+        let path = dir.path().join(format!("m{z}.mat"));
+        let (mut accepted, mut refused) = (0, 0);
+        for _ in 0..400 {
+            let mut b = base.clone();
+            for _ in 0..1 + next() % 3 {
+                let k = 120 + (next() as usize) % (b.len() - 120);
+                b[k] = next() as u8;
+            }
+            let cut = if next() % 4 == 0 {
+                120 + (next() as usize) % (b.len() - 120)
+            } else {
+                b.len()
+            };
+            std::fs::write(&path, &b[..cut]).unwrap();
+            for r in &rigs {
+                match importers::load(&path, r, &no_opts()) {
+                    Ok(_) => accepted += 1,
+                    Err(_) => refused += 1,
+                }
+            }
+        }
+        assert!(
+            accepted > 0 && refused > 0,
+            "accepted {accepted}, refused {refused}"
+        );
+    }
+}
+
+#[test]
+fn rig_mat_keys_are_checked_when_the_rig_file_is_read() {
+    let text = rig_text("lut-rig.toml");
+    let bad = |edit: &str, on: &str| {
+        let t = text.replacen(
+            &format!("name = \"{on}\""),
+            &format!("name = \"{on}\"\n{edit}"),
+            1,
+        );
+        format!("{:#}", RigConfig::parse(&t).expect_err(edit))
+    };
+    assert_mentions(
+        &bad("mat_column = 2", "axial"),
+        &["\"axial\"", "mat_column needs mat_variable"],
+    );
+    assert_mentions(
+        &bad("mat_variable = \"A\"\nmat_column = 0", "vertical"),
+        &["mat_column = 0", "count from 1"],
+    );
+    assert_mentions(
+        &bad("mat_variable = \"a..b\"", "vertical"),
+        &["\"a..b\"", "struct field path"],
+    );
+    assert_mentions(
+        &bad("mat_variable = \"my data\"", "vertical"),
+        &["\"my data\"", "no spaces"],
+    );
+    assert_mentions(
+        &bad("mat_variable = \"A\"", "axial"),
+        &["\"vertical\" feeds the classifier", "names no mat_variable"],
+    );
+    let t = text
+        .replacen(
+            "name = \"vertical\"",
+            "name = \"vertical\"\nmat_variable = \"A\"",
+            1,
+        )
+        .replacen(
+            "name = \"axial\"",
+            "name = \"axial\"\nmat_variable = \"A\"\nmat_column = 1",
+            1,
+        );
+    assert_mentions(
+        &format!("{:#}", RigConfig::parse(&t).unwrap_err()),
+        &["\"axial\" and \"vertical\" both read mat_variable = \"A\" (column 1)"],
+    );
+    let t = text.replacen(
+        "[acquisition]",
+        "[acquisition]\nmat_rate_variable = \"\"",
+        1,
+    );
+    assert_mentions(
+        &format!("{:#}", RigConfig::parse(&t).unwrap_err()),
+        &["acquisition.mat_rate_variable = \"\""],
+    );
+    // The keys survive the TOML round trip that stamps every imported recording.
+    let r = data_rig("rec.accel", "rec.fs");
+    assert_eq!(RigConfig::parse(&toml::to_string(&r).unwrap()).unwrap(), r);
+    // And rigs without them serialise as before (no new keys appear).
+    assert!(!toml::to_string(&rig("cwru-de.toml"))
+        .unwrap()
+        .contains("mat_"));
+}
+
+/// Every file of ../shared/data/hit-sm-self imports as it is, through a manifest with the
+/// nominal speeds in an `rpm` column (carried as a hint, not used as the speed), and through
+/// `rigmon import` and `rigmon inspect`. The variable names were listed with SciPy's
+/// `whosmat`, independently of rigmon.
+#[test]
+fn every_hit_sm_file_imports_as_it_is() {
+    let data = data_dir().join("hit-sm-self");
+    assert!(
+        data.is_dir(),
+        "{} missing: ../shared/data must hold hit-sm-self (see its README)",
+        data.display()
+    );
+    let var = |cond: &str, rpm: &str| -> String {
+        match (cond, rpm) {
+            ("Normal", "600") => "VarName6".into(),
+            ("Normal", "900") => "VarName7".into(),
+            ("Normal", "1200") => "V0".into(),
+            _ => {
+                let side = if cond.starts_with("IR") {
+                    "inside"
+                } else {
+                    "outside"
+                };
+                format!("{side}{}d_{rpm}_1", &cond[2..])
+            }
+        }
+    };
+    let mut found: Vec<String> = std::fs::read_dir(&data)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .filter(|n| n.ends_with(".mat"))
+        .collect();
+    found.sort();
+    let mut expected = Vec::new();
+    for cond in ["IR2", "IR5", "IR8", "Normal", "OR2", "OR5", "OR8"] {
+        for rpm in ["1200", "600", "900"] {
+            expected.push(format!("{cond}_{rpm}.mat"));
+        }
+    }
+    assert_eq!(found, expected, "the 21 files of the README");
+    let tmp = tempfile::tempdir().unwrap();
+    let mut csv = String::from("path,label,rpm\n");
+    for f in &found {
+        let label = match &f[..2] {
+            "IR" => "inner_race",
+            "OR" => "outer_race",
+            _ => "healthy",
+        };
+        let rpm = f.trim_end_matches(".mat").split('_').nth(1).unwrap();
+        csv.push_str(&format!("{},{label},{rpm}\n", data.join(f).display()));
+    }
+    let labels = write(tmp.path(), "labels.csv", csv.as_bytes());
+    let hit = rig("hit-sm-self.toml");
+    let entries = rigmon::manifest::read_manifest(&labels).unwrap();
+    assert_eq!(entries.len(), 21);
+    for (k, e) in entries.iter().enumerate() {
+        let stem = e
+            .path_text
+            .rsplit('/')
+            .next()
+            .unwrap()
+            .trim_end_matches(".mat");
+        let (cond, rpm) = stem.split_once('_').unwrap();
+        let rec = importers::load(&e.path, &hit, &e.import_options())
+            .unwrap_or_else(|err| panic!("{stem}: {err:#}"));
+        assert_eq!((rec.len(), rec.sample_rate), (262_144, 51_200.0), "{stem}");
+        assert_eq!(rec.duration_s(), 5.12);
+        assert_eq!(rec.channels.len(), 1);
+        assert_eq!(rec.rpm, None, "{stem}: the nominal speed is not the speed");
+        let hint = rec.nominal_rpm.as_ref().expect("the rpm column's hint");
+        assert_eq!(hint.rpm, rpm.parse::<f64>().unwrap());
+        assert_eq!(
+            hint.declared_at,
+            format!("labels.csv line {}, column rpm", k + 2)
+        );
+        assert_mentions(
+            &rec.provenance.notes.join("\n"),
+            &[
+                &format!(
+                    "variable {} (262144x1 double) -> rig channel \"vertical\"",
+                    var(cond, rpm)
+                ),
+                &format!("nominal speed {rpm} rpm from labels.csv line {}", k + 2),
+            ],
+        );
+        let s = &rec.channels[0].samples;
+        let rms = (s.iter().map(|&x| (x as f64).powi(2)).sum::<f64>() / s.len() as f64).sqrt();
+        assert!(
+            rms > 1e-4 && rms < 1.0,
+            "{stem}: rms {rms} (README: levels differ by ~300x)"
+        );
+    }
+    // The command line reads them as they are too.
+    let bin = env!("CARGO_BIN_EXE_rigmon");
+    let rig_path = Path::new(env!("CARGO_MANIFEST_DIR")).join("config/hit-sm-self.toml");
+    for f in &found {
+        let out = tmp.path().join("x.mcap");
+        let o = std::process::Command::new(bin)
+            .args(["import", "--rig"])
+            .arg(&rig_path)
+            .arg(data.join(f))
+            .arg("-o")
+            .arg(&out)
+            .output()
+            .unwrap();
+        let text = String::from_utf8_lossy(&o.stdout);
+        assert!(
+            o.status.success(),
+            "import {f}: {}",
+            String::from_utf8_lossy(&o.stderr)
+        );
+        assert_mentions(
+            &text,
+            &["1 channel(s) (vertical), 262144 samples @ 51200 Hz, 5.120 s"],
+        );
+        let o = std::process::Command::new(bin)
+            .args(["inspect", "--rig"])
+            .arg(&rig_path)
+            .arg(data.join(f))
+            .output()
+            .unwrap();
+        assert!(
+            o.status.success(),
+            "inspect {f}: {}",
+            String::from_utf8_lossy(&o.stderr)
+        );
+        assert_mentions(
+            &String::from_utf8_lossy(&o.stdout),
+            &["(source: estimate)", "BPFO 3.5848"],
+        );
+    }
+}
+
 // ------------------------------------------------------------- bad input in general
 
 #[test]
@@ -1080,10 +1814,11 @@ fn empty_files_and_wrong_shapes_and_missing_variables_are_named() {
         &err_of(importers::load(&p, &cw, &no_opts())),
         &[
             "other.mat",
-            "missing variable",
+            "the rig has 3 acceleration channels (DE, FE, BA) and none names its variable",
             "X<nnn>_DE_time",
             "bearing",
             "data (3x1 double)",
+            "under [[channels]] name = \"DE\" set mat_variable = \"data\"",
         ],
     );
     // NaN in a MAT signal.
@@ -1243,6 +1978,7 @@ fn synthetic(n: usize, tacho: Option<Tacho>) -> Recording {
             .collect(),
         tacho,
         rpm: Some(600.5),
+        nominal_rpm: None,
         provenance: Provenance {
             source_path: "sim".into(),
             format: "simulated".into(),

@@ -1,4 +1,4 @@
-//! File replay: any recording the importers read (rigmon MCAP, CWRU/MFPT .mat, WAV, CSV)
+//! File replay: any recording the importers read (rigmon MCAP, any-layout .mat, WAV, CSV)
 //! delivered as [`SampleBlock`]s of about `block_ms`, at a real-time factor or as fast as the
 //! consumer takes them, optionally looping. Channels come out in rig order; an analog tacho
 //! becomes `tacho_analog`, recorded tacho edges become `tacho_edges`. The `[source] type =
@@ -445,6 +445,7 @@ mod tests {
                 .collect(),
             tacho,
             rpm: Some(1797.0),
+            nominal_rpm: None,
             provenance: Provenance {
                 source_path: "mem".into(),
                 format: "test".into(),

@@ -118,7 +118,7 @@ pub trait Source: Send {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(tag = "type", rename_all = "snake_case")]
 pub enum SourceConfig {
-    /// Replay of a recording (MCAP, CWRU/MFPT .mat, WAV, CSV).
+    /// Replay of a recording (MCAP, any-layout .mat, WAV, CSV).
     File(FileSourceConfig),
     /// The serial DAQ adapter ([`serial_protocol`]).
     Serial(serial::SerialSourceConfig),

@@ -38,8 +38,8 @@ pub struct StreamReplay {
 }
 
 impl StreamReplay {
-    /// Check the stream against the rig: sample rate, the classifier channel, and a length of
-    /// at least one window when the length is known up front.
+    /// Check the stream against the rig: sample rate, the classifier channel, the recipe at the
+    /// stream's rate, and a length of at least one window when the length is known up front.
     pub fn new(
         stream: Box<dyn BlockStream>,
         rig: &RigConfig,
@@ -91,6 +91,9 @@ impl StreamReplay {
         if !absent.is_empty() {
             tracing::warn!("{name}: the recording has no channel(s) {absent:?} of rig {} (it has {names:?}); they are replayed as NaN", rig.machine.id);
         }
+        // The recipe at this rate (window bounds, low-pass below Nyquist, the stored speed)
+        // before the window's length is used.
+        rig.check_recipe_at(fs, info.rpm, &format!("recording {name}"))?;
         let window_s = rig.features.window_s;
         let window = (window_s * fs).round().max(1.0) as u64;
         if let Some(n) = stream.exact_len() {

@@ -25,7 +25,7 @@ use crate::sim::plan::Plan;
 use crate::train::dataset::RecordingFeatures;
 use crate::train::featurise::featurise_all;
 use crate::train::fit::{class_labels, fit, FitReport};
-use crate::train::score::{model_outcomes, rule_outcomes};
+use crate::train::score::{analyse_all, model_outcomes, rule_labels, rule_outcomes};
 use crate::train::trainer::TrainConfig;
 use anyhow::{bail, Context, Result};
 use indicatif::{ProgressBar, ProgressStyle};
@@ -287,22 +287,18 @@ fn score_set(
 ) -> Result<SetScores> {
     let entries: Vec<ManifestEntry> = read_manifest(manifest)?;
     let pb = file_bar(progress, entries.len(), "score");
-    let recs = featurise_all(&entries, rig, &pb)?;
+    let recs = analyse_all(&entries, rig, &pb)?;
     pb.finish_and_clear();
     let b = model_outcomes(before, &recs, rig)?;
     let a = model_outcomes(after, &recs, rig)?;
-    let labels = after.meta().labels.clone();
-    let kept: Vec<ManifestEntry> = entries
-        .iter()
-        .filter(|e| a.outcomes.iter().any(|o| o.path == e.display_name()))
-        .cloned()
-        .collect();
+    let kept = a.scored(&recs);
+    let labels = rule_labels(&a.labels, &kept);
     let rule = EnvelopeRule::for_rig(rig, RuleSettings::default());
-    let r = rule_outcomes(&rule, &kept, rig, &labels, &ProgressBar::hidden())?;
+    let r = rule_outcomes(&rule, &kept, &labels)?;
     Ok(SetScores {
         manifest: manifest.display().to_string(),
-        before: score(&before.meta().labels, &b.outcomes),
-        after: score(&labels, &a.outcomes),
+        before: score(&b.labels, &b.outcomes),
+        after: score(&a.labels, &a.outcomes),
         rule: score(&labels, &r),
     })
 }

@@ -2,10 +2,12 @@
 //! recording is fed as sample blocks through the same [`Windower`] and [`AnalysisStage`]
 //! (window by window speed included), so `rigmon features`, training and evaluation see the
 //! features a served model is given. A window that cannot be computed (NaN samples, no
-//! speed) is an error naming the window.
+//! speed) is an error naming the window; [`analyse_recording`] instead keeps every window as
+//! the daemon would see it (quality flags, no-speed and failed windows included), for scores
+//! that must say what the daemon says.
 
 use super::speed_source::SpeedSource;
-use super::stage::AnalysisStage;
+use super::stage::{AnalysisStage, WindowAnalysis};
 use super::windows::Windower;
 use crate::acquire::SampleBlock;
 use crate::config::RigConfig;
@@ -35,7 +37,46 @@ pub fn extract_with_speed(
     extract(rec, rig, SpeedSource::given(speed.clone(), rec.sample_rate))
 }
 
+/// Every full window of a recording as the daemon analyses it (non-finite samples zeroed and
+/// flagged, windows without speed or features kept with their error), with the speed source
+/// from the rig file.
+pub fn analyse_recording(rec: &Recording, rig: &RigConfig) -> Result<Vec<WindowAnalysis>> {
+    let speed = SpeedSource::new(&rig.speed, rec.sample_rate, rec.rpm)?;
+    speed
+        .check_recording(rec)
+        .with_context(|| format!("speed for {}", rec.provenance.source_path))?;
+    let mut out = Vec::new();
+    each_window(rec, rig, speed, false, |a| {
+        out.push(a);
+        Ok(())
+    })?;
+    Ok(out)
+}
+
 fn extract(rec: &Recording, rig: &RigConfig, speed: SpeedSource) -> Result<Vec<FeatureWindow>> {
+    let what = &rec.provenance.source_path;
+    let mut out = Vec::new();
+    each_window(rec, rig, speed, true, |a| {
+        let t = a.t_start;
+        out.push(
+            a.features
+                .map_err(|e| e.into_error())
+                .with_context(|| format!("{what}: window at t = {t:.3} s"))?,
+        );
+        Ok(())
+    })?;
+    Ok(out)
+}
+
+/// Feed the recording through the windower and the analysis stage (`strict`: non-finite
+/// samples reach the pipeline, which refuses the window) and hand each window to `each`.
+fn each_window(
+    rec: &Recording,
+    rig: &RigConfig,
+    speed: SpeedSource,
+    strict: bool,
+    mut each: impl FnMut(WindowAnalysis) -> Result<()>,
+) -> Result<()> {
     let what = &rec.provenance.source_path;
     if rec.channels.is_empty() {
         bail!("{what}: the recording has no acceleration channel");
@@ -55,7 +96,10 @@ fn extract(rec: &Recording, rig: &RigConfig, speed: SpeedSource) -> Result<Vec<F
         .iter()
         .map(|c| (c.name.clone(), c.unit.clone()))
         .collect();
-    let mut stage = AnalysisStage::new(rig, fs, &channels, &[], speed)?.strict();
+    let mut stage = AnalysisStage::new(rig, fs, &channels, &[], speed)?;
+    if strict {
+        stage = stage.strict();
+    }
     let n = stage.window_len();
     if rec.len() < n {
         bail!(
@@ -65,33 +109,20 @@ fn extract(rec: &Recording, rig: &RigConfig, speed: SpeedSource) -> Result<Vec<F
         );
     }
     let mut windower = Windower::for_rig(&rig.speed, &rig.features, fs, channels.len())?;
-    let hop = windower.spec().hop;
-    let mut out = Vec::with_capacity((rec.len() - n) / hop + 1);
-    let mut drain = |windower: &mut Windower, out: &mut Vec<FeatureWindow>| -> Result<()> {
-        while let Some(view) = windower.window() {
-            let a = stage.analyse(&view);
-            drop(view);
-            windower.advance();
-            let t = a.t_start;
-            out.push(
-                a.features
-                    .map_err(|e| e.into_error())
-                    .with_context(|| format!("{what}: window at t = {t:.3} s"))?,
-            );
-        }
-        Ok(())
-    };
     let mut start = 0;
     while start < rec.len() {
         let end = (start + BLOCK).min(rec.len());
         windower.push(&block(rec, start, end));
-        drain(&mut windower, &mut out)?;
+        // Every window is complete once its last sample is in: none waits for a later block.
+        while let Some(view) = windower.window() {
+            let a = stage.analyse(&view);
+            drop(view);
+            windower.advance();
+            each(a)?;
+        }
         start = end;
     }
-    // The end of the recording: the last windows do not wait for their lookahead.
-    windower.finish();
-    drain(&mut windower, &mut out)?;
-    Ok(out)
+    Ok(())
 }
 
 /// Samples `[start, end)` of the recording as the block a file replay would deliver.

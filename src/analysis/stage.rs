@@ -1,7 +1,8 @@
 //! One window in, everything the model and health stages need out: the window's samples
 //! checked (dropouts, NaN), its shaft speed from the [`SpeedSource`], the envelope order
-//! spectrum features with their quality flags, and the ISO 20816-3 velocity RMS of the
-//! classifier channel. The daemon and whole recordings (`rigmon features`, training,
+//! spectrum features with their quality flags, the classifier channel's band ratios at the
+//! bearing's fault orders (what the rule baseline judges), and the ISO 20816-3 velocity RMS of
+//! the classifier channel. The daemon and whole recordings (`rigmon features`, training,
 //! evaluation) both go through [`AnalysisStage::analyse`], so a model is served the features
 //! it was trained on. Buffers are made once and reused.
 
@@ -9,6 +10,7 @@ use super::speed_source::SpeedSource;
 use super::velocity::VelocityRms;
 use super::windows::WindowView;
 use crate::config::RigConfig;
+use crate::dsp::fault_band_ratios::{FaultBandMeter, FaultBandRatios};
 use crate::dsp::features::{FeaturePipeline, FeatureWindow};
 use anyhow::Result;
 
@@ -56,6 +58,9 @@ pub struct WindowAnalysis {
     /// Name of the speed source before a window has been computed (tacho, edges, ...).
     pub speed_source: &'static str,
     pub features: Result<FeatureWindow, WindowError>,
+    /// The classifier channel's band ratios at the bearing's fault orders, from the envelope
+    /// order spectrum its features were summed from (None without features).
+    pub fault_bands: Option<FaultBandRatios>,
     /// Broadband velocity RMS of the classifier channel, mm/s (None for a unit that is not
     /// an acceleration or a window with non-finite samples).
     pub velocity_mm_s: Option<f64>,
@@ -74,6 +79,8 @@ pub struct AnalysisStage {
     classifier: Option<usize>,
     /// Sanitised copies of the window (NaN -> 0), one per channel.
     scratch: Vec<Vec<f32>>,
+    /// Band ratios at the bearing's fault orders, measured on the classifier channel.
+    fault_bands: FaultBandMeter,
     /// Pass non-finite samples to the pipeline, which then refuses the window (whole
     /// recordings: a NaN in a training file is an error to fix, not a flag).
     strict: bool,
@@ -96,7 +103,9 @@ impl AnalysisStage {
             .classifier_channel()
             .and_then(|c| names.iter().position(|n| n == &c.name))
             .filter(|&k| !absent.contains(&names[k]));
+        let o = rig.bearing.fault_orders();
         Ok(AnalysisStage {
+            fault_bands: FaultBandMeter::new(o.bpfo, o.bpfi, o.two_bsf, rig.features.max_order),
             pipeline,
             speed,
             velocity: VelocityRms::new(len, sample_rate),
@@ -160,6 +169,7 @@ impl AnalysisStage {
             .or_else(|| self.absent.iter().position(|a| !a))
             .map_or(&[][..], |k| self.scratch[k].as_slice());
         let mut tacho_lost = false;
+        let mut fault_bands = None;
         let features = match self.speed.track(view.edges(), signal) {
             Err(e) => Err(WindowError::NoSpeed(e)),
             Ok(track) => {
@@ -176,8 +186,17 @@ impl AnalysisStage {
                         (names[k].as_str(), x)
                     })
                     .collect();
+                let meter = &mut self.fault_bands;
+                let mut measure =
+                    |step: f64, lines: &[f32]| fault_bands = Some(meter.measure(step, lines));
+                let probe = self.classifier.map(|k| {
+                    (
+                        names[k].as_str(),
+                        &mut measure as &mut dyn FnMut(f64, &[f32]),
+                    )
+                });
                 self.pipeline
-                    .process_window(view.t_start, &chans, &track)
+                    .process_window_probed(view.t_start, &chans, &track, probe)
                     .map_err(WindowError::Features)
             }
         };
@@ -193,6 +212,7 @@ impl AnalysisStage {
             tacho_lost,
             speed_source: self.speed.source_name(),
             features,
+            fault_bands,
             velocity_mm_s,
         }
     }

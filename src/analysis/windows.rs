@@ -6,13 +6,15 @@
 //!
 //! An analog tacho is turned into edge times as blocks arrive (a streaming Schmitt trigger),
 //! so every window sees tacho edges on the pipeline clock, whatever form the tacho came in.
-//! A window is handed out once one hop of samples past its end has arrived (its lookahead;
-//! at the end of the stream, [`Windower::finish`], at once). It sees exactly the tacho edges
-//! from one window before its start that were known by the end of its lookahead (an analog
-//! edge is known once the sample that confirms it has arrived), so the speed at its end is
-//! interpolated, a pulse missing near its end is seen, and its edges, hence its speed and
+//! A window is handed out as soon as its own last sample has arrived, whatever its speed
+//! source: a fixed, stored or estimated speed needs nothing else, and a tacho's speed is
+//! taken from the edges known by the window's last sample (from one window before its start)
+//! and extrapolated past the last of them (an analog edge is known once the sample that
+//! confirms it has arrived; an edge delivered by the source, once the sample it falls in
+//! has). So no window waits for signal past its end, and its edges, hence its speed and
 //! features, do not depend on how the samples were cut into blocks: a whole recording and a
-//! live stream give the same windows.
+//! live stream give the same windows. What extrapolating costs against the speed from every
+//! edge is measured in `tests/features_identity.rs` (docs/benchmarks.md, "Latency").
 //!
 //! The buffers are allocated once (window + largest block) and slid with `copy_within`.
 
@@ -21,15 +23,12 @@ use crate::dsp::speed_config::SpeedConfig;
 use crate::dsp::tacho::EdgeDetector;
 use std::collections::VecDeque;
 
-/// Window length, hop and lookahead in samples.
+/// Window length and hop in samples.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct WindowSpec {
     pub sample_rate: f64,
     pub len: usize,
     pub hop: usize,
-    /// Samples past a window's end that must arrive before it is analysed (tacho edges up to
-    /// there are used for its speed); one hop.
-    pub lookahead: usize,
 }
 
 impl WindowSpec {
@@ -45,7 +44,6 @@ impl WindowSpec {
             sample_rate,
             len,
             hop,
-            lookahead: hop,
         })
     }
 }
@@ -75,18 +73,21 @@ pub struct WindowView<'a> {
     /// Tacho edges held by the windower: (time in s on the pipeline clock, pipeline-clock
     /// sample from which the edge is known). Read them with [`WindowView::edges`].
     pub edge_buffer: &'a VecDeque<(f64, u64)>,
-    /// Edges known from this pipeline-clock sample on are not used (the end of the window's
-    /// lookahead).
+    /// Edges known from this pipeline-clock sample on are not used (the window's end).
     pub edges_until: u64,
     /// Edges before this time (s) belong to earlier windows.
     pub edges_from: f64,
     /// Samples inside this window that were lost on the sample clock (NaN-filled).
     pub lost_samples: u32,
+    /// Samples past the window's end that had arrived when it was handed out: the part of
+    /// the block completing it that lies after its end (set by the source's block size, not
+    /// by the analysis, which waits for none).
+    pub after_end: u64,
 }
 
 impl WindowView<'_> {
     /// Tacho edge times (s, pipeline clock) from one window before the start, known by the
-    /// end of the window's lookahead.
+    /// window's last sample.
     pub fn edges(&self) -> impl Iterator<Item = f64> + '_ {
         let (from, end) = (self.edges_from, self.edges_until);
         self.edge_buffer
@@ -121,8 +122,6 @@ pub struct Windower {
     offset: i128,
     /// NaN-filled ranges (pipeline clock, [from, to)) still inside the buffers.
     holes: VecDeque<(u64, u64)>,
-    /// The stream has ended: windows no longer wait for their lookahead.
-    finished: bool,
     stats: WindowStats,
 }
 
@@ -143,7 +142,6 @@ impl Windower {
             next: None,
             offset: 0,
             holes: VecDeque::new(),
-            finished: false,
             stats: WindowStats::default(),
         }
     }
@@ -173,15 +171,8 @@ impl Windower {
         self.next
     }
 
-    /// The stream has ended: hand out the remaining complete windows without waiting for
-    /// their lookahead.
-    pub fn finish(&mut self) {
-        self.finished = true;
-    }
-
     /// Add a block. Returns the number of samples found missing before it.
     pub fn push(&mut self, block: &SampleBlock) -> u64 {
-        self.finished = false;
         let n = block.len();
         if block.channels.len() != self.bufs.len() {
             // A source that changes its channel count mid-stream is a bug upstream; keep the
@@ -274,12 +265,8 @@ impl Windower {
     /// using it.
     pub fn window(&self) -> Option<WindowView<'_>> {
         let len = self.spec.len;
-        let ahead = if self.finished {
-            0
-        } else {
-            self.spec.lookahead
-        };
-        if self.bufs.first().is_none_or(|b| b.len() < len + ahead) {
+        let held = self.bufs.first().map_or(0, |b| b.len());
+        if held < len {
             return None;
         }
         let end = self.start + len as u64;
@@ -295,9 +282,10 @@ impl Windower {
             t_end: end as f64 / fs,
             channels: self.bufs.iter().map(|b| &b[..len]).collect(),
             edge_buffer: &self.edges,
-            edges_until: end + self.spec.lookahead as u64,
+            edges_until: end,
             edges_from: self.edges_from(self.start),
             lost_samples: lost as u32,
+            after_end: (held - len) as u64,
         })
     }
 
@@ -350,37 +338,71 @@ mod tests {
     }
 
     #[test]
-    fn windows_every_hop_on_the_sample_clock() {
+    fn windows_every_hop_handed_out_with_the_block_that_completes_them() {
         let spec = WindowSpec::new(100.0, 1.0, 0.5).unwrap();
         let mut w = Windower::new(spec, 2, None);
         let mut starts = Vec::new();
         for k in 0..10 {
             w.push(&block(k * 30, 30, 1.0));
+            let arrived = (k + 1) * 30;
             while let Some(v) = w.window() {
                 assert_eq!(
                     v.channels[1][0], v.first_sample as f32,
                     "window content follows the clock"
                 );
                 assert_eq!(v.channels[1].len(), 100);
+                // Handed out with the first block that reached its end, not one later.
+                let end = v.first_sample + 100;
+                assert_eq!(v.after_end, arrived - end, "window at {}", v.first_sample);
+                assert!(v.after_end < 30, "window at {}", v.first_sample);
                 starts.push(v.first_sample);
                 w.advance();
             }
-        }
-        // Each window waited for one hop past its end; the last one comes at the end.
-        assert_eq!(starts, [0, 50, 100, 150]);
-        w.finish();
-        while let Some(v) = w.window() {
-            starts.push(v.first_sample);
-            w.advance();
         }
         assert_eq!(starts, [0, 50, 100, 150, 200]);
         assert_eq!(w.stats().samples_lost, 0);
     }
 
     #[test]
+    fn no_speed_source_makes_a_window_wait_past_its_end() {
+        use crate::dsp::FeatureSettings;
+        let features = FeatureSettings {
+            window_s: 1.0,
+            hop_s: 0.5,
+            ..FeatureSettings::default()
+        };
+        let speeds = [
+            r#"source = "tacho"
+channel = "tacho""#,
+            r#"source = "edges""#,
+            r#"source = "fixed"
+rpm = 600.0"#,
+            r#"source = "recording""#,
+            r#"source = "estimate""#,
+        ];
+        for text in speeds {
+            let speed: SpeedConfig = toml::from_str(text).unwrap();
+            let mut w = Windower::for_rig(&speed, &features, 100.0, 2).unwrap();
+            // Blocks of one hop, with an analog tacho and delivered edges: each block ending
+            // on a window's end hands that window out at once, with nothing past its end.
+            let mut got = Vec::new();
+            for k in 0..8u64 {
+                let mut b = block(k * 50, 50, 1.0);
+                b.tacho_analog = Some((0..50).map(|i| [0.0, 5.0][i % 10 / 5]).collect());
+                w.push(&b);
+                while let Some(v) = w.window() {
+                    got.push((k, v.first_sample, v.after_end));
+                    w.advance();
+                }
+            }
+            let want: Vec<(u64, u64, u64)> = (1..8).map(|k| (k, (k - 1) * 50, 0)).collect();
+            assert_eq!(got, want, "{text}");
+        }
+    }
+
+    #[test]
     fn short_gap_is_nan_filled_and_counted() {
-        let mut spec = WindowSpec::new(100.0, 1.0, 0.5).unwrap();
-        spec.lookahead = 0;
+        let spec = WindowSpec::new(100.0, 1.0, 0.5).unwrap();
         let mut w = Windower::new(spec, 2, None);
         w.push(&block(0, 60, 1.0));
         assert_eq!(w.push(&block(70, 60, 1.0)), 10);
@@ -402,8 +424,7 @@ mod tests {
 
     #[test]
     fn long_gap_and_backwards_clock_restart() {
-        let mut spec = WindowSpec::new(100.0, 1.0, 0.5).unwrap();
-        spec.lookahead = 0;
+        let spec = WindowSpec::new(100.0, 1.0, 0.5).unwrap();
         let mut w = Windower::new(spec, 2, None);
         w.push(&block(0, 80, 1.0));
         assert_eq!(w.push(&block(500, 100, 2.0)), 420);
@@ -426,8 +447,7 @@ mod tests {
 
     #[test]
     fn analog_tacho_edges_land_on_the_pipeline_clock() {
-        let mut spec = WindowSpec::new(100.0, 1.0, 0.5).unwrap();
-        spec.lookahead = 0;
+        let spec = WindowSpec::new(100.0, 1.0, 0.5).unwrap();
         let mut w = Windower::new(spec, 2, Some((2.5, 0.5)));
         for k in 0..4u64 {
             let mut b = block(k * 50, 50, 1.0);
@@ -483,27 +503,27 @@ mod tests {
             });
             drain(&mut w);
         }
-        w.finish();
-        drain(&mut w);
         out
     }
 
     #[test]
-    fn window_edges_reach_one_hop_past_the_end_whatever_the_blocks() {
+    fn window_edges_end_with_the_window_whatever_the_blocks() {
         let whole = window_edges(400);
         assert_eq!(whole.len(), 7);
         for n in [1, 7, 50, 64, 150] {
             assert_eq!(window_edges(n), whole, "blocks of {n}");
         }
-        // The window [100, 200) sees edges from sample 0 to its lookahead's end (250).
+        // The window [100, 200) sees the edges from sample 0 confirmed by its last sample:
+        // each crosses 2.5 V at 13 k + 4.25 and is confirmed (>= 3 V) at 13 k + 5, so the
+        // crossing at 199.25, confirmed at 200, belongs to the next window.
         let (first, e) = &whole[2];
         assert_eq!(*first, 100);
         let want: Vec<f64> = (0..20)
-            .map(|k| (13 * k) as f64 + 4.25)
-            .filter(|&s| s < 250.0)
-            .map(|s| s / 100.0)
+            .filter(|k| 13 * k + 5 < 200)
+            .map(|k| ((13 * k) as f64 + 4.25) / 100.0)
             .collect();
         assert_eq!(e.len(), want.len(), "{e:?}");
+        assert_eq!(want.len(), 15);
         for (a, b) in e.iter().zip(&want) {
             assert!((a - b).abs() < 1e-9, "{e:?} vs {want:?}");
         }

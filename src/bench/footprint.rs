@@ -1,25 +1,38 @@
 //! `rigmon bench footprint`: the daemon as it runs on the rig — `rigmon run` as a **child
 //! process** with a generated config (the shipped replay as a file source at real time,
 //! looping: 3 acceleration channels at 10 kHz + tacho, no recording, spectrum off) publishing
-//! health on Zenoh over loopback TCP to a subscriber in this (the benchmark's) process.
-//! Measured on the child only: CPU share of one core (utime + stime from /proc/<pid>/stat),
-//! resident memory (VmRSS sampled every 0.5 s, VmHWM at the end, from /proc/<pid>/status),
-//! and publish latency = health received here - the window's end in wall time (`end_ns`:
-//! the source's start time + sample clock). Goals: <= 2 % of one core, <= 30 MB RSS, <= 20 ms.
+//! health on Zenoh over loopback TCP to a subscriber in this (the benchmark's) process, once
+//! per speed source: the rig file's own (`tacho`, the analog tacho), then `edges` (the same
+//! recording with its tacho as edge times in the MCAP), `fixed` and `recording` (its stored
+//! 588 rpm) and `estimate`.
+//!
+//! Measured on the child only: CPU share of one core (utime + stime from /proc/<pid>/stat);
+//! resident memory from /proc/<pid>/status: the start-up peak (VmRSS sampled every
+//! millisecond until the warm-up ends, and VmHWM), the steady state (VmRSS every 0.5 s
+//! while measuring) and what it is made of (RssAnon: private memory; RssFile: mapped code);
+//! and latency = health received here - the window's end in wall time (`end_ns`: the
+//! source's start time + sample clock). Goals: <= 2 % of one core (target 1 %), <= 30 MB
+//! RSS at start-up and in steady state, p99 <= 20 ms for every speed source.
 
 use super::{abs, cpu_seconds, free_port, machine_line, percentile, BenchOptions};
+use crate::config::{RigConfig, SpeedConfig};
 use crate::health::message::HealthMessage;
 use crate::publish::zenoh::{ZenohSettings, ZenohSubscriber};
 use anyhow::{bail, Context, Result};
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
-use std::sync::atomic::Ordering;
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 
 const GOAL_CPU_PCT: f64 = 2.0;
+const TARGET_CPU_PCT: f64 = 1.0;
 const GOAL_RSS_MB: f64 = 30.0;
 const GOAL_LATENCY_MS: f64 = 20.0;
+/// From the start to the measurement: start-up, the first windows and the page-out of their
+/// one-off code 5 s in (`daemon::code_pages`).
+const WARMUP_S: f64 = 6.0;
+const REPLAY: &str = "replay/lut-outer_race-588rpm.mcap";
 
 /// A `/proc/<pid>/status` memory line in MB.
 fn status_mb(pid: u32, key: &str) -> f64 {
@@ -31,11 +44,6 @@ fn status_mb(pid: u32, key: &str) -> f64 {
         .map_or(f64::NAN, |kb| kb / 1024.0)
 }
 
-/// (VmRSS, VmHWM) of a process in MB.
-fn rss_mb(pid: u32) -> (f64, f64) {
-    (status_mb(pid, "VmRSS:"), status_mb(pid, "VmHWM:"))
-}
-
 /// Kills the daemon if the benchmark stops early.
 struct ChildGuard(Child);
 impl Drop for ChildGuard {
@@ -45,13 +53,44 @@ impl Drop for ChildGuard {
     }
 }
 
+/// One speed source to run the daemon with.
+struct Case {
+    speed: &'static str,
+    rig: PathBuf,
+    replay: PathBuf,
+}
+
+/// What one run of the daemon measured.
+#[derive(Debug, Clone, serde::Serialize)]
+struct Measured {
+    speed_source: &'static str,
+    seconds: f64,
+    cpu_pct: f64,
+    /// Start-up peak: the largest VmRSS sampled during the warm-up, and VmHWM at its end.
+    rss_startup_peak_mb: f64,
+    rss_startup_hwm_mb: f64,
+    /// Steady state: VmRSS median and max while measuring, and its parts at the end.
+    rss_steady_median_mb: f64,
+    rss_steady_max_mb: f64,
+    rss_anon_mb: f64,
+    rss_file_mb: f64,
+    latency_p50_ms: f64,
+    latency_p99_ms: f64,
+    latency_max_ms: f64,
+    /// Health messages measured, those without a speed (the window's speed could not be
+    /// found), and the speed sources the messages name.
+    received: usize,
+    without_speed: usize,
+    speed_sources_seen: Vec<String>,
+}
+
 pub fn run(opts: &BenchOptions) -> Result<()> {
     let rig_path = opts
         .rig
         .clone()
         .unwrap_or_else(|| PathBuf::from("config/lut-rig.toml"));
     let model = PathBuf::from("models/lut-rig.onnx");
-    let replay = PathBuf::from("replay/lut-outer_race-588rpm.mcap");
+    let replay = PathBuf::from(REPLAY);
     for (p, hint) in [
         (&rig_path, "--rig <toml>"),
         (&model, "train it with `rigmon train`"),
@@ -65,24 +104,139 @@ pub fn run(opts: &BenchOptions) -> Result<()> {
         }
     }
     let seconds = opts.seconds.max(5.0);
-    let warmup = 3.0;
-    let port = free_port()?;
-    let endpoint = format!("tcp/127.0.0.1:{port}");
-    let dir = tempfile::tempdir().context("cannot create a temporary folder for the config")?;
-    let cfg = dir.path().join("rigmon.toml");
+    let dir = tempfile::tempdir().context("cannot create a temporary folder for the configs")?;
+    let cases = cases(&abs(&rig_path)?, &abs(&replay)?, dir.path())?;
+    let model = abs(&model)?;
+    let mut runs = Vec::new();
+    for case in &cases {
+        if !opts.json {
+            eprintln!(
+                "footprint: speed source {:?}, {WARMUP_S} s warm-up + {seconds} s",
+                case.speed
+            );
+        }
+        let m = measure(case, &model, dir.path(), seconds)
+            .with_context(|| format!("speed source {:?}", case.speed))?;
+        runs.push(m);
+    }
+    report(opts.json, &replay, &runs);
+    Ok(())
+}
+
+/// The rig's own speed source first, then every other one the replay can feed.
+fn cases(rig_path: &Path, replay: &Path, dir: &Path) -> Result<Vec<Case>> {
+    let rig = RigConfig::load(rig_path)?;
+    let mut rec = crate::recording::mcap::read_recording(replay)?;
+    let rpm = rec
+        .rpm
+        .with_context(|| format!("{} stores no rpm", replay.display()))?;
+    let edges_replay = dir.join("replay-edges.mcap");
+    crate::analysis::speed_source::analog_tacho_to_edges(&mut rec, &rig)?;
+    crate::recording::mcap::write_recording(&edges_replay, &rec)?;
+    let ppr = rig.speed.pulses_per_rev();
+    let others: [(&'static str, SpeedConfig, &Path); 4] = [
+        (
+            "edges",
+            SpeedConfig::Edges {
+                pulses_per_rev: ppr,
+            },
+            &edges_replay,
+        ),
+        ("fixed", SpeedConfig::Fixed { rpm }, replay),
+        (
+            "recording",
+            toml::from_str("source = \"recording\"")?,
+            replay,
+        ),
+        ("estimate", toml::from_str("source = \"estimate\"")?, replay),
+    ];
+    let own = match rig.speed {
+        SpeedConfig::Tacho { .. } => "tacho",
+        SpeedConfig::Edges { .. } => "edges",
+        SpeedConfig::Fixed { .. } => "fixed",
+        SpeedConfig::Recording { .. } => "recording",
+        SpeedConfig::Estimate { .. } => "estimate",
+    };
+    let mut cases = vec![Case {
+        speed: own,
+        rig: rig_path.to_path_buf(),
+        replay: replay.to_path_buf(),
+    }];
+    for (name, speed, file) in others.into_iter().filter(|(n, ..)| *n != own) {
+        let path = dir.join(format!("rig-{name}.toml"));
+        let r = RigConfig {
+            speed,
+            ..rig.clone()
+        };
+        std::fs::write(&path, toml::to_string(&r)?)
+            .with_context(|| format!("writing {}", path.display()))?;
+        cases.push(Case {
+            speed: name,
+            rig: path,
+            replay: file.to_path_buf(),
+        });
+    }
+    Ok(cases)
+}
+
+/// The daemon's config for one case, publishing on `endpoint`.
+fn write_config(case: &Case, model: &Path, endpoint: &str, dir: &Path) -> Result<PathBuf> {
+    let cfg = dir.join(format!("rigmon-{}.toml", case.speed));
     std::fs::write(
         &cfg,
         format!(
             "rig = {:?}\n[model]\npath = {:?}\n[source]\ntype = \"file\"\npath = {:?}\nspeed = 1.0\nloop = true\n\
              [pipeline]\nspectrum = false\n[zenoh]\nmode = \"peer\"\nlisten = [{:?}]\nmulticast_scouting = false\n\
              [recording]\nenabled = false\n",
-            abs(&rig_path)?,
-            abs(&model)?,
-            abs(&replay)?,
-            endpoint
+            case.rig, model, case.replay, endpoint
         ),
     )
     .with_context(|| format!("writing {}", cfg.display()))?;
+    Ok(cfg)
+}
+
+/// Health messages received while `counting`: (window end -> received ms, speed source, the
+/// window had a speed).
+type Received = Arc<Mutex<Vec<(f64, String, bool)>>>;
+
+/// A subscriber thread on `endpoint` that records what arrives while `counting` is set.
+fn subscribe(
+    endpoint: &str,
+    counting: Arc<AtomicBool>,
+    stop: Arc<AtomicBool>,
+    got: Received,
+) -> std::thread::JoinHandle<Result<()>> {
+    let settings = ZenohSettings {
+        connect: vec![endpoint.to_string()],
+        ..ZenohSettings::default()
+    };
+    std::thread::spawn(move || -> Result<()> {
+        let sub = ZenohSubscriber::open(&settings, "rigmon/**/health")?;
+        while !stop.load(Ordering::Relaxed) {
+            if let Some((_, payload)) = sub.recv_timeout(Duration::from_millis(100))? {
+                let now = SystemTime::now().duration_since(UNIX_EPOCH)?.as_nanos() as f64;
+                if let Ok(m) = serde_json::from_slice::<HealthMessage>(&payload) {
+                    if counting.load(Ordering::Relaxed) {
+                        let ms = (now - m.window.end_ns as f64) / 1e6;
+                        got.lock().map_err(|_| anyhow::anyhow!("poisoned"))?.push((
+                            ms,
+                            m.speed_source,
+                            m.rpm.is_some(),
+                        ));
+                    }
+                }
+            }
+        }
+        sub.close();
+        Ok(())
+    })
+}
+
+/// Run the daemon for one case: warm-up (sampling the start-up peak), then `seconds` of
+/// measurement, then SIGTERM.
+fn measure(case: &Case, model: &Path, dir: &Path, seconds: f64) -> Result<Measured> {
+    let endpoint = format!("tcp/127.0.0.1:{}", free_port()?);
+    let cfg = write_config(case, model, &endpoint, dir)?;
     let exe = std::env::current_exe().context("cannot find the rigmon executable")?;
     let child = Command::new(&exe)
         .args(["run", "--config"])
@@ -94,66 +248,77 @@ pub fn run(opts: &BenchOptions) -> Result<()> {
         .with_context(|| format!("cannot start {} run", exe.display()))?;
     let mut child = ChildGuard(child);
     let pid = child.0.id();
+    let (counting, stop) = (
+        Arc::new(AtomicBool::new(false)),
+        Arc::new(AtomicBool::new(false)),
+    );
+    let got: Received = Arc::default();
+    let sub = subscribe(&endpoint, counting.clone(), stop.clone(), got.clone());
 
-    // Subscriber in this process, over loopback TCP.
-    let sub_settings = ZenohSettings {
-        connect: vec![endpoint.clone()],
-        ..ZenohSettings::default()
-    };
-    let latencies: Arc<Mutex<Vec<f64>>> = Arc::default();
-    let counting = Arc::new(std::sync::atomic::AtomicBool::new(false));
-    let sub_stop = Arc::new(std::sync::atomic::AtomicBool::new(false));
-    let sub_thread = {
-        let (lat, stop, counting) = (latencies.clone(), sub_stop.clone(), counting.clone());
-        std::thread::spawn(move || -> Result<(u64, u64)> {
-            let sub = ZenohSubscriber::open(&sub_settings, "rigmon/**/health")?;
-            let (mut n, mut last_seq) = (0, 0);
-            while !stop.load(Ordering::Relaxed) {
-                if let Some((_, payload)) = sub.recv_timeout(Duration::from_millis(100))? {
-                    let now = SystemTime::now().duration_since(UNIX_EPOCH)?.as_nanos() as f64;
-                    if let Ok(m) = serde_json::from_slice::<HealthMessage>(&payload) {
-                        if counting.load(Ordering::Relaxed) {
-                            let ms = (now - m.window.end_ns as f64) / 1e6;
-                            lat.lock()
-                                .map_err(|_| anyhow::anyhow!("poisoned"))?
-                                .push(ms);
-                            n += 1;
-                        }
-                        last_seq = m.seq;
-                    }
-                }
-            }
-            sub.close();
-            Ok((n, last_seq))
-        })
-    };
-
-    std::thread::sleep(Duration::from_secs_f64(warmup));
+    // Start-up: the resident set every millisecond until the warm-up ends.
+    let t0 = Instant::now();
+    let mut startup_peak = 0.0f64;
+    while t0.elapsed().as_secs_f64() < WARMUP_S {
+        let r = status_mb(pid, "VmRSS:");
+        if r.is_finite() {
+            startup_peak = startup_peak.max(r);
+        }
+        std::thread::sleep(Duration::from_millis(1));
+    }
+    let startup_hwm = status_mb(pid, "VmHWM:");
     if let Some(st) = child.0.try_wait()? {
         bail!("the daemon exited during warm-up ({st}); its log is above");
     }
     counting.store(true, Ordering::SeqCst);
     let (c0, w0) = (cpu_seconds(pid)?, Instant::now());
-    let mut rss_max = 0.0f64;
-    let mut rss_samples = Vec::new();
+    let mut steady = Vec::new();
     while w0.elapsed().as_secs_f64() < seconds {
         std::thread::sleep(Duration::from_millis(500));
-        let r = rss_mb(pid).0;
-        rss_samples.push(r);
-        rss_max = rss_max.max(r);
+        steady.push(status_mb(pid, "VmRSS:"));
     }
     let wall = w0.elapsed().as_secs_f64();
-    let cpu = (cpu_seconds(pid)? - c0) / wall * 100.0;
-    let (rss_now, hwm) = rss_mb(pid);
-    // What the resident set is made of: private memory vs pages of mapped files (mostly the
-    // executable's own code, shared with the page cache and reclaimable).
-    let (rss_anon, rss_file) = (status_mb(pid, "RssAnon:"), status_mb(pid, "RssFile:"));
+    let cpu_pct = (cpu_seconds(pid)? - c0) / wall * 100.0;
+    let (anon, file) = (status_mb(pid, "RssAnon:"), status_mb(pid, "RssFile:"));
     counting.store(false, Ordering::SeqCst);
+    stop_daemon(&mut child.0)?;
+    stop.store(true, Ordering::SeqCst);
+    sub.join()
+        .map_err(|_| anyhow::anyhow!("subscriber panicked"))??;
+
+    steady.sort_by(|a, b| a.total_cmp(b));
+    let got = got.lock().map_err(|_| anyhow::anyhow!("poisoned"))?.clone();
+    let mut lat: Vec<f64> = got.iter().map(|(ms, ..)| *ms).collect();
+    lat.sort_by(|a, b| a.total_cmp(b));
+    let without_speed = got.iter().filter(|(.., speed)| !speed).count();
+    let mut seen: Vec<String> = got.into_iter().map(|(_, s, _)| s).collect();
+    seen.sort();
+    seen.dedup();
+    Ok(Measured {
+        speed_source: case.speed,
+        seconds: wall,
+        cpu_pct,
+        rss_startup_peak_mb: startup_peak,
+        rss_startup_hwm_mb: startup_hwm,
+        rss_steady_median_mb: percentile(&steady, 0.5),
+        rss_steady_max_mb: steady.last().copied().unwrap_or(f64::NAN),
+        rss_anon_mb: anon,
+        rss_file_mb: file,
+        latency_p50_ms: percentile(&lat, 0.5),
+        latency_p99_ms: percentile(&lat, 0.99),
+        latency_max_ms: lat.last().copied().unwrap_or(f64::NAN),
+        received: lat.len(),
+        without_speed,
+        speed_sources_seen: seen,
+    })
+}
+
+/// SIGTERM, then wait up to 15 s for a clean exit.
+fn stop_daemon(child: &mut Child) -> Result<()> {
     // SAFETY: kill(2) on our own child.
-    unsafe { libc::kill(pid as i32, libc::SIGTERM) };
+    unsafe { libc::kill(child.id() as i32, libc::SIGTERM) };
     let t_stop = Instant::now();
     let status = loop {
-        if let Some(s) = child.0.try_wait()? {
+        if let Some(s) = child.try_wait()? {
             break s;
         }
         if t_stop.elapsed() > Duration::from_secs(15) {
@@ -161,67 +326,128 @@ pub fn run(opts: &BenchOptions) -> Result<()> {
         }
         std::thread::sleep(Duration::from_millis(50));
     };
-    sub_stop.store(true, Ordering::SeqCst);
-    let (received, last_seq) = sub_thread
-        .join()
-        .map_err(|_| anyhow::anyhow!("subscriber panicked"))??;
     if !status.success() {
         bail!("the daemon exited with {status}");
     }
-    rss_samples.sort_by(|a, b| a.total_cmp(b));
-    let rss_median = percentile(&rss_samples, 0.5);
+    Ok(())
+}
 
-    let mut lat = latencies
-        .lock()
-        .map_err(|_| anyhow::anyhow!("poisoned"))?
-        .clone();
-    lat.sort_by(|a, b| a.total_cmp(b));
-    let (p50, p99, max) = (
-        percentile(&lat, 0.5),
-        percentile(&lat, 0.99),
-        lat.last().copied().unwrap_or(f64::NAN),
-    );
+/// The load average (1, 5, 15 min) from /proc/loadavg.
+fn load_average() -> String {
+    std::fs::read_to_string("/proc/loadavg")
+        .map(|s| s.split_whitespace().take(3).collect::<Vec<_>>().join(" "))
+        .unwrap_or_else(|_| "unknown".into())
+}
 
-    if opts.json {
+/// The worst figure of every run, against its goal.
+struct Worst {
+    cpu: f64,
+    startup: f64,
+    steady: f64,
+    p99: f64,
+}
+
+impl Worst {
+    fn of(runs: &[Measured]) -> Worst {
+        let max = |f: fn(&Measured) -> f64| runs.iter().map(f).fold(0.0, f64::max);
+        Worst {
+            cpu: max(|m| m.cpu_pct),
+            startup: max(startup_peak),
+            steady: max(|m| m.rss_steady_max_mb),
+            p99: max(|m| m.latency_p99_ms),
+        }
+    }
+}
+
+fn report(json: bool, replay: &Path, runs: &[Measured]) {
+    let w = Worst::of(runs);
+    if json {
         let j = serde_json::json!({
             "benchmark": "footprint",
             "machine": machine_line(),
+            "load_average": load_average(),
             "process": "rigmon run (child process)",
             "rate": "3 ch x 10 kHz + tacho (replay at real time)",
-            "seconds": wall,
-            "cpu_pct": cpu,
-            "rss_mb": {"median": rss_median, "max": rss_max.max(rss_now), "hwm": hwm, "anon": rss_anon, "file": rss_file},
-            "latency_ms": {"p50": p50, "p99": p99, "max": max, "n": lat.len()},
-            "received": received,
-            "last_seq": last_seq,
-            "goals": {"cpu_pct": GOAL_CPU_PCT, "rss_mb": GOAL_RSS_MB, "latency_ms": GOAL_LATENCY_MS},
-            "ratios": {"cpu": cpu / GOAL_CPU_PCT, "rss": hwm / GOAL_RSS_MB, "latency_p99": p99 / GOAL_LATENCY_MS},
+            "runs": runs,
+            "worst": {"cpu_pct": w.cpu, "rss_startup_peak_mb": w.startup, "rss_steady_max_mb": w.steady, "latency_p99_ms": w.p99},
+            "goals": {"cpu_pct": GOAL_CPU_PCT, "cpu_target_pct": TARGET_CPU_PCT, "rss_mb": GOAL_RSS_MB, "latency_p99_ms": GOAL_LATENCY_MS},
+            "ratios": {"cpu": w.cpu / GOAL_CPU_PCT, "cpu_to_target": w.cpu / TARGET_CPU_PCT, "rss_startup": w.startup / GOAL_RSS_MB, "rss_steady": w.steady / GOAL_RSS_MB, "latency_p99": w.p99 / GOAL_LATENCY_MS},
         });
         println!("{j}");
-    } else {
-        println!(
-            "footprint: `rigmon run` as a child process, {} replayed at real time (3 ch x 10 kHz + tacho) for {wall:.1} s; {}",
-            replay.display(),
-            machine_line()
-        );
-        println!(
-            "  CPU      {cpu:6.2} % of one core (daemon process; goal {GOAL_CPU_PCT} %: ratio {:.2})",
-            cpu / GOAL_CPU_PCT
-        );
-        println!(
-            "  RSS      {rss_median:6.1} MB median, {:.1} MB max sampled, {hwm:.1} MB peak VmHWM (goal {GOAL_RSS_MB} MB: ratio {:.2})",
-            rss_max.max(rss_now),
-            hwm / GOAL_RSS_MB
-        );
-        println!(
-            "           {rss_anon:6.1} MB private (RssAnon), {rss_file:.1} MB mapped files (RssFile: the executable's code pages)"
-        );
-        println!(
-            "  latency  p50 {p50:.2} ms, p99 {p99:.2} ms, max {max:.2} ms over {} health messages (window end -> received; goal {GOAL_LATENCY_MS} ms: ratio {:.2})",
-            lat.len(),
-            p99 / GOAL_LATENCY_MS
-        );
-        println!("  received {received} health messages while measuring");
+        return;
     }
-    Ok(())
+    println!(
+        "footprint: `rigmon run` as a child process, {} replayed at real time (3 ch x 10 kHz + tacho), once per speed source; {}; load average {}",
+        replay.display(),
+        machine_line(),
+        load_average()
+    );
+    print_table(runs);
+    println!(
+        "  worst    CPU {:.2} % of one core (goal {GOAL_CPU_PCT} %: ratio {:.2}; target {TARGET_CPU_PCT} %: {:.2})",
+        w.cpu,
+        w.cpu / GOAL_CPU_PCT,
+        w.cpu / TARGET_CPU_PCT
+    );
+    println!(
+        "           RSS start-up peak {:.1} MB (ratio {:.2}), steady max {:.1} MB (ratio {:.2}; goal {GOAL_RSS_MB} MB both)",
+        w.startup,
+        w.startup / GOAL_RSS_MB,
+        w.steady,
+        w.steady / GOAL_RSS_MB
+    );
+    println!(
+        "           latency p99 {:.2} ms, window end -> received (goal {GOAL_LATENCY_MS} ms: ratio {:.2})",
+        w.p99,
+        w.p99 / GOAL_LATENCY_MS
+    );
+}
+
+/// One line per run, then a note on windows that had no speed.
+fn print_table(runs: &[Measured]) {
+    println!(
+        "  {:<10} {:>6} | {:>10} {:>6} | {:>10} {:>6} {:>5} {:>5} | {:>7} {:>7} {:>7} {:>4} {:>8}",
+        "speed",
+        "CPU %",
+        "start peak",
+        "VmHWM",
+        "steady med",
+        "max",
+        "anon",
+        "file",
+        "p50 ms",
+        "p99 ms",
+        "max ms",
+        "n",
+        "no speed"
+    );
+    for m in runs {
+        println!(
+            "  {:<10} {:>6.2} | {:>10.1} {:>6.1} | {:>10.1} {:>6.1} {:>5.1} {:>5.1} | {:>7.2} {:>7.2} {:>7.2} {:>4} {:>8}",
+            m.speed_source,
+            m.cpu_pct,
+            m.rss_startup_peak_mb,
+            m.rss_startup_hwm_mb,
+            m.rss_steady_median_mb,
+            m.rss_steady_max_mb,
+            m.rss_anon_mb,
+            m.rss_file_mb,
+            m.latency_p50_ms,
+            m.latency_p99_ms,
+            m.latency_max_ms,
+            m.received,
+            m.without_speed
+        );
+    }
+    for m in runs.iter().filter(|m| m.without_speed > 0) {
+        println!(
+            "  {}: {} of {} windows had no speed (published `unknown` without features); their latency is that path's",
+            m.speed_source, m.without_speed, m.received
+        );
+    }
+}
+
+/// The start-up peak of a run: the sampled maximum or VmHWM, whichever is larger.
+fn startup_peak(m: &Measured) -> f64 {
+    m.rss_startup_peak_mb.max(m.rss_startup_hwm_mb)
 }

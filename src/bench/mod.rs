@@ -5,6 +5,7 @@
 pub mod calibrate;
 pub mod features;
 pub mod footprint;
+pub mod historian;
 pub mod load;
 pub mod simulate;
 

@@ -101,6 +101,7 @@ mod tests {
                 unit: "V".into(),
             }),
             rpm: None,
+            nominal_rpm: None,
             provenance: Provenance {
                 source_path: "test.wav".into(),
                 ..Provenance::default()

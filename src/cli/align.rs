@@ -26,11 +26,15 @@ pub struct Args {
     /// Output model file.
     #[arg(short = 'o', long)]
     pub output: PathBuf,
+    /// Use a model trained for another rig on purpose (its rig id, axis, bearing orders or
+    /// recipe differ from the rig file's); refused otherwise.
+    #[arg(long)]
+    pub allow_foreign_model: bool,
 }
 
 pub fn run(args: Args) -> Result<()> {
     let rig = RigConfig::load(&args.rig)?;
-    OnnxClassifier::load(&args.model)?.check_rig(&rig)?;
+    OnnxClassifier::load(&args.model)?.check_identity(&rig, &args.rig, args.allow_foreign_model)?;
     let base = export::read(&args.model)?;
     let csv = manifest_path(&args.healthy);
     let entries: Vec<_> = read_manifest(&csv)?

@@ -15,6 +15,9 @@ pub enum What {
     Load,
     /// Calibration of six recordings analysed whole, against the same calibration before.
     Calibrate,
+    /// Fleet historian: --points simulated points at 2 windows/s through a router into the
+    /// PostgreSQL named by the PG* variables.
+    Historian,
 }
 
 /// Arguments of `rigmon bench`.
@@ -26,7 +29,7 @@ pub struct Args {
     /// Rig file (default depends on the benchmark).
     #[arg(long)]
     pub rig: Option<PathBuf>,
-    /// Measuring time in seconds (default 60 for `load`, 10 for the others).
+    /// Measuring time in seconds (default 60 for `load` and `historian`, 10 for the others).
     #[arg(long)]
     pub seconds: Option<f64>,
     /// Print one JSON object.
@@ -36,13 +39,16 @@ pub struct Args {
     /// generator's speed_fluctuation case, six recordings of 20 s.
     #[arg(long)]
     pub measured: Option<PathBuf>,
+    /// `historian` only: simulated points.
+    #[arg(long, default_value_t = 1000)]
+    pub points: usize,
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
     let opts = BenchOptions {
         rig: args.rig,
         seconds: args.seconds.unwrap_or(match args.what {
-            What::Load => 60.0,
+            What::Load | What::Historian => 60.0,
             _ => 10.0,
         }),
         json: args.json,
@@ -53,5 +59,6 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         What::Footprint => bench::footprint::run(&opts),
         What::Load => bench::load::run(&opts),
         What::Calibrate => bench::calibrate::run(&opts, args.measured, args.seconds),
+        What::Historian => bench::historian::run(args.points, opts.seconds, opts.json),
     }
 }

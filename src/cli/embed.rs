@@ -58,6 +58,7 @@ pub fn run(args: Args) -> Result<()> {
                 line: 0,
                 sample_rate: None,
                 span: None,
+                nominal_rpm: None,
             });
         }
     }

@@ -33,7 +33,7 @@ pub struct SerialArgs {
     /// Rig file (channel order, sensitivities).
     #[arg(long)]
     pub rig: PathBuf,
-    /// Recording to stream (MCAP, CWRU/MFPT .mat, WAV, CSV).
+    /// Recording to stream (MCAP, any-layout .mat, WAV, CSV).
     pub recording: PathBuf,
     /// Create a pseudo-terminal and print the path of the end to open.
     #[arg(long)]

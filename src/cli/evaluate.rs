@@ -1,16 +1,20 @@
 //! `rigmon evaluate`: run a model file (through tract, as the daemon does) on labelled
-//! recordings and score it whole-record, with `--baseline rule` the rule baseline on the same
-//! records in the same run (or the rule alone without `--model`); recordings the model was
-//! fine-tuned on are excluded.
+//! recordings cut into the daemon's windows, every window through the daemon's own verdict
+//! and health state machine, and score it whole-record; with `--baseline rule` the rule
+//! baseline on the same windows in the same run (or the rule alone without `--model`).
+//! Recordings the model was fine-tuned on are excluded; every other record is scored, a
+//! class the model lacks as its own row.
 
 use crate::config::RigConfig;
 use crate::evaluate::{score, summary, Evaluation};
+use crate::health::HealthPolicy;
 use crate::manifest::{manifest_path, read_manifest};
 use crate::model::rule::{EnvelopeRule, RuleSettings};
 use crate::model::OnnxClassifier;
-use crate::train::featurise::featurise_all;
-use crate::train::score::{model_outcomes, rule_labels, rule_outcomes, ModelOutcomes};
-use anyhow::{bail, Result};
+use crate::train::score::{
+    analyse_all, model_outcomes_with, rule_labels, rule_outcomes, ModelOutcomes, ScoredRecording,
+};
+use anyhow::{bail, Context, Result};
 use indicatif::ProgressBar;
 use std::path::{Path, PathBuf};
 
@@ -32,9 +36,18 @@ pub struct Args {
     /// training).
     #[arg(long, value_enum)]
     pub baseline: Option<Baseline>,
+    /// The `[health]` policy the daemon's verdict and state machine use for the model's
+    /// records, as a TOML file with its keys (vote_n, vote_k, evidence_z, ...); default: the
+    /// daemon's default policy.
+    #[arg(long)]
+    pub health: Option<PathBuf>,
     /// Print one JSON object instead of text.
     #[arg(long)]
     pub json: bool,
+    /// Use a model trained for another rig on purpose (its rig id, axis, bearing orders or
+    /// recipe differ from the rig file's); refused otherwise.
+    #[arg(long)]
+    pub allow_foreign_model: bool,
     /// Draw the whole-record and per-window confusion matrices to this PNG (the per-window one
     /// goes next to it as `<name>.windows.png`, the rule's as `<name>.rule.png`).
     #[arg(long)]
@@ -70,34 +83,46 @@ pub fn run(args: Args) -> Result<()> {
     }
     let rig = RigConfig::load(&args.rig)?;
     let entries = read_manifest(&manifest_path(&args.manifest))?;
+    let clf = match &args.model {
+        Some(path) => {
+            let clf = OnnxClassifier::load(path)?;
+            clf.check_identity(&rig, &args.rig, args.allow_foreign_model)?;
+            Some(clf)
+        }
+        None => None,
+    };
+    let policy = match &args.health {
+        Some(p) => {
+            let text = std::fs::read_to_string(p)
+                .with_context(|| format!("--health {}: cannot read", p.display()))?;
+            let policy: HealthPolicy =
+                toml::from_str(&text).with_context(|| format!("--health {}", p.display()))?;
+            policy
+                .validate()
+                .with_context(|| format!("--health {}", p.display()))?;
+            policy
+        }
+        None => HealthPolicy::default(),
+    };
+    let recs = analyse_all(&entries, &rig, &ProgressBar::hidden())?;
     let mut scored = None;
-    if let Some(path) = &args.model {
-        let clf = OnnxClassifier::load(path)?;
-        clf.check_rig(&rig)?;
-        let recs = featurise_all(&entries, &rig, &ProgressBar::hidden())?;
-        let mo = model_outcomes(&clf, &recs, &rig)?;
-        let ev = score(&clf.meta().labels, &mo.outcomes);
+    if let (Some(path), Some(clf)) = (&args.model, clf) {
+        let mo = model_outcomes_with(&clf, &recs, &rig, &policy)?;
+        let ev = score(&mo.labels, &mo.outcomes);
         scored = Some((path.clone(), clf, mo, ev));
     }
     let settings = RuleSettings::default();
     let rule_ev = match args.baseline {
         None => None,
         Some(Baseline::Rule) => {
-            // the same records the model is scored on, with the model's classes
-            let (labels, kept) = match &scored {
-                Some((_, clf, mo, _)) => {
-                    let paths: Vec<&str> = mo.outcomes.iter().map(|o| o.path.as_str()).collect();
-                    let kept: Vec<_> = entries
-                        .iter()
-                        .filter(|e| paths.contains(&e.display_name().as_str()))
-                        .cloned()
-                        .collect();
-                    (clf.meta().labels.clone(), kept)
-                }
-                None => (rule_labels(&entries), entries.clone()),
+            // the same records (and windows) the model is scored on, with its classes first
+            let (first, kept): (Vec<String>, Vec<&ScoredRecording>) = match &scored {
+                Some((_, _, mo, _)) => (mo.labels.clone(), mo.scored(&recs)),
+                None => (Vec::new(), recs.iter().collect()),
             };
+            let labels = rule_labels(&first, &kept);
             let rule = EnvelopeRule::for_rig(&rig, settings);
-            let outcomes = rule_outcomes(&rule, &kept, &rig, &labels, &ProgressBar::hidden())?;
+            let outcomes = rule_outcomes(&rule, &kept, &labels)?;
             Some(score(&labels, &outcomes))
         }
     };
@@ -161,10 +186,11 @@ pub fn run(args: Args) -> Result<()> {
                     mo.excluded.join(", ")
                 );
             }
-            if !mo.skipped.is_empty() {
+            let extra = mo.labels_not_in_model(&meta.labels);
+            if !extra.is_empty() {
                 println!(
-                    "skipped (label not among the model's classes): {}",
-                    mo.skipped.join(", ")
+                    "classes the model lacks, scored as their own rows (an alarm or a miss): {}",
+                    extra.join(", ")
                 );
             }
             print_records(ev, rule_ev.as_ref());
@@ -202,7 +228,8 @@ fn split_json(meta: &crate::model::ModelMeta, mo: &ModelOutcomes) -> serde_json:
         "model_trained_on_data_hash": meta.data_hash,
         "model_calibration_id": meta.calibration_id,
         "excluded_finetune_records": mo.excluded,
-        "skipped_unknown_label_records": mo.skipped,
+        "skipped_unknown_label_records": Vec::<String>::new(),
+        "labels_not_in_model": mo.labels_not_in_model(&meta.labels),
     })
 }
 

@@ -13,7 +13,7 @@ use std::path::PathBuf;
 /// Arguments of `rigmon features`.
 #[derive(clap::Args, Debug)]
 pub struct Args {
-    /// Recording: rigmon .mcap, CWRU/MFPT .mat, .wav or .csv.
+    /// Recording: rigmon .mcap, any-layout .mat, .wav or .csv.
     pub recording: PathBuf,
     /// Rig file (channels, speed source, feature recipe).
     #[arg(long)]
@@ -59,6 +59,12 @@ fn features(args: Args) -> Result<()> {
         ..Default::default()
     };
     let rec = importers::load(&args.recording, &rig, &opts)?;
+    // The recipe at the file's rate and its length, before anything is sized by them.
+    let what = format!("recording {}", args.recording.display());
+    rig.check_recipe_at(rec.sample_rate, rec.rpm, &what)?;
+    rig.features
+        .check_length(rec.len(), rec.sample_rate)
+        .with_context(|| what.clone())?;
     let windows = match args.rpm {
         Some(rpm) => analysis::extract_with_speed(&rec, &rig, &SpeedTrack::fixed(rpm)?)?,
         None => analysis::extract_recording(&rec, &rig)?,

@@ -37,12 +37,16 @@ pub struct Args {
     /// Print one JSON object (report, before, after) instead of text.
     #[arg(long)]
     pub json: bool,
+    /// Use a model trained for another rig on purpose (its rig id, axis, bearing orders or
+    /// recipe differ from the rig file's); refused otherwise.
+    #[arg(long)]
+    pub allow_foreign_model: bool,
 }
 
 pub fn run(args: Args) -> Result<()> {
     let rig = RigConfig::load(&args.rig)?;
     let base = export::read(&args.model)?;
-    OnnxClassifier::load(&args.model)?.check_rig(&rig)?;
+    OnnxClassifier::load(&args.model)?.check_identity(&rig, &args.rig, args.allow_foreign_model)?;
     let entries = read_manifest(&manifest_path(&args.manifest))?;
     let recs = featurise_all(&entries, &rig, &ProgressBar::hidden())?;
     let cfg = crate::train::trainer::TrainConfig {

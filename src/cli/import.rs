@@ -1,4 +1,4 @@
-//! `rigmon import <file> --rig <toml> -o <out.mcap>`: read a CWRU/MFPT `.mat`, WAV, CSV (or
+//! `rigmon import <file> --rig <toml> -o <out.mcap>`: read a `.mat` (any layout), WAV, CSV (or
 //! rigmon MCAP) recording and write it in the rigmon MCAP layout; prints a one-line summary
 //! (`--json`: one JSON object). rigmon MCAP and WAV inputs are streamed block by block, so
 //! memory does not grow with the file. A damaged or cut MCAP input is converted up to what is

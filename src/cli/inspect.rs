@@ -26,7 +26,7 @@ use std::path::PathBuf;
 /// Arguments of `rigmon inspect`.
 #[derive(clap::Args, Debug)]
 pub struct Args {
-    /// Recording: rigmon .mcap, CWRU/MFPT .mat, .wav or .csv.
+    /// Recording: rigmon .mcap, any-layout .mat, .wav or .csv.
     pub recording: PathBuf,
     /// Rig file (bearing geometry, speed source, low-pass).
     #[arg(long)]

@@ -2,6 +2,7 @@
 //! modules together. `main.rs` only parses and dispatches.
 
 pub mod adapt;
+pub mod alarms;
 pub mod align;
 pub mod bench;
 pub mod calibrate;
@@ -12,8 +13,11 @@ pub mod emulate;
 pub mod evaluate;
 pub mod features;
 pub mod finetune;
+pub mod historian;
+pub mod history;
 pub mod import;
 pub mod inspect;
+pub mod model;
 pub mod repair;
 pub mod replay;
 pub mod run;

@@ -15,7 +15,7 @@ use std::time::Duration;
 /// Arguments of `rigmon replay`.
 #[derive(clap::Args, Debug)]
 pub struct Args {
-    /// The recording: rigmon MCAP, CWRU/MFPT .mat, WAV or CSV.
+    /// The recording: rigmon MCAP, any-layout .mat, WAV or CSV.
     pub file: PathBuf,
     /// Rig file.
     #[arg(long, default_value = "config/lut-rig.toml")]
@@ -50,6 +50,10 @@ pub struct Args {
     /// Print the summary as JSON on stderr.
     #[arg(long)]
     pub summary_json: bool,
+    /// Use a model trained for another rig on purpose (its rig id, axis, bearing orders or
+    /// recipe differ from the rig file's); every health message then lists the differences.
+    #[arg(long)]
+    pub allow_foreign_model: bool,
     #[command(flatten)]
     pub zenoh: ZenohArgs,
 }
@@ -104,6 +108,7 @@ pub fn run(args: Args) -> Result<()> {
         source: SourceConfig::File(source),
         model: ModelConfig {
             path: args.model.clone(),
+            allow_foreign: args.allow_foreign_model,
         },
         health,
         pipeline: PipelineConfig::default(),

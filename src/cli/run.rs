@@ -1,11 +1,13 @@
 //! `rigmon run --config <rigmon.toml>`: the monitoring daemon (under systemd or by hand).
-//! SIGHUP reloads the config and swaps the model; SIGTERM/SIGINT stop cleanly.
+//! SIGHUP reloads the config and swaps the model; SIGTERM/SIGINT stop cleanly. `--check` runs
+//! exactly the checks `run` makes before it starts ([`crate::daemon::preflight`]) and exits.
 
 use crate::acquire::SourceConfig;
 use crate::daemon::config::DaemonConfig;
+use crate::daemon::preflight::{preflight, Checked};
 use crate::daemon::{self, DaemonOptions, Output};
 use crate::publish::zenoh::ZenohArgs;
-use anyhow::Result;
+use anyhow::{bail, Result};
 use std::path::PathBuf;
 
 /// Arguments of `rigmon run`.
@@ -20,9 +22,14 @@ pub struct Args {
     /// Also print one line per health message on stdout ("text" or "json").
     #[arg(long, value_parser = ["text", "json"])]
     pub print: Option<String>,
-    /// Check the config, rig, model and source, then exit.
+    /// Run the checks `run` makes before it starts (config, rig and its bounds, model and
+    /// its identity, source, ports, recording folder), print what would run, and exit.
     #[arg(long)]
     pub check: bool,
+    /// Serve a model trained for another rig on purpose (as `[model] allow_foreign = true`);
+    /// every health message then lists the differences.
+    #[arg(long)]
+    pub allow_foreign_model: bool,
     #[command(flatten)]
     pub zenoh: ZenohArgs,
 }
@@ -40,24 +47,9 @@ pub fn run(args: Args) -> Result<()> {
         }
     }
     config.zenoh = args.zenoh.apply(config.zenoh.clone());
-    config.validate()?;
+    config.model.allow_foreign |= args.allow_foreign_model;
     if args.check {
-        let rig = config.load_rig()?;
-        let model = crate::daemon::reload::load_model(&config.model.path, &rig)?;
-        let source = config.source.build(&rig)?;
-        println!(
-            "ok: rig {} ({}), model {} [{}], source {}, zenoh {} listen {:?} connect {:?}, recording {}",
-            rig.machine.id,
-            config.rig.display(),
-            config.model.path.display(),
-            model.meta().labels.join(","),
-            source.describe(),
-            config.zenoh.mode,
-            config.zenoh.listen,
-            config.zenoh.connect,
-            if config.recording.enabled { config.recording.dir.display().to_string() } else { "off".into() }
-        );
-        return Ok(());
+        return check(&config);
     }
     let mut opts = DaemonOptions::new(config);
     opts.config_path = Some(args.config.clone());
@@ -71,5 +63,46 @@ pub fn run(args: Args) -> Result<()> {
     daemon::code_pages::release_after(std::time::Duration::from_secs(5));
     let summary = daemon::run(opts)?;
     tracing::info!("{}", summary.text());
+    Ok(())
+}
+
+/// `--check`: the checks `run` makes, then one line saying what would run. A problem `run`
+/// survives (a recording folder it cannot create) still fails the check: it must be fixed.
+fn check(config: &DaemonConfig) -> Result<()> {
+    let Checked {
+        rig,
+        model,
+        source,
+        foreign,
+        problems,
+    } = preflight(config)?;
+    if !problems.is_empty() {
+        bail!(
+            "{}; `rigmon run` would start monitoring without it",
+            problems.join("; ")
+        );
+    }
+    let foreign = if foreign.is_empty() {
+        String::new()
+    } else {
+        let list: Vec<String> = foreign.iter().map(ToString::to_string).collect();
+        format!(" FOREIGN (allowed: {})", list.join("; "))
+    };
+    println!(
+        "ok: rig {} ({}), model {} [{}]{foreign}, source {}, zenoh {} listen {:?} connect {:?}, recording {}",
+        rig.machine.id,
+        config.rig.display(),
+        config.model.path.display(),
+        model.meta().labels.join(","),
+        source.describe(),
+        config.zenoh.mode,
+        config.zenoh.listen,
+        config.zenoh.connect,
+        if config.recording.enabled {
+            config.recording.dir.display().to_string()
+        } else {
+            "off".into()
+        }
+    );
     Ok(())
 }

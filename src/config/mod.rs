@@ -7,7 +7,9 @@
 use crate::bearing::BearingGeometry;
 // The `[speed]` and `[features]` sections belong to the DSP layer; re-exported here so the
 // rig file reads as one type.
-pub use crate::dsp::feature_settings::{FeatureSettings, MAX_FEATURE_BINS};
+pub use crate::dsp::feature_settings::{
+    FeatureSettings, MAX_FEATURE_BINS, MAX_WINDOW_S, MAX_WINDOW_SAMPLES,
+};
 pub use crate::dsp::speed_config::SpeedConfig;
 use anyhow::{bail, Context, Result};
 use serde::{Deserialize, Serialize};
@@ -46,6 +48,9 @@ pub struct Machine {
     pub asset: String,
     #[serde(default = "default_point")]
     pub point: String,
+    /// Site (plant, lab) the machine belongs to: the top of the fleet historian's asset tree.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub site: Option<String>,
 }
 
 fn default_asset() -> String {
@@ -61,6 +66,10 @@ pub struct Acquisition {
     /// Sample rate in Hz; `None` means "taken from the recording" (e.g. CWRU files).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub sample_rate_hz: Option<f64>,
+    /// MAT files: the scalar variable (or struct field, `"meta.fs"`) holding the sample rate
+    /// in Hz.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub mat_rate_variable: Option<String>,
 }
 
 /// What a channel measures.
@@ -86,6 +95,14 @@ pub struct ChannelConfig {
     /// Raw value x sensitivity = value in `unit`.
     #[serde(default = "one")]
     pub sensitivity: f64,
+    /// MAT files: the variable (or struct field, `"bearing.gs"`) holding this channel's
+    /// samples ([`crate::importers::mat_layout`]).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub mat_variable: Option<String>,
+    /// MAT files: the column (from 1) of a samples x channels matrix `mat_variable` that is
+    /// this channel.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub mat_column: Option<usize>,
 }
 
 fn one() -> f64 {
@@ -126,12 +143,7 @@ impl RigConfig {
             bail!("{key} is not a finite number (nan and inf are not allowed in a rig file)");
         }
         self.bearing.validate().map_err(anyhow::Error::msg)?;
-        if !(self.features.lowpass_hz > 0.0) {
-            bail!(
-                "features.lowpass_hz = {}: must be a positive frequency",
-                self.features.lowpass_hz
-            );
-        }
+        self.features.validate()?;
         if let Some(sim) = &self.simulation {
             sim.validate()?;
         }
@@ -185,36 +197,93 @@ impl RigConfig {
                 bail!("speed.rpm = {rpm}: must be a positive number");
             }
         }
-        let f = &self.features;
-        if !(f.window_s > 0.0 && f.hop_s > 0.0 && f.hop_s <= f.window_s) {
-            bail!(
-                "features: need 0 < hop_s <= window_s (got window_s = {}, hop_s = {})",
-                f.window_s,
-                f.hop_s
-            );
-        }
-        if !(f.bin_width_order > 0.0 && f.max_order > f.bin_width_order) {
-            bail!("features: need 0 < bin_width_order < max_order");
-        }
-        let fit = f.max_order / f.bin_width_order;
-        if !(fit.is_finite() && fit <= MAX_FEATURE_BINS as f64) {
-            bail!(
-                "features: max_order / bin_width_order = {fit} bins; at most {MAX_FEATURE_BINS} are supported (the default recipe has 100)"
-            );
-        }
-        if (fit - fit.round()).abs() > 1e-9 {
-            bail!(
-                "features.max_order ({}) must be a whole number of bins of width {}",
-                f.max_order,
-                f.bin_width_order
-            );
-        }
+        self.check_recipe_bounds()?;
         if self.classifier_channel().is_none() {
             bail!(
                 "features.classifier_axis = {:?} matches no acceleration channel by name or axis; the channels are {:?}",
-                f.classifier_axis,
+                self.features.classifier_axis,
                 self.channel_names()
             );
+        }
+        self.validate_mat_keys()?;
+        Ok(())
+    }
+
+    /// The MAT layout keys (`mat_variable`, `mat_column`, `mat_rate_variable`): well-formed
+    /// variable paths, columns from 1, no variable read twice, and once any channel names its
+    /// variable, the classifier channel must too.
+    fn validate_mat_keys(&self) -> Result<()> {
+        if let Some(v) = &self.acquisition.mat_rate_variable {
+            check_mat_path("acquisition.mat_rate_variable", v)?;
+        }
+        let mut seen: Vec<(&str, usize, &str)> = Vec::new();
+        for c in &self.channels {
+            let key = format!("channels {:?}: mat_variable", c.name);
+            match (&c.mat_variable, c.mat_column) {
+                (None, Some(_)) => bail!(
+                    "channels {:?}: mat_column needs mat_variable (the matrix it is a column of)",
+                    c.name
+                ),
+                (_, Some(0)) => bail!(
+                    "channels {:?}: mat_column = 0: columns count from 1 (as in MATLAB)",
+                    c.name
+                ),
+                (Some(v), col) => {
+                    check_mat_path(&key, v)?;
+                    let col = col.unwrap_or(1);
+                    if let Some((_, _, other)) =
+                        seen.iter().find(|(w, k, _)| *w == v.as_str() && *k == col)
+                    {
+                        bail!(
+                            "channels {other:?} and {:?} both read mat_variable = {v:?} (column {col}); each channel needs its own variable or mat_column",
+                            c.name
+                        );
+                    }
+                    seen.push((v, col, &c.name));
+                }
+                (None, None) => {}
+            }
+        }
+        if let (false, Some(c)) = (seen.is_empty(), self.classifier_channel()) {
+            if c.mat_variable.is_none() {
+                bail!(
+                    "channels {:?} feeds the classifier but names no mat_variable while other channels do; add mat_variable = \"<variable>\" to it",
+                    c.name
+                );
+            }
+        }
+        Ok(())
+    }
+
+    /// The recipe at the rig's own sample rate (when it sets one) and at the speeds `[speed]`
+    /// names (a fixed rpm, the top of an estimate's range): window and hop in samples, the
+    /// low-pass below Nyquist, the highest order inside the low-pass band.
+    fn check_recipe_bounds(&self) -> Result<()> {
+        let fs = self.acquisition.sample_rate_hz;
+        if let Some(fs) = fs {
+            self.features
+                .check_at_rate(fs)
+                .with_context(|| format!("at acquisition.sample_rate_hz = {fs}"))?;
+        }
+        match self.speed {
+            SpeedConfig::Fixed { rpm } => self.features.check_speed(rpm, "speed.rpm", fs),
+            SpeedConfig::Estimate { max_rpm, .. } => {
+                self.features.check_speed(max_rpm, "speed.max_rpm", fs)
+            }
+            _ => Ok(()),
+        }
+    }
+
+    /// The recipe at a recording's (or source's) sample rate `fs`, and at its stored speed
+    /// when `[speed]` uses it; `what` names the recording in errors.
+    pub fn check_recipe_at(&self, fs: f64, stored_rpm: Option<f64>, what: &str) -> Result<()> {
+        self.features
+            .check_at_rate(fs)
+            .with_context(|| format!("{what} is sampled at {fs} Hz"))?;
+        if let (SpeedConfig::Recording { .. }, Some(rpm)) = (&self.speed, stored_rpm) {
+            self.features
+                .check_speed(rpm, "the recording's stored speed", Some(fs))
+                .with_context(|| what.to_string())?;
         }
         Ok(())
     }
@@ -266,6 +335,17 @@ fn first_non_finite(v: &toml::Value, path: &str) -> Option<String> {
             .find_map(|(i, x)| first_non_finite(x, &format!("{path}[{i}]"))),
         _ => None,
     }
+}
+
+/// A MAT variable path: a variable name, or struct fields joined by dots (`bearing.gs`).
+fn check_mat_path(key: &str, path: &str) -> Result<()> {
+    if path
+        .split('.')
+        .any(|s| s.is_empty() || s.contains(char::is_whitespace))
+    {
+        bail!("{key} = {path:?}: expected a MAT variable name, or a struct field path such as \"bearing.gs\" (no spaces, no empty parts)");
+    }
+    Ok(())
 }
 
 /// Resolve a path given in a config file relative to that file's folder.
@@ -345,6 +425,72 @@ mod tests {
         let bad = text.replacen("bin_width_order = 0.5", "bin_width_order = 1e-300", 1);
         let err = format!("{:#}", RigConfig::parse(&bad).unwrap_err());
         assert!(err.contains("at most 10000"), "{err}");
+    }
+
+    /// Issue 25, findings 2 and 10: everything that sizes memory is bounded, and settings
+    /// past Nyquist are refused, when the rig file is read, naming the key and both numbers.
+    /// Before, `window_s = 1e9` aborted every command (a 20 TB allocation) and `lowpass_hz =
+    /// 9000` at 10 kHz or `max_order = 4000` passed.
+    #[test]
+    fn window_nyquist_and_order_bounds_are_refused_by_key() {
+        let text = std::fs::read_to_string(
+            Path::new(env!("CARGO_MANIFEST_DIR")).join("config/lut-rig.toml"),
+        )
+        .unwrap();
+        let refused = |from: &str, to: &str| {
+            assert!(text.contains(from), "{from}");
+            format!(
+                "{:#}",
+                RigConfig::parse(&text.replacen(from, to, 1)).unwrap_err()
+            )
+        };
+        let e = refused("window_s = 1.0", "window_s = 1e9");
+        assert!(e.contains("features.window_s") && e.contains("3600"), "{e}");
+        let e = refused("window_s = 1.0", "window_s = 3600.0");
+        assert!(
+            e.contains("features.window_s = 3600 s at 10000 Hz")
+                && e.contains("36000000 samples")
+                && e.contains("2097152"),
+            "{e}"
+        );
+        let e = refused("lowpass_hz = 4000.0", "lowpass_hz = 9000.0");
+        assert!(
+            e.contains("features.lowpass_hz = 9000 Hz") && e.contains("Nyquist frequency 5000 Hz"),
+            "{e}"
+        );
+        let e = refused("max_order = 50.0", "max_order = 4000.0");
+        assert!(
+            e.contains("features.max_order = 4000")
+                && e.contains("8000 Hz")
+                && e.contains("features.lowpass_hz = 4000 Hz"),
+            "{e}"
+        );
+        let e = refused("hop_s = 0.5", "hop_s = 0.00001");
+        assert!(
+            e.contains("features.hop_s") && e.contains("one sample"),
+            "{e}"
+        );
+        // A known speed is checked too: 50 orders at 6000 rpm reach 5000 Hz > 4000 Hz.
+        let tacho = "[speed]\nsource = \"tacho\"\nchannel = \"tacho\"\npulses_per_rev = 1\nthreshold = 2.5\nhysteresis = 0.5\n";
+        assert!(text.contains(tacho));
+        let bad = text.replacen(tacho, "[speed]\nsource = \"fixed\"\nrpm = 6000.0\n", 1);
+        let e = format!("{:#}", RigConfig::parse(&bad).unwrap_err());
+        assert!(
+            e.contains("speed.rpm = 6000 rpm") && e.contains("5000 Hz") && e.contains("4000"),
+            "{e}"
+        );
+        assert!(RigConfig::parse(&bad.replace("rpm = 6000.0", "rpm = 1200.0")).is_ok());
+        // At a recording's rate (a rig file that takes it from the file).
+        let rig = RigConfig::parse(&text).unwrap();
+        let e = format!(
+            "{:#}",
+            rig.check_recipe_at(5000.0, None, "recording x.wav")
+                .unwrap_err()
+        );
+        assert!(
+            e.contains("recording x.wav") && e.contains("Nyquist frequency 2500 Hz"),
+            "{e}"
+        );
     }
 
     #[test]

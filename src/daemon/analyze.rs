@@ -1,6 +1,8 @@
 //! One window -> one health message: the shared analysis stage (speed, data-quality checks,
-//! envelope order spectrum features, velocity RMS), then the classifier, the health state
-//! machine, fault-band amplitudes and the ISO 20816-3 velocity advisory.
+//! envelope order spectrum features, velocity RMS), then the classifier and its fault-family
+//! evidence, the one window verdict and the health state machine
+//! ([`HealthStateMachine::observe`], what every offline score calls too), fault-band
+//! amplitudes and the ISO 20816-3 velocity advisory.
 
 use crate::analysis::{AnalysisStage, SpeedSource, WindowAnalysis, WindowError, WindowView};
 use crate::bearing::FaultOrders;
@@ -10,7 +12,9 @@ use crate::dsp::quality::Quality;
 use crate::health::message::{
     FaultBands, HealthMessage, ModelInfo, QualityReport, WindowTimes, SCHEMA, SCHEMA_VERSION,
 };
-use crate::health::{HealthPolicy, HealthStateMachine, Smoothed, UnknownReason, WindowVerdict};
+use crate::health::verdict::{novelty_threshold, quality_problem};
+use crate::health::{HealthPolicy, HealthStateMachine, Smoothed, UnknownReason, WindowInput};
+use crate::model::evidence::{BaselineSpread, FamilyBins, FamilyEvidence};
 use crate::model::onnx::OnnxClassifier;
 use anyhow::{Context, Result};
 use std::collections::BTreeMap;
@@ -28,11 +32,17 @@ pub struct Analyzer {
     stage: AnalysisStage,
     model: OnnxClassifier,
     model_id: String,
+    /// How the model differs from this rig (a foreign model allowed on purpose), else empty.
+    foreign: Vec<String>,
     health: HealthStateMachine,
     /// Rig acceleration channel names, in source order.
     names: Vec<String>,
     classifier: usize,
     fault_orders: FaultOrders,
+    /// The fault-family bins of the rig's bearing, and the aligned model's baseline spread
+    /// (None: the model gives no evidence).
+    family_bins: FamilyBins,
+    spread: Option<BaselineSpread>,
     sample_rate: f64,
     start_time_ns: u64,
     seq: u64,
@@ -55,9 +65,10 @@ impl Analyzer {
         start_time_ns: u64,
     ) -> Result<Self> {
         model
-            .check_rig(rig)
+            .check_layout(rig)
             .with_context(|| format!("model {model_id}"))?;
-        let health = HealthStateMachine::new(policy, &model.meta().labels)?;
+        let mut health = HealthStateMachine::new(policy, &model.meta().labels)?;
+        health.set_hop_fraction(rig.features.hop_s / rig.features.window_s);
         let chans: Vec<(String, String)> = rig
             .acceleration_channels()
             .map(|c| (c.name.clone(), c.unit.clone()))
@@ -78,13 +89,16 @@ impl Analyzer {
         }
         let speed = SpeedSource::new(&rig.speed, sample_rate, nominal_rpm)?;
         Ok(Analyzer {
+            spread: BaselineSpread::of(model.meta()),
             stage: AnalysisStage::new(rig, sample_rate, &chans, absent, speed)?,
+            foreign: foreign_to(&model, rig),
             model,
             model_id: model_id.to_string(),
             health,
             names,
             classifier,
             fault_orders: rig.bearing.fault_orders(),
+            family_bins: FamilyBins::for_rig(rig),
             sample_rate,
             start_time_ns,
             seq: 0,
@@ -116,8 +130,10 @@ impl Analyzer {
         model_id: &str,
         policy: HealthPolicy,
     ) -> Result<()> {
-        model.check_rig(&self.rig)?;
+        model.check_layout(&self.rig)?;
         self.health.reconfigure(policy, &model.meta().labels)?;
+        self.foreign = foreign_to(&model, &self.rig);
+        self.spread = BaselineSpread::of(model.meta());
         self.model = model;
         self.model_id = model_id.to_string();
         Ok(())
@@ -130,20 +146,20 @@ impl Analyzer {
         let labels = self.model.meta().labels.clone();
         let mut c = self.classify(view, analysis);
         let features = c.features.take();
-        let threshold = self
-            .health
-            .policy()
-            .novelty_threshold
-            .unwrap_or(self.model.meta().novelty_threshold);
-        let smoothed = self.health.update(&WindowVerdict {
-            t_end: view.t_end,
-            labels: &labels,
-            probs: &c.probs,
-            novelty: if c.novelty.is_nan() { 0.0 } else { c.novelty },
-            novelty_threshold: threshold,
-            bad_quality: c.bad_classifier,
-            beyond_baseline: c.beyond_baseline,
-        });
+        let model_threshold = self.model.meta().novelty_threshold;
+        let threshold = novelty_threshold(self.health.policy(), model_threshold);
+        let smoothed = self.health.observe(
+            view.t_end,
+            &WindowInput {
+                labels: &labels,
+                probs: &c.probs,
+                novelty: c.novelty,
+                model_novelty_threshold: model_threshold,
+                quality: c.problem,
+                beyond_baseline: c.beyond_baseline,
+                evidence: c.evidence,
+            },
+        );
         let health = self.message(view, c, features.as_ref(), labels, smoothed, threshold);
         WindowOutput { features, health }
     }
@@ -153,11 +169,12 @@ impl Analyzer {
         let mut c = Classified {
             features: None,
             quality: stream_quality(&analysis),
-            bad_classifier: analysis.classifier_nan,
+            problem: quality_problem(&analysis, &self.names[self.classifier]),
             probs: Vec::new(),
             novelty: f32::NAN,
             baseline_distance: None,
             beyond_baseline: None,
+            evidence: None,
             rpm: None,
             speed_source: analysis.speed_source.to_string(),
             velocity: analysis.velocity_mm_s,
@@ -170,7 +187,6 @@ impl Analyzer {
                     view.t_start,
                     view.t_end
                 );
-                c.bad_classifier = true;
             }
             Err(WindowError::Features(e)) => {
                 if analysis.tacho_lost {
@@ -183,30 +199,26 @@ impl Analyzer {
                     view.t_start,
                     view.t_end
                 );
-                c.bad_classifier = true;
             }
             Ok(fw) => {
                 if analysis.tacho_lost {
                     c.quality.flag("tacho_lost");
-                    c.bad_classifier = true;
                 }
                 c.rpm = Some(fw.rpm).filter(|r| r.is_finite());
                 c.speed_source = fw.speed_source.clone();
-                if self.dsp_quality(&fw.quality, &mut c.quality) {
-                    c.bad_classifier = true;
+                Self::dsp_quality(&fw.quality, &mut c.quality);
+                if c.problem.is_none() {
+                    self.infer(view, &fw, &mut c);
                 }
-                self.infer(view, &fw, &mut c);
                 c.features = Some(fw);
             }
         }
         c
     }
 
-    /// Flag the feature pipeline's quality findings; true when they make the classifier
-    /// channel unusable.
-    fn dsp_quality(&self, q: &Quality, quality: &mut QualityReport) -> bool {
-        let mut bad_classifier = false;
-        let cls = &self.names[self.classifier];
+    /// Flag the feature pipeline's quality findings (whether they forbid a verdict is
+    /// [`quality_problem`]'s to say).
+    fn dsp_quality(q: &Quality, quality: &mut QualityReport) {
         for (flag, list) in [
             ("clipping", &q.clipped),
             ("flat", &q.flat),
@@ -215,9 +227,6 @@ impl Analyzer {
         ] {
             if !list.is_empty() {
                 quality.flag(flag);
-                if list.contains(cls) {
-                    bad_classifier = true;
-                }
             }
         }
         if !q.dc_offset.is_empty() {
@@ -232,16 +241,18 @@ impl Analyzer {
         }
         if q.speed_out_of_range {
             quality.flag("speed_out_of_range");
-            bad_classifier = true;
         }
         quality.dsp = serde_json::to_value(q).unwrap_or_default();
-        bad_classifier
     }
 
     /// Run the classifier on the window's features.
     fn infer(&mut self, view: &WindowView, fw: &FeatureWindow, c: &mut Classified) {
         match self.model.predict(fw.classifier_features(&self.rig)) {
             Ok(p) => {
+                c.evidence = self
+                    .spread
+                    .zip(p.baseline_deviation.as_deref())
+                    .map(|(spread, dev)| self.family_bins.evidence(dev, spread, fw.rpm));
                 c.probs = p.probs;
                 c.novelty = p.novelty;
                 c.baseline_distance = p.baseline_distance;
@@ -254,7 +265,7 @@ impl Analyzer {
                     view.t_start,
                     view.t_end
                 );
-                c.bad_classifier = true;
+                c.problem = Some("inference_failed");
             }
         }
     }
@@ -281,6 +292,7 @@ impl Analyzer {
             rig: self.rig.machine.id.clone(),
             asset: self.rig.machine.asset.clone(),
             point: self.rig.machine.point.clone(),
+            site: self.rig.machine.site.clone(),
             seq: self.seq,
             window: WindowTimes {
                 start_s: view.t_start,
@@ -298,12 +310,15 @@ impl Analyzer {
                 .zip(c.probs.iter().copied())
                 .collect::<BTreeMap<_, _>>(),
             window_state: smoothed.window_state,
-            unknown_reason: smoothed.unknown_reason.or(if c.probs.is_empty() {
+            unknown_reason: smoothed.window.unknown_reason.or(if c.probs.is_empty() {
                 Some(UnknownReason::BadQuality)
             } else {
                 None
             }),
-            alarm_despite: smoothed.alarm_despite,
+            alarm_despite: smoothed.window.alarm_despite,
+            decision: smoothed.window.basis,
+            overruled: smoothed.window.overruled,
+            evidence: smoothed.evidence,
             state: smoothed.state,
             state_since_s: smoothed.since_s,
             state_changed: smoothed.changed,
@@ -323,6 +338,7 @@ impl Analyzer {
                 id: self.model_id.clone(),
                 sha256: self.model.meta().sha256.clone(),
                 labels,
+                foreign: self.foreign.clone(),
             },
             calibration_id: self.calibration_id(),
             software_version: env!("CARGO_PKG_VERSION").to_string(),
@@ -390,8 +406,8 @@ impl Analyzer {
 struct Classified {
     features: Option<FeatureWindow>,
     quality: QualityReport,
-    /// The classifier channel's data cannot be trusted (or no probabilities came).
-    bad_classifier: bool,
+    /// Why the classifier channel's data cannot be trusted (None: it can).
+    problem: Option<&'static str>,
     probs: Vec<f32>,
     /// NaN when the classifier did not run.
     novelty: f32,
@@ -399,6 +415,8 @@ struct Classified {
     /// models only).
     baseline_distance: Option<f32>,
     beyond_baseline: Option<bool>,
+    /// Fault-family evidence against the machine's healthy baseline (aligned models).
+    evidence: Option<FamilyEvidence>,
     rpm: Option<f64>,
     speed_source: String,
     /// Broadband velocity RMS of the classifier channel, mm/s.
@@ -420,6 +438,16 @@ fn stream_quality(analysis: &WindowAnalysis) -> QualityReport {
         quality.flag("nan");
     }
     quality
+}
+
+/// How `model` differs from `rig` (empty when trained for it). Its identity was checked when
+/// it was loaded: a difference here is a foreign model allowed on purpose.
+fn foreign_to(model: &OnnxClassifier, rig: &RigConfig) -> Vec<String> {
+    model
+        .foreign_to(rig)
+        .iter()
+        .map(ToString::to_string)
+        .collect()
 }
 
 /// Wall clock, ns since the Unix epoch.

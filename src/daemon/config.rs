@@ -36,6 +36,21 @@ pub struct DaemonConfig {
 pub struct ModelConfig {
     /// The ONNX classifier (trained by `rigmon train`, metadata inside).
     pub path: PathBuf,
+    /// Serve a model trained for another rig (its rig id, classifier axis, bearing orders,
+    /// low-pass or window differ from the rig file's) on purpose; refused otherwise. Every
+    /// health message then lists the differences (`model.foreign`).
+    #[serde(default)]
+    pub allow_foreign: bool,
+}
+
+impl ModelConfig {
+    /// The model at `path`, refusing one trained for another rig.
+    pub fn new(path: impl Into<PathBuf>) -> Self {
+        ModelConfig {
+            path: path.into(),
+            allow_foreign: false,
+        }
+    }
 }
 
 /// `[pipeline]`: queue sizes and what to publish besides health.

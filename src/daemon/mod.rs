@@ -2,8 +2,9 @@
 //! ([`intake`]) -> [`pipeline`] (rolling windows -> features -> model -> health state
 //! machine) -> sinks ([`sink`]: stdout, the Zenoh publisher, the MCAP recorder; the last two
 //! each on its own thread behind a bounded queue, [`queued_sink`]). Live sources drop (and
-//! count) when the pipeline falls behind; file replays wait. The loop here feeds the
-//! pipeline its events: blocks, SIGHUP reloads, ticks and the end.
+//! count) when the pipeline falls behind; file replays wait. Before anything starts, the
+//! checks of [`preflight`] run (the same ones `rigmon run --check` runs). The loop here feeds
+//! the pipeline its events: blocks, SIGHUP reloads, ticks and the end.
 
 pub mod analyze;
 pub mod backlog;
@@ -14,6 +15,7 @@ pub mod latency;
 pub mod notify;
 pub mod options;
 pub mod pipeline;
+pub mod preflight;
 pub mod queued_sink;
 pub mod record_sink;
 pub mod reload;
@@ -30,21 +32,21 @@ pub use stdout_sink::Output;
 pub use summary::Summary;
 
 use crate::acquire::{Source, SourceStats};
-use anyhow::{Context, Result};
+use anyhow::Result;
 use intake::{Intake, Received};
 use pipeline::Pipeline;
 use std::sync::Arc;
 use std::time::Instant;
 
-/// Build everything from the options and run until the source ends or a stop is requested.
+/// Check everything ([`preflight::preflight`]), build it from the options and run until the
+/// source ends or a stop is requested. Problems monitoring survives (a recording folder that
+/// cannot be created) are logged and the run goes on.
 pub fn run(opts: DaemonOptions) -> Result<Summary> {
-    let rig = opts.config.load_rig()?;
-    let source = opts
-        .config
-        .source
-        .build(&rig)
-        .context("cannot start the source")?;
-    run_with_source(opts, source)
+    let checked = preflight::preflight(&opts.config)?;
+    for p in &checked.problems {
+        tracing::error!("{p}");
+    }
+    run_with_source(opts, checked.source)
 }
 
 /// [`run`] with a source built by the caller (benchmarks, tests); `opts.config.source` is
@@ -72,10 +74,7 @@ pub fn run_with_source(opts: DaemonOptions, source: Box<dyn Source>) -> Result<S
         match intake.receive() {
             Received::Block(block) => pipeline.on_block(block),
             Received::Nothing => {}
-            Received::Ended => {
-                pipeline.on_source_end();
-                break intake.join();
-            }
+            Received::Ended => break intake.join(),
         }
         pipeline.on_tick(intake.backlog(), stopping);
     };

@@ -4,10 +4,13 @@
 //! the loop ([`Pipeline::on_tick`]: backlog, watchdog, status cadence) and the end
 //! ([`Pipeline::finish`]: last status, sinks closed, summary). It also drives sd_notify
 //! (READY, WATCHDOG on progress, STATUS, RELOADING, STOPPING). Every call into the analysis
-//! stage ([`Analyzer`], [`Windower`]) is in this file.
+//! stage ([`Analyzer`], [`Windower`]) is in this file. Building it (source open, then model
+//! loaded) and the first block in end three start-up phases, whose code is dropped at once
+//! ([`code_pages::end_of_phase`]).
 
 use super::analyze::{now_ns, Analyzer, WindowOutput};
 use super::backlog::Backlog;
+use super::code_pages;
 use super::config::DaemonConfig;
 use super::intake::SourceInfo;
 use super::latency::LatencyHistogram;
@@ -64,11 +67,19 @@ impl Pipeline {
         stats: Arc<SourceStats>,
         started: Instant,
     ) -> Result<Pipeline> {
+        // The config read and the source opened (a file replay has read its recording).
+        code_pages::end_of_phase("config and source");
         let mut notifier = Notifier::from_env();
         notifier.status("starting: loading rig, model and source");
         let config = opts.config.clone();
         let rig = config.load_rig()?;
-        let model = reload::load_model(&config.model.path, &rig)?;
+        let model = reload::load_model(
+            &config.model.path,
+            &rig,
+            &config.rig,
+            config.model.allow_foreign,
+        )?;
+        code_pages::end_of_phase("model loaded");
         let model_path = config.model.path.clone();
         let info = SourceInfo::of(source);
         let start_ns = now_ns();
@@ -138,6 +149,10 @@ impl Pipeline {
 
     /// A block arrived: cut every window it completes and hand the results to the sinks.
     pub fn on_block(&mut self, block: SampleBlock) {
+        if self.windower.next_sample().is_none() {
+            // Sinks open, source running: drop the code that took (no window is waiting yet).
+            code_pages::end_of_phase("start-up");
+        }
         let block_at = Instant::now();
         self.notifier.progress();
         let block = Arc::new(block);
@@ -151,19 +166,15 @@ impl Pipeline {
         self.drain_windows(block_at);
     }
 
-    /// The source has ended: the last windows no longer wait for their lookahead.
-    pub fn on_source_end(&mut self) {
-        self.windower.finish();
-        self.drain_windows(Instant::now());
-    }
-
     /// Analyse every window the cutter has ready and update the pipeline counters.
     fn drain_windows(&mut self, block_at: Instant) {
+        let fs = self.source.sample_rate;
         while let Some(view) = self.windower.window() {
+            let (end_s, after_end_ms) = (view.t_end, view.after_end as f64 / fs * 1e3);
             let out = self.analyzer.analyze(&view);
             drop(view);
             self.windower.advance();
-            self.on_window(out, block_at);
+            self.on_window(out, block_at, end_s, after_end_ms);
         }
         let ws = self.windower.stats();
         self.pipe.samples_in = ws.samples_in;
@@ -173,12 +184,19 @@ impl Pipeline {
         self.pipe.window_errors = self.analyzer.errors;
     }
 
-    /// One window's results: count them, log a state change, emit to the sinks.
-    fn on_window(&mut self, out: WindowOutput, block_at: Instant) {
+    /// One window's results (`end_s`: its end on the pipeline clock; `after_end_ms`: signal
+    /// past it that had arrived): count them, log a state change, emit to the sinks.
+    fn on_window(&mut self, out: WindowOutput, block_at: Instant, end_s: f64, after_end_ms: f64) {
         let msg = out.health;
         let latency_ms = block_at.elapsed().as_secs_f64() * 1e3;
         self.pipe.latency_ms_last = latency_ms;
         self.pipe.latency_ms_max = self.pipe.latency_ms_max.max(latency_ms);
+        self.pipe.after_end_ms_max = self.pipe.after_end_ms_max.max(after_end_ms);
+        let budget = &mut self.pipe.last_window;
+        budget.end_s = end_s;
+        budget.speed_source.clone_from(&msg.speed_source);
+        budget.after_end_ms = after_end_ms;
+        budget.processing_ms = latency_ms;
         self.latencies.record(latency_ms);
         self.counts.count(&msg);
         if msg.state_changed {
@@ -273,6 +291,8 @@ impl Pipeline {
                 needs_restart
             );
         }
+        // Loading the new model ran tract's parser and optimiser again.
+        code_pages::end_of_phase("reload");
         tracing::info!(
             "reload: now using model {} ({})",
             self.model.id,

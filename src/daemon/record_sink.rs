@@ -1,6 +1,8 @@
 //! The recording sink, built from `[recording]`: raw blocks, features and health to MCAP
 //! segments ([`crate::recorder`]), written on the recorder's own thread behind a bounded queue
-//! that also closes chunks on time when no message comes.
+//! that also closes chunks on time when no message comes. A recorder that cannot start (its
+//! folder cannot be created) never stops monitoring: it is counted and reported as `failed`
+//! like a write error, and tried again every [`RETRY`] ([`RecorderSlot`]).
 
 use super::intake::SourceInfo;
 use super::queued_sink::{QueueSettings, QueuedSink, Worker};
@@ -13,33 +15,103 @@ use crate::recording::Provenance;
 use anyhow::Result;
 use std::collections::BTreeMap;
 use std::sync::Arc;
-use std::time::Duration;
+use std::time::{Duration, Instant};
+
+/// How long a recorder that could not start waits before it tries again.
+pub const RETRY: Duration = Duration::from_secs(5);
+
+/// The recorder, once it could start, and what starting it needs until then.
+pub struct RecorderSlot {
+    recorder: Option<Recorder>,
+    cfg: RecordConfig,
+    info: RecordingInfo,
+    stem: String,
+    next_try: Instant,
+    /// Counters while the recorder cannot start ([`Recorder::new`] failed, e.g. its folder
+    /// cannot be created): failures, the reason, events dropped meanwhile.
+    waiting: RecordStats,
+}
+
+impl RecorderSlot {
+    /// Start the recorder now, or wait and retry when it cannot start.
+    pub fn start(cfg: RecordConfig, info: RecordingInfo, stem: &str) -> Self {
+        let mut slot = RecorderSlot {
+            recorder: None,
+            cfg,
+            info,
+            stem: stem.to_string(),
+            next_try: Instant::now(),
+            waiting: RecordStats::default(),
+        };
+        slot.try_start();
+        slot
+    }
+
+    /// When not started and the retry is due: try to start the recorder.
+    fn try_start(&mut self) {
+        if self.recorder.is_some() || Instant::now() < self.next_try {
+            return;
+        }
+        match Recorder::new(self.cfg.clone(), self.info.clone(), &self.stem) {
+            Ok(r) => {
+                if self.waiting.write_errors > 0 {
+                    tracing::info!("recording to {} after all", self.cfg.dir.display());
+                }
+                self.recorder = Some(r);
+            }
+            Err(e) => {
+                let msg = format!("{e:#}");
+                let w = &mut self.waiting;
+                w.write_errors += 1;
+                if w.write_errors <= 3 || w.write_errors.is_power_of_two() {
+                    tracing::error!("recording: {msg}; monitoring continues without recording, retrying in {RETRY:?} (failure {})", w.write_errors);
+                }
+                w.failed = Some(format!("{}: {msg}", self.cfg.dir.display()));
+                w.last_error = Some(msg);
+                self.next_try = Instant::now() + RETRY;
+            }
+        }
+    }
+}
 
 /// The recorder on its own thread.
-impl Worker for Recorder {
+impl Worker for RecorderSlot {
     type Msg = RecordEvent;
     type Stats = RecordStats;
 
     fn work(&mut self, msg: RecordEvent) {
-        self.handle(msg);
+        self.try_start();
+        match &mut self.recorder {
+            Some(r) => r.handle(msg),
+            None => self.waiting.dropped += 1,
+        }
     }
 
     fn idle(&mut self) {
-        self.tick();
+        self.try_start();
+        if let Some(r) = &mut self.recorder {
+            r.tick();
+        }
     }
 
     fn snapshot(&self, into: &mut RecordStats) {
-        into.clone_from(self.stats());
+        match &self.recorder {
+            Some(r) => into.clone_from(r.stats()),
+            None => into.clone_from(&self.waiting),
+        }
     }
 
     fn wind_up(self) -> RecordStats {
-        self.finish()
+        match self.recorder {
+            Some(r) => r.finish(),
+            None => self.waiting,
+        }
     }
 }
 
 /// The recorder behind its queue.
 pub struct RecordSink {
-    queue: QueuedSink<Recorder>,
+    queue: QueuedSink<RecorderSlot>,
 }
 
 impl SinkConfig for RecordConfig {
@@ -48,7 +120,7 @@ impl SinkConfig for RecordConfig {
             return Ok(None);
         }
         let info = recording_info(cx.rig, cx.source, cx.start_ns);
-        let recorder = Recorder::new(self.clone(), info, &cx.rig.machine.id)?;
+        let recorder = RecorderSlot::start(self.clone(), info, &cx.rig.machine.id);
         let settings = QueueSettings {
             thread: "rigmon-record",
             capacity: cx.config.pipeline.sink_queue,

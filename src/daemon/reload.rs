@@ -1,7 +1,8 @@
 //! SIGHUP reload: re-read the daemon config (when there is one) and load the model it names
 //! on a helper thread, so the pipeline keeps consuming samples meanwhile; the pipeline swaps
 //! the new model in between two windows. A model that cannot be loaded, does not fit the rig
-//! or fails a test inference is rejected and the running one kept. Changes to sections that
+//! (its layout, or its identity unless `[model] allow_foreign`) or fails a test inference is
+//! rejected and the running one kept. Changes to sections that
 //! need a restart (rig, source, zenoh, recording) are reported, not applied.
 
 use crate::config::RigConfig;
@@ -91,12 +92,17 @@ pub fn model_id(path: &Path) -> String {
         .unwrap_or_else(|| "model".into())
 }
 
-/// Load a model and check that it can serve this rig (also used at start-up).
-pub fn load_model(path: &Path, rig: &RigConfig) -> Result<OnnxClassifier> {
+/// Load a model and check that it can serve this rig (read from `rig_file`; also used at
+/// start-up): its feature layout, and its identity unless `allow_foreign` (then logged, and
+/// flagged in every health message by the analyzer).
+pub fn load_model(
+    path: &Path,
+    rig: &RigConfig,
+    rig_file: &Path,
+    allow_foreign: bool,
+) -> Result<OnnxClassifier> {
     let model = OnnxClassifier::load(path)?;
-    model
-        .check_rig(rig)
-        .with_context(|| format!("model {}", path.display()))?;
+    model.check_identity(rig, rig_file, allow_foreign)?;
     if model.meta().labels.is_empty() {
         bail!("model {}: it names no class labels", path.display());
     }
@@ -149,7 +155,12 @@ fn load(
         }
         None => (None, model_path.to_path_buf(), policy, Vec::new()),
     };
-    let model = load_model(&model_path, rig)?;
+    // The new config decides, else the running one (a replay's flag). The rig is the running
+    // one (a new rig file needs a restart).
+    let running = config.as_ref().or(current);
+    let allow_foreign = running.is_some_and(|c| c.model.allow_foreign);
+    let rig_file = current.map_or(PathBuf::from("<the rig file>"), |c| c.rig.clone());
+    let model = load_model(&model_path, rig, &rig_file, allow_foreign)?;
     Ok(Loaded {
         model_id: model_id(&model_path),
         model,

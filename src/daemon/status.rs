@@ -1,7 +1,8 @@
 //! The status message (`rigmon/<rig>/<asset>/<point>/status`, JSON, schema `rigmon.status`
 //! version 1): what the daemon is doing and everything it counted — source trouble (bad
 //! frames, sequence gaps, reconnects), samples lost or dropped because processing fell
-//! behind, sink drops, reloads, recording errors and publish latency.
+//! behind, sink drops, reloads, recording errors, and each window's latency budget (what it
+//! waited for after its end, in parts: [`WindowBudget`]).
 
 use crate::acquire::SourceStats;
 use crate::publish::zenoh::PublishStats;
@@ -137,9 +138,35 @@ pub struct PipelineStatus {
     pub behind: bool,
     /// Seconds of signal between the newest sample received and the last window computed.
     pub lag_s: f64,
-    /// Window end -> health handed to the sinks, ms (last and max).
+    /// Block completing a window in -> health handed to the sinks, ms (last and max).
     pub latency_ms_last: f64,
     pub latency_ms_max: f64,
+    /// The last window's latency budget.
+    #[serde(default)]
+    pub last_window: WindowBudget,
+    /// The most signal past a window's end that had arrived when it was analysed, ms, over
+    /// all windows so far (see [`WindowBudget::after_end_ms`]).
+    #[serde(default)]
+    pub after_end_ms_max: f64,
+}
+
+/// How long after its end a window's health left, in parts. The analysis waits for no signal
+/// past a window's end, whatever its speed source: a fixed, stored or estimated speed needs
+/// nothing more, and a tacho's speed is extrapolated past the last edge inside the window. So
+/// a window's health leaves `after_end_ms + processing_ms` after its end (plus the source's
+/// own delivery delay, which the daemon cannot see).
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct WindowBudget {
+    /// Window end, s on the pipeline clock.
+    pub end_s: f64,
+    /// Where its speed came from (tacho, edges, fixed, recording, estimate).
+    pub speed_source: String,
+    /// Signal past the window's end that had arrived when it was analysed, ms: the rest of
+    /// the block completing it (the source's block size sets it; 0 when blocks end on window
+    /// ends), or more if the pipeline fell behind.
+    pub after_end_ms: f64,
+    /// The block completing the window arrived -> health handed to the sinks, ms.
+    pub processing_ms: f64,
 }
 
 #[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]

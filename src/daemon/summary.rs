@@ -31,6 +31,9 @@ pub struct Summary {
     /// Per-window processing latency (last block in -> health out), median and 99th percentile.
     pub latency_ms_p50: f64,
     pub latency_ms_p99: f64,
+    /// The most signal past a window's end that had arrived when it was analysed, ms (the
+    /// analysis waits for none; see `status::WindowBudget`).
+    pub after_end_ms_max: f64,
     pub source_error: Option<String>,
     pub wall_s: f64,
     /// What the replayed recording could not deliver: samples and seconds lost, where and why
@@ -87,6 +90,7 @@ impl Summary {
             latency_ms_max: pipe.latency_ms_max,
             latency_ms_p50: latencies.quantile(0.5),
             latency_ms_p99: latencies.quantile(0.99),
+            after_end_ms_max: pipe.after_end_ms_max,
             source_error: src.error.clone(),
             wall_s,
             file_losses: src.file_losses.clone(),
@@ -168,6 +172,7 @@ mod tests {
                 samples_lost: 7,
                 window_errors: 8,
                 latency_ms_max: 9.5,
+                after_end_ms_max: 15.0,
                 ..Default::default()
             },
             model: ModelStatus {
@@ -196,7 +201,7 @@ mod tests {
             "source_samples_lost": 3, "bad_frames": 4, "window_errors": 8,
             "zenoh_dropped": 12, "record_dropped": 13, "reloads": 10, "reloads_rejected": 11,
             "latency_ms_max": 9.5, "latency_ms_p50": lat.quantile(0.5),
-            "latency_ms_p99": lat.quantile(0.99), "source_error": "gone", "wall_s": 14.0,
+            "latency_ms_p99": lat.quantile(0.99), "after_end_ms_max": 15.0, "source_error": "gone", "wall_s": 14.0,
         });
         assert_eq!(got, want);
         assert!(s.text().contains("source error: gone"), "{}", s.text());

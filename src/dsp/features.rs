@@ -38,6 +38,10 @@ impl FeatureWindow {
     }
 }
 
+/// A channel's name and a callback handed its envelope order power lines (order step,
+/// power per line): see [`FeaturePipeline::process_window_probed`].
+pub type LineProbe<'a> = (&'a str, &'a mut dyn FnMut(f64, &[f32]));
+
 /// Envelope-order-spectrum features for fixed-length windows at one sample rate.
 pub struct FeaturePipeline {
     sample_rate: f64,
@@ -63,13 +67,9 @@ impl FeaturePipeline {
         speed: &SpeedConfig,
         sample_rate: f64,
     ) -> Result<Self> {
-        if !(sample_rate.is_finite() && sample_rate > 0.0) {
-            bail!("sample rate {sample_rate} Hz: must be a positive number");
-        }
-        let len = (f.window_s * sample_rate).round() as usize;
-        if len < 64 {
-            bail!("features.window_s = {} s at {sample_rate} Hz gives {len} samples; need at least 64", f.window_s);
-        }
+        // Bounded before anything is sized by it (window, hop, low-pass below Nyquist).
+        f.check_at_rate(sample_rate)?;
+        let len = f.window_samples(sample_rate)?;
         let rpm_limits = match *speed {
             SpeedConfig::Estimate { min_rpm, max_rpm } => Some((min_rpm, max_rpm)),
             _ => None,
@@ -109,6 +109,20 @@ impl FeaturePipeline {
         t_start: f64,
         channels: &[(&str, &[f32])],
         speed: &SpeedTrack,
+    ) -> Result<FeatureWindow> {
+        self.process_window_probed(t_start, channels, speed, None)
+    }
+
+    /// As [`process_window`](Self::process_window), and `probe` (channel name, callback) is
+    /// handed that channel's envelope order power lines (order step, power) before they are
+    /// summed into bins: a measurement on the very spectrum the features come from, without
+    /// computing it twice.
+    pub fn process_window_probed(
+        &mut self,
+        t_start: f64,
+        channels: &[(&str, &[f32])],
+        speed: &SpeedTrack,
+        mut probe: Option<LineProbe>,
     ) -> Result<FeatureWindow> {
         let t_end = t_start + self.len as f64 / self.sample_rate;
         let mut quality = Quality::default();
@@ -162,6 +176,9 @@ impl FeaturePipeline {
         for (name, x) in channels {
             let mut out = vec![0.0f32; n_bins];
             let (step, lines) = self.channel_power(x, count);
+            if let Some((_, f)) = probe.as_mut().filter(|(p, _)| p == name) {
+                f(step, lines);
+            }
             band_rms(lines, step, bin_width, &mut out);
             features.insert(name.to_string(), out);
         }

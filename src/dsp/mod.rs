@@ -6,10 +6,12 @@
 //! time, pulse repair) and [`speed_estimate`] (speed from vibration), [`envelope`],
 //! [`kurtogram`] (the band where the signal is most impulsive, for the envelope),
 //! [`order_tracking`], [`order_spectrum`], [`features`] (the per-window pipeline) and
-//! [`quality`] (flags); [`resample`] (a whole stretch down to a lower rate, band-limited).
+//! [`quality`] (flags), [`fault_band_ratios`] (the band levels at a bearing's fault orders);
+//! [`resample`] (a whole stretch down to a lower rate, band-limited).
 //! Windows of a stream or a whole recording are cut and given their speed in `analysis`.
 
 pub mod envelope;
+pub mod fault_band_ratios;
 pub mod feature_settings;
 pub mod features;
 pub mod fft_len;

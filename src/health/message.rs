@@ -4,7 +4,8 @@
 //! fields are only ever added within a version, so readers must ignore unknown fields.
 
 use super::iso20816::Zone;
-use super::UnknownReason;
+use super::{Basis, UnknownReason};
+use crate::model::evidence::FamilyEvidence;
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 use std::fmt::Write as _;
@@ -22,6 +23,9 @@ pub struct HealthMessage {
     pub rig: String,
     pub asset: String,
     pub point: String,
+    /// The rig file's `[machine] site`, when it names one (added in schema version 1).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub site: Option<String>,
     /// Window counter since the daemon started (gaps mean windows were not computed).
     pub seq: u64,
     pub window: WindowTimes,
@@ -43,6 +47,18 @@ pub struct HealthMessage {
     /// or the classifier is sure of a fault. Absent otherwise (added in schema version 1).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub alarm_despite: Option<UnknownReason>,
+    /// What decided the window's class: `model` (the classifier), `confirmed` (the
+    /// classifier's fault, its fault-family bins beyond the machine's healthy level) or
+    /// `evidence` (the fault family the spectrum points at, overruling the classifier;
+    /// `overruled` names the classifier's class). Added in schema version 1.
+    #[serde(default)]
+    pub decision: Basis,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub overruled: Option<String>,
+    /// Standard deviations by which each fault family's bins (BPFO, BPFI, 2xBSF and their
+    /// second harmonics) stand above the machine's healthy level (aligned models only).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub evidence: Option<FamilyEvidence>,
     /// The smoothed state (k-of-n voting with dwell time).
     pub state: String,
     /// Window-end time (s, sample clock) at which `state` was entered.
@@ -138,6 +154,11 @@ pub struct ModelInfo {
     /// SHA-256 of the ONNX file.
     pub sha256: String,
     pub labels: Vec<String>,
+    /// How the model differs from the rig it serves (rig id, axis, bearing orders, low-pass,
+    /// window: `"rig_id: model cwru-de, rig file lut-rig"`), when a model trained for another
+    /// rig was allowed on purpose (`[model] allow_foreign`); absent otherwise.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub foreign: Vec<String>,
 }
 
 impl HealthMessage {
@@ -155,6 +176,9 @@ impl HealthMessage {
         );
         if let Some(r) = self.alarm_despite {
             let _ = write!(s, " (alarm despite {})", r.as_str());
+        }
+        if let Some(m) = &self.overruled {
+            let _ = write!(s, " (evidence overrules {m})");
         }
         s.push_str("  p[");
         for (i, label) in self.model.labels.iter().enumerate() {
@@ -181,6 +205,9 @@ impl HealthMessage {
             s.push_str("  ok");
         } else {
             let _ = write!(s, "  {}", self.quality.flags.join(","));
+        }
+        if !self.model.foreign.is_empty() {
+            s.push_str("  FOREIGN MODEL");
         }
         s
     }
@@ -211,6 +238,7 @@ mod tests {
             rig: "lut-rig".into(),
             asset: "shaft".into(),
             point: "nde".into(),
+            site: None,
             seq: 3,
             window: WindowTimes {
                 start_s: 1.5,
@@ -233,6 +261,13 @@ mod tests {
             window_state: "outer_race".into(),
             unknown_reason: None,
             alarm_despite: Some(UnknownReason::Novelty),
+            decision: Basis::Confirmed,
+            overruled: None,
+            evidence: Some(FamilyEvidence {
+                outer_race: 9.5,
+                inner_race: 0.3,
+                ball: -1.0,
+            }),
             state: "outer_race".into(),
             state_since_s: 2.0,
             state_changed: false,
@@ -248,6 +283,7 @@ mod tests {
                 id: "lut-rig".into(),
                 sha256: "ab".into(),
                 labels,
+                foreign: Vec::new(),
             },
             calibration_id: None,
             software_version: "0.1.0".into(),
@@ -288,8 +324,15 @@ mod tests {
         m.alarm_despite = None;
         m.baseline_distance = None;
         m.beyond_baseline = None;
+        m.evidence = None;
         let text = serde_json::to_string(&m).unwrap();
-        for key in ["alarm_despite", "baseline_distance", "beyond_baseline"] {
+        for key in [
+            "alarm_despite",
+            "baseline_distance",
+            "beyond_baseline",
+            "evidence",
+            "overruled",
+        ] {
             assert!(!text.contains(key), "{key} in {text}");
         }
         let back: HealthMessage = serde_json::from_str(&text).unwrap();
@@ -297,5 +340,15 @@ mod tests {
         let with = serde_json::to_value(sample()).unwrap();
         assert_eq!(with["alarm_despite"], "novelty");
         assert_eq!(with["beyond_baseline"], true);
+        assert_eq!(with["decision"], "confirmed");
+        assert_eq!(with["evidence"]["outer_race"], 9.5);
+        // a message from before `decision` existed reads as decided by the model
+        let mut old = with.clone();
+        old.as_object_mut().unwrap().remove("decision");
+        let back: HealthMessage = serde_json::from_value(old).unwrap();
+        assert_eq!(back.decision, Basis::Model);
+        let mut overruled = sample();
+        overruled.overruled = Some("healthy".into());
+        assert!(overruled.line().contains("evidence overrules healthy"));
     }
 }

@@ -390,6 +390,7 @@ pub fn load(path: &Path, rig: &RigConfig, opts: &ImportOptions) -> Result<Record
         channels,
         tacho,
         rpm: opts.rpm,
+        nominal_rpm: None,
         provenance: Provenance {
             source_path: p.to_string(),
             format: "csv".into(),

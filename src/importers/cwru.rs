@@ -8,7 +8,7 @@
 //! [`resolve_sample_rate`](super::resolve_sample_rate). The speed `X<nnn>RPM` is side data:
 //! read in any MATLAB class, a warning when it cannot be.
 
-use super::mat5::{MatFile, MatValue};
+use super::mat5::{MatDirectory, MatFile, MatValue};
 use super::{check_classifier_channel, resolve_sample_rate, ImportOptions, WARNING};
 use crate::config::RigConfig;
 use crate::recording::{Channel, Provenance, Recording};
@@ -189,9 +189,18 @@ pub fn parse_var_name(name: &str) -> Option<(u32, Option<&str>)> {
 
 /// Does this MAT file look like a CWRU recording?
 pub fn is_cwru(mat: &MatFile) -> bool {
-    mat.vars
-        .iter()
-        .any(|v| matches!(parse_var_name(&v.name), Some((_, Some(_)))))
+    mat.vars.iter().any(|v| is_signal_name(&v.name))
+}
+
+/// Does this MAT file's variable directory look like a CWRU recording? (The same test as
+/// [`is_cwru`], before any data is decoded.)
+pub fn is_cwru_directory(dir: &MatDirectory) -> bool {
+    dir.entries.iter().any(|e| is_signal_name(&e.name))
+}
+
+/// `X<nnn>_DE_time`, `X<nnn>_FE_time` or `X<nnn>_BA_time`.
+fn is_signal_name(name: &str) -> bool {
+    matches!(parse_var_name(name), Some((_, Some(_))))
 }
 
 /// Build a [`Recording`] from a parsed CWRU MAT file.
@@ -416,6 +425,7 @@ pub fn from_mat(
         channels,
         tacho: None,
         rpm,
+        nominal_rpm: None,
         provenance: Provenance {
             source_path: path.display().to_string(),
             format: "cwru-mat".into(),

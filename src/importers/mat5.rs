@@ -7,9 +7,13 @@
 //! unbounded allocation. Sparse, object and function arrays are skipped (reported as
 //! [`MatValue::Unsupported`]). MAT v4 and v7.3 (HDF5) files are recognised and refused with a
 //! message saying how to re-save them.
+//!
+//! [`directory`] lists a file's variables (name, class, dims, where they lie) from the header
+//! and the head of each element alone, a compressed one decompressed only that far; then
+//! [`decode_selected`] decodes just the variables an importer needs.
 
 use std::fmt;
-use std::io::Read;
+use std::io::{Read, Seek, SeekFrom};
 
 /// Largest decompressed size of one `miCOMPRESSED` element (bytes).
 pub const MAX_DECOMPRESSED: usize = 1 << 30;
@@ -108,7 +112,8 @@ impl MatClass {
         }
     }
 
-    fn is_numeric(&self) -> bool {
+    /// double, single or an integer class.
+    pub fn is_numeric(&self) -> bool {
         use MatClass::*;
         matches!(
             self,
@@ -317,39 +322,35 @@ fn err<T>(offset: usize, msg: impl Into<String>) -> R<T> {
     })
 }
 
-/// Parse a whole MAT v5 file held in memory.
-pub fn parse(bytes: &[u8]) -> R<MatFile> {
-    if bytes.is_empty() {
+/// Check the 128-byte header (`head` holds the file's first `min(128, file_len)` bytes):
+/// returns the descriptive text and whether the file is big-endian; refuses MAT v4, v7.3
+/// (HDF5) and damaged headers.
+fn header(head: &[u8], file_len: usize) -> R<(String, bool)> {
+    if file_len == 0 {
         return err(0, "the file is empty (0 bytes)");
     }
-    if bytes.len() < 128 {
-        if bytes.starts_with(b"MATLAB") {
+    if file_len < 128 || head.len() < 128 {
+        if head.starts_with(b"MATLAB") {
             return err(
-                bytes.len(),
-                format!(
-                    "truncated: the 128-byte MAT header is cut short after {} bytes",
-                    bytes.len()
-                ),
+                file_len,
+                format!("truncated: the 128-byte MAT header is cut short after {file_len} bytes"),
             );
         }
         return err(
             0,
-            format!(
-                "not a MAT v5 file: {} bytes, shorter than the 128-byte header",
-                bytes.len()
-            ),
+            format!("not a MAT v5 file: {file_len} bytes, shorter than the 128-byte header"),
         );
     }
-    let header_text = String::from_utf8_lossy(&bytes[..116])
+    let header_text = String::from_utf8_lossy(&head[..116])
         .trim_end_matches([' ', '\0'])
         .to_string();
-    let big_endian = match &bytes[126..128] {
+    let big_endian = match &head[126..128] {
         b"IM" => false,
         b"MI" => true,
         _ => {
             return err(
                 126,
-                if bytes.starts_with(b"MATLAB") {
+                if head.starts_with(b"MATLAB") {
                     "bad endian indicator (expected \"IM\" or \"MI\"); the header is damaged"
                         .to_string()
                 } else {
@@ -362,7 +363,7 @@ pub fn parse(bytes: &[u8]) -> R<MatFile> {
         base: 0,
         big_endian,
     };
-    let version = c.u16(bytes, 124)?;
+    let version = c.u16(head, 124)?;
     if version == 0x0200 || header_text.starts_with("MATLAB 7.3") {
         return err(
             124,
@@ -375,118 +376,22 @@ pub fn parse(bytes: &[u8]) -> R<MatFile> {
             format!("unknown MAT version 0x{version:04x} (expected 0x0100)"),
         );
     }
+    Ok((header_text, big_endian))
+}
+
+/// Parse a whole MAT v5 file held in memory.
+pub fn parse(bytes: &[u8]) -> R<MatFile> {
+    let (header_text, big_endian) = header(&bytes[..bytes.len().min(128)], bytes.len())?;
     let mut vars = Vec::new();
     let mut off = 128;
     while off < bytes.len() {
         if bytes.len() - off < 8 {
-            // Trailing padding shorter than a tag: only zeros are acceptable.
-            if bytes[off..].iter().all(|&b| b == 0) {
-                break;
-            }
-            return err(
-                off,
-                format!(
-                    "truncated: {} stray bytes where an 8-byte element tag should start",
-                    bytes.len() - off
-                ),
-            );
+            check_trailing(&bytes[off..], off)?;
+            break;
         }
-        let tag = c.tag(bytes, off)?;
-        if tag.small {
-            // A small element at top level carries no variable; skip it.
-            off += 8;
-            continue;
-        }
-        let data_start = off + 8;
-        let remaining = bytes.len() - data_start;
-        if tag.len > remaining {
-            return err(
-                off,
-                format!(
-                    "truncated: element declares {} bytes but only {} remain (the file was cut short?)",
-                    tag.len, remaining
-                ),
-            );
-        }
-        let body = &bytes[data_start..data_start + tag.len];
-        match tag.ty {
-            MI_MATRIX => {
-                let cur = Cursor {
-                    base: data_start,
-                    big_endian,
-                };
-                if let Some(v) = cur.matrix(body, 0, true)? {
-                    vars.push(v);
-                }
-                off = data_start + pad8(tag.len);
-            }
-            MI_COMPRESSED => {
-                let cap = MAX_DECOMPRESSED.min(tag.len.saturating_mul(MAX_DEFLATE_RATIO).max(1024));
-                let mut out = Vec::new();
-                let mut dec = flate2::read::ZlibDecoder::new(body).take(cap as u64 + 1);
-                if let Err(e) = dec.read_to_end(&mut out) {
-                    return err(
-                        off,
-                        format!(
-                            "compressed element ({} bytes) does not decompress: {e}",
-                            tag.len
-                        ),
-                    );
-                }
-                if out.len() > cap {
-                    return err(off, format!("compressed element expands beyond {cap} bytes; refusing (limit {MAX_DECOMPRESSED})"));
-                }
-                let inner = Cursor {
-                    base: off,
-                    big_endian,
-                };
-                let t = inner.tag(&out, 0).map_err(|e| MatError {
-                    offset: off,
-                    msg: format!("inside the compressed element: {}", e.msg),
-                })?;
-                if t.ty != MI_MATRIX || t.small {
-                    return err(
-                        off,
-                        format!(
-                            "compressed element holds data type {} instead of a matrix",
-                            t.ty
-                        ),
-                    );
-                }
-                if t.len > out.len() - 8 {
-                    return err(
-                        off,
-                        format!("inside the compressed element: matrix declares {} bytes but {} were decompressed (truncated?)", t.len, out.len() - 8),
-                    );
-                }
-                // Offsets inside decompressed data are reported relative to the element.
-                let inner = Cursor {
-                    base: off,
-                    big_endian,
-                };
-                match inner.matrix(&out[8..8 + t.len], 0, true) {
-                    Ok(Some(v)) => vars.push(v),
-                    Ok(None) => {}
-                    Err(e) => {
-                        return err(
-                            off,
-                            format!(
-                                "inside the compressed element (at decompressed byte {}): {}",
-                                e.offset - off + 8,
-                                e.msg
-                            ),
-                        )
-                    }
-                }
-                // Compressed elements are not padded; tolerate writers that pad anyway.
-                off = data_start + tag.len;
-            }
-            other => {
-                // Unknown top-level data: skip it.
-                let _ = other;
-                off = data_start + pad8(tag.len);
-            }
-        }
+        let (var, next) = top_element(bytes, off, 0, big_endian)?;
+        vars.extend(var);
+        off = next;
     }
     Ok(MatFile {
         header_text,
@@ -495,8 +400,397 @@ pub fn parse(bytes: &[u8]) -> R<MatFile> {
     })
 }
 
+/// Bytes after the last element, too few for a tag: only zero padding is acceptable.
+fn check_trailing(rest: &[u8], off: usize) -> R<()> {
+    if rest.iter().all(|&b| b == 0) {
+        return Ok(());
+    }
+    err(
+        off,
+        format!(
+            "truncated: {} stray bytes where an 8-byte element tag should start",
+            rest.len()
+        ),
+    )
+}
+
+/// Decode the top-level element whose tag starts at `buf[off]`. `base` is the file offset of
+/// `buf[0]` (errors name file offsets). Returns the variable (`None` for elements that carry
+/// none) and where the next element starts in `buf`.
+fn top_element(
+    buf: &[u8],
+    off: usize,
+    base: usize,
+    big_endian: bool,
+) -> R<(Option<MatVar>, usize)> {
+    let c = Cursor { base, big_endian };
+    let tag = c.tag(buf, off)?;
+    if tag.small {
+        // A small element at top level carries no variable; skip it.
+        return Ok((None, off + 8));
+    }
+    let data_start = off + 8;
+    let remaining = buf.len() - data_start;
+    if tag.len > remaining {
+        return err(
+            base + off,
+            format!(
+                "truncated: element declares {} bytes but only {} remain (the file was cut short?)",
+                tag.len, remaining
+            ),
+        );
+    }
+    let body = &buf[data_start..data_start + tag.len];
+    match tag.ty {
+        MI_MATRIX => {
+            let cur = Cursor {
+                base: base + data_start,
+                big_endian,
+            };
+            let var = cur.matrix(body, 0, true)?;
+            Ok((var, data_start + pad8(tag.len)))
+        }
+        MI_COMPRESSED => {
+            let var = compressed_element(body, base + off, big_endian)?;
+            // Compressed elements are not padded; tolerate writers that pad anyway.
+            Ok((var, data_start + tag.len))
+        }
+        // Unknown top-level data: skip it.
+        _ => Ok((None, data_start + pad8(tag.len))),
+    }
+}
+
+/// Decode a `miCOMPRESSED` element's payload `body`; `at` is the element's file offset (errors
+/// inside the decompressed data are reported relative to it).
+fn compressed_element(body: &[u8], at: usize, big_endian: bool) -> R<Option<MatVar>> {
+    let cap = MAX_DECOMPRESSED.min(body.len().saturating_mul(MAX_DEFLATE_RATIO).max(1024));
+    let mut out = Vec::new();
+    let mut dec = flate2::read::ZlibDecoder::new(body).take(cap as u64 + 1);
+    if let Err(e) = dec.read_to_end(&mut out) {
+        return err(
+            at,
+            format!(
+                "compressed element ({} bytes) does not decompress: {e}",
+                body.len()
+            ),
+        );
+    }
+    if out.len() > cap {
+        return err(at, format!("compressed element expands beyond {cap} bytes; refusing (limit {MAX_DECOMPRESSED})"));
+    }
+    let t = compressed_matrix_tag(&out, at, big_endian)?;
+    if t.len > out.len() - 8 {
+        return err(
+            at,
+            format!("inside the compressed element: matrix declares {} bytes but {} were decompressed (truncated?)", t.len, out.len() - 8),
+        );
+    }
+    // Offsets inside decompressed data are reported relative to the element.
+    let inner = Cursor {
+        base: at,
+        big_endian,
+    };
+    inner.matrix(&out[8..8 + t.len], 0, true).or_else(|e| {
+        err(
+            at,
+            format!(
+                "inside the compressed element (at decompressed byte {}): {}",
+                e.offset - at + 8,
+                e.msg
+            ),
+        )
+    })
+}
+
+/// The tag at the start of decompressed data: it must announce a matrix.
+fn compressed_matrix_tag(out: &[u8], at: usize, big_endian: bool) -> R<Tag> {
+    let inner = Cursor {
+        base: at,
+        big_endian,
+    };
+    let t = inner.tag(out, 0).map_err(|e| MatError {
+        offset: at,
+        msg: format!("inside the compressed element: {}", e.msg),
+    })?;
+    if t.ty != MI_MATRIX || t.small {
+        return err(
+            at,
+            format!(
+                "compressed element holds data type {} instead of a matrix",
+                t.ty
+            ),
+        );
+    }
+    Ok(t)
+}
+
+/// How many bytes of an element (decompressed, for a compressed one) [`directory`] reads to
+/// learn a variable's class, dimensions and name.
+const HEAD_BYTES: usize = 64 * 1024;
+
+/// One top-level variable as [`directory`] lists it: what it is and where it lies in the
+/// file; its data not read.
+#[derive(Debug, Clone, PartialEq)]
+pub struct MatEntry {
+    pub name: String,
+    pub class: MatClass,
+    pub dims: Vec<usize>,
+    pub complex: bool,
+    pub logical: bool,
+    /// Stored in a zlib `miCOMPRESSED` element.
+    pub compressed: bool,
+    /// File offset of the element's tag.
+    pub offset: u64,
+    /// Bytes of the element from its tag to the next element.
+    pub len: u64,
+}
+
+impl MatEntry {
+    /// MATLAB's class name ("double", "logical", "struct", ...).
+    pub fn class_name(&self) -> String {
+        if self.logical {
+            "logical".into()
+        } else {
+            self.class.name()
+        }
+    }
+
+    /// "262144x1 double", as [`MatValue::describe`] says it.
+    pub fn describe(&self) -> String {
+        let dims: Vec<String> = self.dims.iter().map(|d| d.to_string()).collect();
+        let complex = if self.complex { " complex" } else { "" };
+        format!("{} {}{complex}", dims.join("x"), self.class_name())
+    }
+
+    /// Number of elements.
+    pub fn count(&self) -> usize {
+        self.dims.iter().product()
+    }
+
+    /// A real, non-logical numeric array.
+    pub fn is_real_numeric(&self) -> bool {
+        self.class.is_numeric() && !self.logical && !self.complex
+    }
+
+    /// All dimensions but one are 1 (a row or column vector, or a scalar).
+    pub fn is_vector(&self) -> bool {
+        self.dims.iter().filter(|&&d| d != 1).count() <= 1
+    }
+}
+
+/// The variable directory of a MAT file: header facts and one [`MatEntry`] per variable.
+#[derive(Debug, Clone, PartialEq)]
+pub struct MatDirectory {
+    pub header_text: String,
+    pub big_endian: bool,
+    pub entries: Vec<MatEntry>,
+}
+
+impl MatDirectory {
+    pub fn get(&self, name: &str) -> Option<&MatEntry> {
+        self.entries.iter().find(|e| e.name == name)
+    }
+
+    /// "VarName5 (262144x1 double), fs (1x1 double)", for messages.
+    pub fn summary(&self) -> String {
+        if self.entries.is_empty() {
+            return "no variables".into();
+        }
+        self.entries
+            .iter()
+            .map(|e| format!("{} ({})", e.name, e.describe()))
+            .collect::<Vec<_>>()
+            .join(", ")
+    }
+}
+
+/// List a MAT file's variables (name, class, dimensions, where they lie) reading only the
+/// header and the first bytes of each element: a compressed element is decompressed only as
+/// far as its head. Lengths are checked against the file size, so a truncated file is refused
+/// here, before any data is decoded.
+pub fn directory<F: Read + Seek>(file: &mut F) -> R<MatDirectory> {
+    let io = |e: std::io::Error| MatError {
+        offset: 0,
+        msg: format!("cannot read: {e}"),
+    };
+    let file_len = file.seek(SeekFrom::End(0)).map_err(io)? as usize;
+    file.seek(SeekFrom::Start(0)).map_err(io)?;
+    let head = read_up_to(file, 128).map_err(io)?;
+    let (header_text, big_endian) = header(&head, file_len)?;
+    let c = Cursor {
+        base: 0,
+        big_endian,
+    };
+    let mut entries = Vec::new();
+    let mut off = 128;
+    while off < file_len {
+        file.seek(SeekFrom::Start(off as u64)).map_err(io)?;
+        let rest = read_up_to(file, 8).map_err(io)?;
+        if file_len - off < 8 {
+            check_trailing(&rest, off)?;
+            break;
+        }
+        let tag = c.tag(&rest, 0).map_err(|e| MatError { offset: off, ..e })?;
+        if tag.small {
+            off += 8;
+            continue;
+        }
+        let data_start = off + 8;
+        if tag.len > file_len - data_start {
+            return err(
+                off,
+                format!(
+                    "truncated: element declares {} bytes but only {} remain (the file was cut short?)",
+                    tag.len,
+                    file_len - data_start
+                ),
+            );
+        }
+        let next = match tag.ty {
+            MI_COMPRESSED => data_start + tag.len,
+            _ => data_start + pad8(tag.len),
+        };
+        let head = match tag.ty {
+            MI_MATRIX => {
+                let body = read_up_to(file, tag.len.min(HEAD_BYTES)).map_err(io)?;
+                let cur = Cursor {
+                    base: data_start,
+                    big_endian,
+                };
+                (!body.is_empty())
+                    .then(|| cur.matrix_head(&body))
+                    .transpose()?
+            }
+            MI_COMPRESSED => compressed_head(file, tag.len, off, big_endian)?,
+            _ => None,
+        };
+        if let Some(h) = head {
+            entries.push(MatEntry {
+                name: h.name,
+                class: h.class,
+                dims: h.dims,
+                complex: h.complex,
+                logical: h.logical,
+                compressed: tag.ty == MI_COMPRESSED,
+                offset: off as u64,
+                len: (next.min(file_len) - off) as u64,
+            });
+        }
+        off = next;
+    }
+    Ok(MatDirectory {
+        header_text,
+        big_endian,
+        entries,
+    })
+}
+
+/// The head of a compressed element of `len` bytes whose payload starts at the reader's
+/// position: only the first [`HEAD_BYTES`] are decompressed. `None` for an empty matrix.
+fn compressed_head<F: Read>(
+    file: &mut F,
+    len: usize,
+    at: usize,
+    big_endian: bool,
+) -> R<Option<MatrixHead>> {
+    let mut out = Vec::new();
+    let mut dec = flate2::read::ZlibDecoder::new(file.take(len as u64)).take(HEAD_BYTES as u64);
+    if let Err(e) = dec.read_to_end(&mut out) {
+        return err(
+            at,
+            format!("compressed element ({len} bytes) does not decompress: {e}"),
+        );
+    }
+    let t = compressed_matrix_tag(&out, at, big_endian)?;
+    if t.len == 0 {
+        return Ok(None);
+    }
+    let body = &out[8..out.len().min(8 + t.len)];
+    let inner = Cursor {
+        base: at,
+        big_endian,
+    };
+    inner.matrix_head(body).map(Some).map_err(|e| MatError {
+        offset: at,
+        msg: format!(
+            "inside the compressed element (at decompressed byte {}): {}",
+            e.offset - at + 8,
+            e.msg
+        ),
+    })
+}
+
+/// Read up to `n` bytes (fewer at the end of the file).
+fn read_up_to<F: Read>(file: &mut F, n: usize) -> std::io::Result<Vec<u8>> {
+    let mut buf = Vec::with_capacity(n);
+    file.take(n as u64).read_to_end(&mut buf)?;
+    Ok(buf)
+}
+
+/// Decode the variables of `dir` named in `names` (others are not read); names missing from
+/// the directory are left out. Each element is read and decoded on its own, with the checks of
+/// [`parse`].
+pub fn decode_selected<F: Read + Seek>(
+    file: &mut F,
+    dir: &MatDirectory,
+    names: &[&str],
+) -> R<MatFile> {
+    let mut vars = Vec::new();
+    for e in dir
+        .entries
+        .iter()
+        .filter(|e| names.contains(&e.name.as_str()))
+    {
+        let io = |err: std::io::Error| MatError {
+            offset: e.offset as usize,
+            msg: format!("cannot read variable {:?}: {err}", e.name),
+        };
+        file.seek(SeekFrom::Start(e.offset)).map_err(io)?;
+        let buf = read_up_to(file, e.len as usize).map_err(io)?;
+        if let (Some(v), _) = top_element(&buf, 0, e.offset as usize, dir.big_endian)? {
+            vars.push(v);
+        }
+    }
+    Ok(MatFile {
+        header_text: dir.header_text.clone(),
+        big_endian: dir.big_endian,
+        vars,
+    })
+}
+
+/// [`directory`] of a file on disk; errors name the file.
+pub fn read_directory(path: &std::path::Path) -> anyhow::Result<MatDirectory> {
+    let mut f = std::fs::File::open(path)
+        .map_err(|e| anyhow::anyhow!("{}: cannot read: {e}", path.display()))?;
+    directory(&mut std::io::BufReader::new(&mut f))
+        .map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))
+}
+
+/// [`decode_selected`] on a file on disk; errors name the file.
+pub fn read_selected(
+    path: &std::path::Path,
+    dir: &MatDirectory,
+    names: &[&str],
+) -> anyhow::Result<MatFile> {
+    let mut f = std::fs::File::open(path)
+        .map_err(|e| anyhow::anyhow!("{}: cannot read: {e}", path.display()))?;
+    decode_selected(&mut f, dir, names).map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))
+}
+
 fn pad8(n: usize) -> usize {
     n.div_ceil(8) * 8
+}
+
+/// Array flags, dimensions and name of a matrix, and where its data starts in the body.
+struct MatrixHead {
+    class: MatClass,
+    complex: bool,
+    logical: bool,
+    dims: Vec<usize>,
+    /// Number of elements (product of `dims`, overflow-checked).
+    count: usize,
+    name: String,
+    data_at: usize,
 }
 
 struct Tag {
@@ -592,32 +886,9 @@ impl Cursor {
         Ok((tag.ty, &buf[start..start + tag.len], next))
     }
 
-    /// Parse the body of a miMATRIX element. `named` is false for struct fields and cell
-    /// elements (their name is empty). Returns `None` for an empty placeholder matrix (a
-    /// miMATRIX of 0 bytes, used for empty struct fields).
-    fn matrix(&self, body: &[u8], depth: usize, named: bool) -> R<Option<MatVar>> {
-        if depth > MAX_DEPTH {
-            return err(
-                self.base,
-                format!("structs/cells nested deeper than {MAX_DEPTH} levels"),
-            );
-        }
-        if body.is_empty() {
-            return Ok(if named {
-                None
-            } else {
-                Some(MatVar {
-                    name: String::new(),
-                    value: MatValue::Numeric {
-                        class: MatClass::Double,
-                        dims: vec![0, 0],
-                        real: vec![],
-                        imag: None,
-                        logical: false,
-                    },
-                })
-            });
-        }
+    /// The head of a miMATRIX body: array flags, dimensions and name, checked; the rest of
+    /// `body` (the data) is not looked at, so a prefix of a large element is enough.
+    fn matrix_head(&self, body: &[u8]) -> R<MatrixHead> {
         // Array flags.
         let (ty, flags, mut at) = self.element(body, 0)?;
         if ty != MI_UINT32 || flags.len() < 8 {
@@ -670,6 +941,53 @@ impl Cursor {
             .trim_end_matches('\0')
             .to_string();
         at = next;
+        Ok(MatrixHead {
+            class,
+            complex,
+            logical,
+            dims,
+            count,
+            name,
+            data_at: at,
+        })
+    }
+
+    /// Parse the body of a miMATRIX element. `named` is false for struct fields and cell
+    /// elements (their name is empty). Returns `None` for an empty placeholder matrix (a
+    /// miMATRIX of 0 bytes, used for empty struct fields).
+    fn matrix(&self, body: &[u8], depth: usize, named: bool) -> R<Option<MatVar>> {
+        if depth > MAX_DEPTH {
+            return err(
+                self.base,
+                format!("structs/cells nested deeper than {MAX_DEPTH} levels"),
+            );
+        }
+        if body.is_empty() {
+            return Ok(if named {
+                None
+            } else {
+                Some(MatVar {
+                    name: String::new(),
+                    value: MatValue::Numeric {
+                        class: MatClass::Double,
+                        dims: vec![0, 0],
+                        real: vec![],
+                        imag: None,
+                        logical: false,
+                    },
+                })
+            });
+        }
+        let MatrixHead {
+            class,
+            complex,
+            logical,
+            dims,
+            count,
+            name,
+            data_at,
+        } = self.matrix_head(body)?;
+        let mut at = data_at;
         let value = match class {
             c if c.is_numeric() => {
                 let (ty, data, next) = self.element(body, at)?;
@@ -1206,6 +1524,108 @@ mod tests {
         assert_eq!(num("v"), None, "a vector is not one number");
         assert_eq!(f.get("t").unwrap().as_text(), "\"270 lbs\"");
         assert_eq!(f.get("v").unwrap().as_text(), "[1 2]");
+    }
+
+    fn dir_of(bytes: &[u8]) -> R<MatDirectory> {
+        directory(&mut std::io::Cursor::new(bytes))
+    }
+
+    #[test]
+    fn the_directory_lists_what_parse_decodes_and_selected_decoding_matches() {
+        for be in [false, true] {
+            for z in [false, true] {
+                let bytes = sample_file(be, z);
+                let full = parse(&bytes).unwrap();
+                let dir = dir_of(&bytes).unwrap();
+                assert_eq!(dir.big_endian, be);
+                assert_eq!(dir.header_text, full.header_text);
+                assert_eq!(dir.summary(), full.summary(), "be={be} z={z}");
+                assert!(dir.entries.iter().all(|e| e.compressed == z));
+                assert_eq!(dir.get("i").unwrap().dims, [2, 2]);
+                assert!(dir.get("x").unwrap().is_vector() && !dir.get("i").unwrap().is_vector());
+                let sel =
+                    decode_selected(&mut std::io::Cursor::new(&bytes), &dir, &["s", "bearing"])
+                        .unwrap();
+                let want: Vec<_> = full
+                    .vars
+                    .iter()
+                    .filter(|v| v.name == "s" || v.name == "bearing")
+                    .cloned()
+                    .collect();
+                assert_eq!(sel.vars, want);
+            }
+        }
+    }
+
+    /// The directory decompresses only an element's head: damage at the end of a compressed
+    /// signal does not stop it listing the variable; decoding that variable then fails.
+    #[test]
+    fn the_directory_does_not_decode_data() {
+        let mut x: u64 = 7;
+        let noise: Vec<f64> = (0..20_000)
+            .map(|_| {
+                x ^= x << 13;
+                x ^= x >> 7;
+                x ^= x << 17;
+                (x % 1000) as f64
+            })
+            .collect();
+        let mut b = MatBuilder::new(false);
+        b.var("signal", &W::Double(vec![20_000, 1], noise), true)
+            .var("fs", &W::Double(vec![1, 1], vec![51200.0]), true);
+        let mut bytes = b.out;
+        let dir = dir_of(&bytes).unwrap();
+        let sig = dir.get("signal").unwrap().clone();
+        // Damage the deflate stream well past the head.
+        let at = (sig.offset + sig.len) as usize - 40;
+        for k in at..at + 8 {
+            bytes[k] ^= 0x5a;
+        }
+        let dir = dir_of(&bytes).unwrap();
+        assert_eq!(dir.summary(), "signal (20000x1 double), fs (1x1 double)");
+        let mut f = std::io::Cursor::new(&bytes);
+        let fs = decode_selected(&mut f, &dir, &["fs"]).unwrap();
+        assert_eq!(fs.get("fs").unwrap().as_scalar(), Some(51200.0));
+        let e = decode_selected(&mut f, &dir, &["signal"]).unwrap_err();
+        assert!(e.offset == sig.offset as usize, "{e}");
+        assert!(parse(&bytes).is_err());
+    }
+
+    #[test]
+    fn the_directory_refuses_truncation_and_never_panics() {
+        for z in [false, true] {
+            let bytes = sample_file(false, z);
+            for cut in 0..bytes.len() {
+                let _ = dir_of(&bytes[..cut]);
+            }
+            let e = dir_of(&bytes[..bytes.len() - 20]).unwrap_err();
+            assert!(e.msg.contains("truncated"), "{e}");
+            assert!(dir_of(b"").unwrap_err().msg.contains("empty"));
+        }
+        let mut x: u64 = 0x9E37_79B9_7F4A_7C15;
+        let mut next = || {
+            x ^= x << 13;
+            x ^= x >> 7;
+            x ^= x << 17;
+            x
+        };
+        for z in [false, true] {
+            for be in [false, true] {
+                let base = sample_file(be, z);
+                for _ in 0..1500 {
+                    let mut b = base.clone();
+                    for _ in 0..1 + next() % 4 {
+                        let k = 120 + (next() as usize) % (b.len() - 120);
+                        b[k] = next() as u8;
+                    }
+                    if let Ok(dir) = dir_of(&b) {
+                        let names: Vec<&str> =
+                            dir.entries.iter().map(|e| e.name.as_str()).collect();
+                        let _ = decode_selected(&mut std::io::Cursor::new(&b), &dir, &names);
+                    }
+                }
+            }
+        }
     }
 
     #[test]

@@ -7,7 +7,7 @@
 //! text, '25', '100', '300'); one that cannot be read is a warning in the provenance, never an
 //! error.
 
-use super::mat5::{MatFile, MatValue};
+use super::mat5::{MatClass, MatDirectory, MatFile, MatValue};
 use super::{cwru::vector, resolve_sample_rate, ImportOptions, WARNING};
 use crate::config::RigConfig;
 use crate::recording::{Channel, Provenance, Recording};
@@ -18,6 +18,13 @@ use std::path::Path;
 /// Does this MAT file look like an MFPT recording (a struct named `bearing`)?
 pub fn is_mfpt(mat: &MatFile) -> bool {
     matches!(mat.get("bearing"), Some(MatValue::Struct { .. }))
+}
+
+/// Does this MAT file's variable directory look like an MFPT recording? (The same test as
+/// [`is_mfpt`], before any data is decoded.)
+pub fn is_mfpt_directory(dir: &MatDirectory) -> bool {
+    dir.get("bearing")
+        .is_some_and(|e| e.class == MatClass::Struct)
 }
 
 fn scalar(path: &Path, bearing: &MatValue, field: &str) -> Result<Option<f64>> {
@@ -155,6 +162,7 @@ pub fn from_mat(
         }],
         tacho: None,
         rpm,
+        nominal_rpm: None,
         provenance: Provenance {
             source_path: path.display().to_string(),
             format: "mfpt-mat".into(),

@@ -1,5 +1,5 @@
-//! Importers: read recordings from CWRU/MFPT `.mat`, WAV, CSV and rigmon MCAP into a
-//! [`Recording`](crate::recording::Recording).
+//! Importers: read recordings from `.mat` (CWRU, MFPT or any layout the rig file maps, see
+//! [`mat_layout`]), WAV, CSV and rigmon MCAP into a [`Recording`](crate::recording::Recording).
 //!
 //! [`load`] picks the format by content (magic bytes) and then by extension. Every importer
 //! maps the file's channels onto the rig file's channels, applies sensitivities, settles the
@@ -11,6 +11,7 @@
 pub mod csv;
 pub mod cwru;
 pub mod mat5;
+pub mod mat_layout;
 pub mod memory;
 pub mod mfpt;
 pub mod wav;
@@ -19,7 +20,7 @@ use crate::config::{Acquisition, RigConfig};
 use crate::recording::mcap::file_writer::default_block_len;
 use crate::recording::mcap::{read_recording_with_losses, RecordingReader};
 use crate::recording::stream::{BlockStream, McapStream, MemoryStream};
-use crate::recording::{Losses, Recording, Tacho};
+use crate::recording::{Losses, NominalSpeed, Recording, Tacho};
 use anyhow::{bail, Context, Result};
 use std::path::Path;
 
@@ -34,6 +35,10 @@ pub struct ImportOptions {
     /// it was declared ("labels.csv line 4"): wins over the rig file's default, but a file that
     /// carries a different rate is a mismatch error naming both.
     pub declared_sample_rate: Option<(f64, String)>,
+    /// A nominal speed declared beside the file (a manifest's `rpm` column), rpm, and where it
+    /// was declared: a hint carried to [`Recording::nominal_rpm`] for the speed stage to check
+    /// against the vibration, unlike `rpm`, which overrides.
+    pub nominal_rpm: Option<(f64, String)>,
 }
 
 /// Prefix of provenance notes that warn: side data an importer could not read (kept as text),
@@ -80,7 +85,7 @@ pub fn detect_format(path: &Path, head: &[u8]) -> Result<Format> {
         "csv" | "txt" | "tsv" => Ok(Format::Csv),
         _ => bail!(
             "{}: unknown recording format (not MAT v5, WAV or MCAP by content, extension {:?}); \
-             supported: .mat (CWRU/MFPT), .wav, .csv, .mcap",
+             supported: .mat (MAT v5/v7), .wav, .csv, .mcap",
             path.display(),
             ext
         ),
@@ -202,21 +207,7 @@ pub fn load_with_losses(
     let (format, size) = sniff(path)?;
     memory::check_whole_read(path, format, size, &memory::available())?;
     let mut rec = match format {
-        Format::Mat => {
-            let mat = mat5::read(path)?;
-            if mfpt::is_mfpt(&mat) {
-                mfpt::from_mat(path, &mat, rig, opts)?
-            } else if cwru::is_cwru(&mat) {
-                cwru::from_mat(path, &mat, rig, opts)?
-            } else {
-                bail!(
-                    "{}: missing variable: neither CWRU variables (X<nnn>_DE_time, X<nnn>_FE_time, X<nnn>_BA_time, \
-                     X<nnn>RPM) nor an MFPT struct `bearing` (fields gs, sr, rate, load) found; the file holds: {}",
-                    path.display(),
-                    mat.summary()
-                )
-            }
-        }
+        Format::Mat => mat_layout::load(path, rig, opts)?,
         Format::Wav => wav::load(path, rig, opts)?,
         Format::Csv => csv::load(path, rig, opts)?,
         Format::Mcap => {
@@ -227,6 +218,7 @@ pub fn load_with_losses(
             // rigmon's own recordings keep what a live source delivered, NaN/Inf bursts
             // included (losing nothing); the daemon's pipeline flags and zeroes them per window.
             check_finite_tacho_edges(path, &rec)?;
+            carry_nominal_rpm(&mut rec, opts);
             let filled = losses.gap_samples() as usize
                 * (rec.channels.len()
                     + usize::from(matches!(rec.tacho, Some(Tacho::Analog { .. }))));
@@ -247,6 +239,7 @@ pub fn load_with_losses(
         bail!("{}: the recording holds no samples", path.display());
     }
     check_finite(path, &rec)?;
+    carry_nominal_rpm(&mut rec, opts);
     if opts.rpm.is_none() {
         check_stored_speed(&mut rec, rig);
     }
@@ -257,6 +250,19 @@ pub fn load_with_losses(
     }
     stamp_rig(&mut rec.metadata, rig);
     Ok((rec, Losses::default()))
+}
+
+/// Put a declared nominal speed on the recording as a hint (not as its speed) and say so.
+fn carry_nominal_rpm(rec: &mut Recording, opts: &ImportOptions) {
+    if let Some((rpm, place)) = &opts.nominal_rpm {
+        rec.provenance.notes.push(format!(
+            "nominal speed {rpm} rpm from {place} (a hint, to be checked against the vibration)"
+        ));
+        rec.nominal_rpm = Some(NominalSpeed {
+            rpm: *rpm,
+            declared_at: place.clone(),
+        });
+    }
 }
 
 /// Where the rig reads speed from the recording (`[speed] source = "recording"`), check the
@@ -326,6 +332,11 @@ fn check_options(opts: &ImportOptions) -> Result<()> {
     if let Some(rpm) = opts.rpm {
         if !(rpm.is_finite() && rpm > 0.0) {
             bail!("--rpm {rpm}: must be a positive number");
+        }
+    }
+    if let Some((rpm, place)) = &opts.nominal_rpm {
+        if !(rpm.is_finite() && *rpm > 0.0) {
+            bail!("{place}: nominal speed {rpm} rpm: must be a positive number");
         }
     }
     Ok(())

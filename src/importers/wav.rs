@@ -327,6 +327,7 @@ pub fn load(path: &Path, rig: &RigConfig, opts: &ImportOptions) -> Result<Record
             _ => None,
         },
         rpm: info.rpm,
+        nominal_rpm: None,
         provenance: info.provenance,
         metadata: info.metadata,
     })

@@ -33,6 +33,9 @@ pub struct Alignment {
     pub largest_shift: f32,
     /// Distance beyond which a window cannot be called healthy ([`HealthyBaseline`]).
     pub baseline_threshold: f32,
+    /// 1 / pooled spread of the healthy windows (the unit of `baseline_deviation`; read by
+    /// [`super::evidence::BaselineSpread`]).
+    pub baseline_inv_spread: f32,
 }
 
 /// Per-feature mean of the scale-free log ratios of `windows` (rows = windows).
@@ -97,6 +100,7 @@ pub fn align_to_healthy(
         largest_shift_feature: k,
         largest_shift: big,
         baseline_threshold: baseline.threshold,
+        baseline_inv_spread: baseline.inv_spread,
     };
     out.baseline = Some(baseline);
     out.meta.trained_mean = trained.to_vec();

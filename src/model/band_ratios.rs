@@ -1,12 +1,13 @@
 //! Band selection measured with the rule's statistic (issue 18). For every feature window of
-//! a recording channel (`window_s` long, `hop_s` apart, cut as
-//! [`EnvelopeRule::judge_recording`] cuts them) the envelope order spectrum is taken with the
+//! a recording channel (`window_s` long, `hop_s` apart from the first sample: the analysis
+//! stage's windows of a recording without gaps) the envelope order spectrum is taken with the
 //! envelope band chosen one of three ways ([`BandChoice`]): the recipe's fixed low-pass
 //! (`[features] lowpass_hz`, what the features and the rule use), one band for the whole
 //! recording (the best band of its fast kurtogram), or the best band of each window's own
-//! kurtogram. Per fault family the window gets the rule's ratio ([`EnvelopeRule::ratios_at`]):
-//! the larger of the bands at the family's order and at twice it, over the median band.
-//! Families: BPFO, BPFI and 2xBSF (a ball defect strikes both races once per ball spin).
+//! kurtogram. Per fault family the window gets the rule's ratio
+//! ([`crate::dsp::fault_band_ratios::FaultBandMeter::ratios_at`], what the analysis stage
+//! measures): the larger of the bands at the family's order and at twice it, over the median
+//! band. Families: BPFO, BPFI and 2xBSF (a ball defect strikes both races once per ball spin).
 //! A recording is summarised per family by the mean ratio over its windows and the share of
 //! windows at or above the rule's threshold. `rigmon inspect --json` prints it; the features
 //! and the classifier do not use it.
@@ -121,6 +122,7 @@ pub fn band_ratios(
         2.0 * o.two_bsf,
     ];
     let mut r = [0.0; 6];
+    let mut meter = rule.meter();
     let mut windows = Vec::with_capacity((samples.len() - n) / hop + 1);
     let mut start = 0;
     while start + n <= samples.len() {
@@ -148,7 +150,7 @@ pub fn band_ratios(
             }
             (BandChoice::PerWindow(_), None) => unreachable!("planned above"),
         };
-        rule.ratios_at(step, lines, &centres, &mut r);
+        meter.ratios_at(step, lines, &centres, &mut r);
         windows.push(WindowRatios {
             t_start: t,
             rpm: speed.mean_rpm(t, t + n as f64 / sample_rate),
@@ -258,6 +260,7 @@ mod tests {
             channels: vec![ch("DE", x), ch("FE", vec![0.0; n]), ch("BA", vec![0.0; n])],
             tacho: None,
             rpm: Some(1800.0),
+            nominal_rpm: None,
             provenance: Provenance {
                 source_path: "synthetic".into(),
                 format: "simulated".into(),

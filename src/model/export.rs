@@ -1,17 +1,21 @@
 //! ONNX writer and reader for [`TrainedModel`] (via the `tract_onnx::pb` protobuf types):
 //! opset 13, IR version 8, input `features` `[N, n_bins]` (raw RMS bins), outputs
 //! `probabilities` `[N, classes]` and `novelty` `[N]` (an aligned model adds the healthy-
-//! baseline gate and a third output `baseline_distance` `[N]`), all normalisation inside the graph,
+//! baseline gate, a third output `baseline_distance` `[N]` and a fourth `baseline_deviation`
+//! `[N, n_bins]`), all normalisation inside the graph,
 //! metadata in `metadata_props`. The reader only understands graphs this writer made
-//! (fine-tuning reads a shipped model back to retrain its output layer).
+//! (fine-tuning reads a shipped model back to retrain its output layer). [`stamp_bytes`]
+//! writes a model's identity keys for a rig file and changes nothing else.
 
 use super::baseline::{HealthyBaseline, GATE_EPS, TOP};
 use super::classifier::TrainedModel;
 use super::digest::sha256_hex;
+use super::identity::{self, NOT_STORED};
 use super::meta::{props, ModelMeta};
 use super::mlp::{Dense, Mlp};
 use super::novelty::Mahalanobis;
 use super::preprocess::{Preprocess, TINY};
+use crate::config::RigConfig;
 use anyhow::{bail, Context, Result};
 use ndarray::{Array1, Array2};
 use prost::Message;
@@ -30,6 +34,9 @@ pub const OUT_PROBS: &str = "probabilities";
 pub const OUT_NOVELTY: &str = "novelty";
 /// Third output of an aligned model: distance from the machine's healthy baseline.
 pub const OUT_BASELINE: &str = "baseline_distance";
+/// Fourth output of an aligned model: each bin's deviation from the machine's healthy
+/// reference in units of the baseline's pooled spread (what the distance is taken over).
+pub const OUT_DEVIATION: &str = "baseline_deviation";
 
 fn f32_tensor(name: &str, dims: &[usize], data: impl IntoIterator<Item = f32>) -> pb::TensorProto {
     let raw: Vec<u8> = data.into_iter().flat_map(|v| v.to_le_bytes()).collect();
@@ -263,6 +270,7 @@ pub fn to_proto(m: &TrainedModel) -> pb::ModelProto {
         let healthy = m.meta.labels.iter().position(|l| l == "healthy");
         baseline_gate(b, healthy, n_in, n_cls, &mut init, &mut nodes);
         outputs.push(value_info(OUT_BASELINE, &[Dim::Batch]));
+        outputs.push(value_info(OUT_DEVIATION, &[Dim::Batch, Dim::Fixed(n_in)]));
     }
     let graph = pb::GraphProto {
         name: "rigmon_classifier".into(),
@@ -329,6 +337,13 @@ fn baseline_gate(
             "baseline_scale",
             &["b_dev", "baseline_inv_spread"],
             &["b_scaled"],
+            vec![],
+        ),
+        node(
+            "Identity",
+            "baseline_deviation",
+            &["b_scaled"],
+            &[OUT_DEVIATION],
             vec![],
         ),
         node(
@@ -546,4 +561,50 @@ pub fn read(path: &Path) -> Result<TrainedModel> {
     let mut m = from_bytes(&bytes, &path.display().to_string())?;
     m.meta.sha256 = sha256_hex(&bytes);
     Ok(m)
+}
+
+/// The metadata keys [`stamp_bytes`] writes.
+pub const IDENTITY_KEYS: [&str; 3] = ["lowpass_hz", "window_s", "bearing_orders"];
+
+/// Stamp a model's identity keys (low-pass, window, bearing orders) for the rig file it was
+/// trained for (`rigmon model stamp`). Only `metadata_props` change: the graph, its weights
+/// and every other entry are re-encoded from the decoded protobuf as they were. Refused when
+/// what the model already says (rig id, axis, layout, a stored key) contradicts `rig`: a
+/// stamp records what a model was trained for, it does not make it fit another rig. `what`
+/// names the file in errors. Returns the new bytes and the keys that were added.
+pub fn stamp_bytes(bytes: &[u8], rig: &RigConfig, what: &str) -> Result<(Vec<u8>, Vec<String>)> {
+    let mut proto = pb::ModelProto::decode(bytes)
+        .with_context(|| format!("{what}: not an ONNX model (protobuf decode failed)"))?;
+    let meta = ModelMeta::from_props(&props(&proto), what)?;
+    identity::check_layout(&meta, rig).with_context(|| what.to_string())?;
+    let contradictions: Vec<String> = identity::mismatches(&meta, rig)
+        .iter()
+        .filter(|m| m.model != NOT_STORED)
+        .map(ToString::to_string)
+        .collect();
+    if !contradictions.is_empty() {
+        bail!(
+            "{what} was trained for another rig than {:?} ({}); stamping it for this rig file would be false. Stamp it with the rig file it was trained for, or train a model for this rig",
+            rig.machine.id,
+            contradictions.join("; ")
+        );
+    }
+    let mut stamped = meta.clone();
+    identity::stamp(&mut stamped, rig);
+    let mut added = Vec::new();
+    for (key, value) in stamped.to_props() {
+        if !IDENTITY_KEYS.contains(&key.as_str()) {
+            continue;
+        }
+        match proto.metadata_props.iter_mut().find(|e| e.key == key) {
+            Some(e) => e.value = value,
+            None => {
+                added.push(key.clone());
+                proto
+                    .metadata_props
+                    .push(pb::StringStringEntryProto { key, value });
+            }
+        }
+    }
+    Ok((proto.encode_to_vec(), added))
 }

@@ -1,5 +1,6 @@
 //! Model metadata: what a classifier file says about itself (class labels, feature layout,
-//! provenance), stored as ONNX `metadata_props` and read back by [`super::onnx`].
+//! the rig and recipe it was trained for, provenance), stored as ONNX `metadata_props` and
+//! read back by [`super::onnx`]. Whether it fits a rig file is [`super::identity`]'s question.
 
 use anyhow::{bail, Context, Result};
 use std::collections::BTreeMap;
@@ -45,8 +46,71 @@ pub struct ModelMeta {
     /// Alignment summary (JSON text), empty when the model was never aligned.
     pub alignment: String,
     /// The envelope low-pass the training features were computed with (`[features]
-    /// lowpass_hz`), Hz; `None` in models written before it was stored (not checked then).
+    /// lowpass_hz`), Hz; `None` in models written before it was stored.
     pub lowpass_hz: Option<f64>,
+    /// The analysis window the training features were computed over (`[features]
+    /// window_s`), s; `None` in models written before it was stored.
+    pub window_s: Option<f64>,
+    /// The fault orders of the bearing the model was trained for (from the rig file's
+    /// `[bearing]`); `None` in models written before they were stored.
+    pub bearing_orders: Option<BearingOrders>,
+}
+
+/// The fault orders a model was trained to recognise (multiples of shaft speed).
+#[derive(Debug, Clone, Copy, PartialEq, Default, serde::Serialize)]
+pub struct BearingOrders {
+    pub ftf: f64,
+    pub bpfo: f64,
+    pub bpfi: f64,
+    pub two_bsf: f64,
+}
+
+impl BearingOrders {
+    /// `(name, order)` pairs in a fixed order.
+    pub fn named(&self) -> [(&'static str, f64); 4] {
+        [
+            ("bpfo", self.bpfo),
+            ("bpfi", self.bpfi),
+            ("two_bsf", self.two_bsf),
+            ("ftf", self.ftf),
+        ]
+    }
+
+    /// `bpfo=3.585,bpfi=5.415,two_bsf=4.714,ftf=0.398` (full precision, reads back exactly).
+    pub fn to_text(&self) -> String {
+        self.named()
+            .iter()
+            .map(|(k, v)| format!("{k}={v:?}"))
+            .collect::<Vec<_>>()
+            .join(",")
+    }
+
+    /// Read [`to_text`](Self::to_text)'s form; `what` names the file in errors.
+    pub fn from_text(s: &str, what: &str) -> Result<BearingOrders> {
+        let mut o = BearingOrders::default();
+        let mut seen = 0;
+        for part in s.split(',').filter(|p| !p.trim().is_empty()) {
+            let (k, v) = part.split_once('=').with_context(|| {
+                format!("{what}: metadata bearing_orders holds {part:?}, not name=order; the file is damaged (re-stamp it with `rigmon model stamp`)")
+            })?;
+            let v: f64 = v.trim().parse().ok().filter(|v: &f64| v.is_finite()).with_context(|| {
+                format!("{what}: metadata bearing_orders: {k} = {v:?} is not a number; the file is damaged (re-stamp it with `rigmon model stamp`)")
+            })?;
+            let slot = match k.trim() {
+                "ftf" => &mut o.ftf,
+                "bpfo" => &mut o.bpfo,
+                "bpfi" => &mut o.bpfi,
+                "two_bsf" => &mut o.two_bsf,
+                _ => continue, // a later rigmon may store more orders
+            };
+            *slot = v;
+            seen += 1;
+        }
+        if seen < 4 {
+            bail!("{what}: metadata bearing_orders = {s:?} lacks some of bpfo, bpfi, two_bsf, ftf; re-stamp it with `rigmon model stamp`");
+        }
+        Ok(o)
+    }
 }
 
 /// `metadata_props` of a decoded model as a map.
@@ -125,6 +189,12 @@ impl ModelMeta {
         if let Some(hz) = self.lowpass_hz {
             v.push(("lowpass_hz".into(), hz.to_string()));
         }
+        if let Some(s) = self.window_s {
+            v.push(("window_s".into(), s.to_string()));
+        }
+        if let Some(o) = &self.bearing_orders {
+            v.push(("bearing_orders".into(), o.to_text()));
+        }
         v
     }
 
@@ -177,6 +247,14 @@ impl ModelMeta {
             alignment: props.get("alignment").cloned().unwrap_or_default(),
             lowpass_hz: match props.get("lowpass_hz") {
                 Some(_) => Some(num("lowpass_hz")?),
+                None => None,
+            },
+            window_s: match props.get("window_s") {
+                Some(_) => Some(num("window_s")?),
+                None => None,
+            },
+            bearing_orders: match props.get("bearing_orders") {
+                Some(s) => Some(BearingOrders::from_text(s, what)?),
                 None => None,
             },
         })

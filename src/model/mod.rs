@@ -1,8 +1,10 @@
 //! The classifier: in-memory network ([`mlp`]), in-graph normalisation ([`preprocess`]),
 //! novelty detector ([`novelty`]), the trained bundle ([`classifier`]), its metadata
-//! ([`meta`]), file digests ([`digest`]), the ONNX writer/reader ([`export`]), tract
-//! inference ([`onnx`]) and the alignment to one machine: reference levels ([`align`]) and
-//! the healthy-baseline gate ([`baseline`]). The envelope-order rule every model is compared
+//! ([`meta`]) and whether it fits a rig file ([`identity`]), file digests ([`digest`]), the
+//! ONNX writer/reader and metadata stamp ([`export`]), tract inference ([`onnx`]) and the
+//! alignment to one machine: reference levels ([`align`]) and the healthy-baseline gate
+//! ([`baseline`]), and the fault-family evidence against that baseline ([`evidence`]). The
+//! envelope-order rule every model is compared
 //! with ([`rule`]), and its statistic under kurtogram-chosen envelope bands ([`band_ratios`]).
 
 pub mod align;
@@ -10,7 +12,9 @@ pub mod band_ratios;
 pub mod baseline;
 pub mod classifier;
 pub mod digest;
+pub mod evidence;
 pub mod export;
+pub mod identity;
 pub mod meta;
 pub mod mlp;
 pub mod novelty;

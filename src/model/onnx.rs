@@ -1,8 +1,10 @@
 //! Inference on a classifier file with tract: [`OnnxClassifier`] loads an ONNX model written
-//! by `rigmon train`, checks its metadata, and predicts class probabilities plus a novelty
-//! score for one window of raw features. The daemon, `evaluate` and `finetune` use it.
+//! by `rigmon train`, checks its metadata and whether it was trained for a rig
+//! ([`super::identity`]), and predicts class probabilities plus a novelty score for one
+//! window of raw features. The daemon, `evaluate`, `align` and `finetune` use it.
 
 use super::digest::sha256_hex;
+use super::identity::{self, Mismatch};
 use super::meta::props;
 pub use super::meta::ModelMeta;
 use crate::config::RigConfig;
@@ -33,12 +35,19 @@ pub struct Prediction {
     /// `baseline_distance` above the aligned model's threshold: the window is not healthy
     /// for this machine (None for a model that is not aligned).
     pub beyond_baseline: Option<bool>,
+    /// Each feature bin's deviation from the machine's healthy reference, in units of the
+    /// baseline's pooled spread (aligned models written since the graph's fourth output
+    /// `baseline_deviation` exists; [`super::evidence`] reads the fault-family bins of it).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub baseline_deviation: Option<Vec<f32>>,
 }
 
 /// A classifier loaded from an ONNX file, ready to run one window at a time.
 pub struct OnnxClassifier {
     plan: Plan,
     meta: ModelMeta,
+    /// Where it was read from (the file's path).
+    name: String,
 }
 
 impl std::fmt::Debug for OnnxClassifier {
@@ -71,42 +80,70 @@ impl OnnxClassifier {
             .and_then(|m| m.into_optimized())
             .and_then(|m| m.into_runnable())
             .map_err(|e| anyhow!("{what}: tract cannot load the model: {e:#}"))?;
-        Ok(OnnxClassifier { plan, meta })
+        Ok(OnnxClassifier {
+            plan,
+            meta,
+            name: what.to_string(),
+        })
     }
 
     pub fn meta(&self) -> &ModelMeta {
         &self.meta
     }
 
-    /// Fail with a clear message when the rig's feature layout differs from the model's.
+    /// The file (or source) the model was read from, for messages.
+    pub fn name(&self) -> &str {
+        &self.name
+    }
+
+    /// Fail when the rig's feature layout differs from the model's (never overridable).
+    pub fn check_layout(&self, rig: &RigConfig) -> Result<()> {
+        identity::check_layout(&self.meta, rig)
+    }
+
+    /// How the model's identity (rig id, axis, bearing orders, low-pass, window) differs
+    /// from the rig file's; empty when it was trained for this rig.
+    pub fn foreign_to(&self, rig: &RigConfig) -> Vec<Mismatch> {
+        identity::mismatches(&self.meta, rig)
+    }
+
+    /// Fail with a clear message unless the model was trained for this rig: the feature
+    /// layout and the identity must both match.
     pub fn check_rig(&self, rig: &RigConfig) -> Result<()> {
-        let f = &rig.features;
-        let m = &self.meta;
-        if (f.bin_width_order - m.bin_width).abs() > 1e-9
-            || (f.max_order - m.max_order).abs() > 1e-9
-            || f.n_bins() != m.n_features
-        {
-            bail!(
-                "model expects {} bins of {} orders up to order {}, but rig {:?} gives {} bins of {} up to {}; use a model trained for this rig",
-                m.n_features,
-                m.bin_width,
-                m.max_order,
-                rig.machine.id,
-                f.n_bins(),
-                f.bin_width_order,
-                f.max_order
-            );
+        self.check_identity(rig, Path::new("<the rig file>"), false)
+            .map(|_| ())
+    }
+
+    /// The layout must match; a different identity is refused unless `allow_foreign`, and
+    /// then returned (and logged) so the caller can flag its output. `rig_file` is where
+    /// `rig` was read from, for messages.
+    pub fn check_identity(
+        &self,
+        rig: &RigConfig,
+        rig_file: &Path,
+        allow_foreign: bool,
+    ) -> Result<Vec<Mismatch>> {
+        self.check_layout(rig)
+            .with_context(|| format!("model {}", self.name))?;
+        let found = self.foreign_to(rig);
+        if found.is_empty() {
+            return Ok(found);
         }
-        if let Some(hz) = m.lowpass_hz {
-            if (f.lowpass_hz - hz).abs() > 1e-6 * hz {
-                bail!(
-                    "model was trained on envelopes low-passed at {hz} Hz, but rig {:?} sets [features] lowpass_hz = {}; use a model trained for this recipe, or set lowpass_hz = {hz}",
-                    rig.machine.id,
-                    f.lowpass_hz
-                );
-            }
+        if !allow_foreign {
+            let rig_file = rig_file.display().to_string();
+            return Err(identity::refusal(&self.name, rig, &rig_file, &found));
         }
-        Ok(())
+        tracing::warn!(
+            "model {} is not rig {:?}'s, used anyway (foreign model allowed): {}",
+            self.name,
+            rig.machine.id,
+            found
+                .iter()
+                .map(ToString::to_string)
+                .collect::<Vec<_>>()
+                .join("; ")
+        );
+        Ok(found)
     }
 
     /// Classify one window of raw features (`meta().n_features` values).
@@ -159,11 +196,22 @@ impl OnnxClassifier {
                 .copied(),
             None => None,
         };
+        let baseline_deviation = match out.get(3) {
+            Some(t) => Some(
+                t.to_plain_array_view::<f32>()
+                    .map_err(|e| anyhow!("{e:#}"))?
+                    .iter()
+                    .copied()
+                    .collect(),
+            ),
+            None => None,
+        };
         let beyond_baseline = baseline_distance
             .zip(self.meta.baseline_threshold())
             .map(|(d, t)| d.is_nan() || d > t);
         Ok(Prediction {
             baseline_distance,
+            baseline_deviation,
             beyond_baseline,
             unknown: novelty.is_nan() || novelty > self.meta.novelty_threshold,
             probs,

@@ -1,18 +1,21 @@
 //! The rule baseline (issue 18): a ten-line envelope-order rule with no training, scored next
-//! to every classifier. Per window (the rig's feature windows, 1 s by default) it takes the
-//! classifier channel's envelope order spectrum — the same lines the feature bins are summed
-//! from ([`FeaturePipeline::envelope_order_power`]) — and compares the RMS of the band
-//! centred at BPFO, 2xBPFO, BPFI and 2xBPFI with the median RMS of all bands of the same width
-//! (0.5 order, the thesis' bin width) from 0 to `features.max_order`. A window is faulty when
+//! to every classifier. It judges the analysis stage's windows (the windows, speed and
+//! envelope order spectrum the model is given: [`WindowAnalysis::fault_bands`], measured on
+//! the lines the classifier channel's feature bins are summed from) and compares the RMS of
+//! the band centred at BPFO, 2xBPFO, BPFI and 2xBPFI with the median RMS of all bands of the
+//! same width (0.5 order, the thesis' bin width) from 0 to `features.max_order`
+//! ([`FaultBandMeter`]). A window is faulty when
 //! one of those bands stands [`RuleSettings::threshold`] (3x) or more above that median; it
 //! is `outer_race` or `inner_race` by whichever race's band stands highest relative to the
 //! median (an exact tie goes to `outer_race`). The rule has no ball class: a ball fault it
 //! sees is called a race fault (an alarm, not a miss; unseen, it is a miss). A recording
 //! takes the majority of its windows through the same scoring code as the ONNX classifier.
+//! The rule is an independent baseline: the daemon's decision never uses it.
 
+use crate::analysis::WindowAnalysis;
 use crate::bearing::FaultOrders;
 use crate::config::RigConfig;
-use crate::dsp::FeaturePipeline;
+use crate::dsp::fault_band_ratios::{FaultBandMeter, FaultBandRatios, BAND_WIDTH_ORDER};
 use crate::recording::Recording;
 use anyhow::{bail, Context, Result};
 use serde::Serialize;
@@ -26,9 +29,10 @@ pub struct RuleSettings {
     /// A fault band counts when its RMS is at least this many times the median band RMS of
     /// the envelope order spectrum.
     pub threshold: f64,
-    /// Width of every band, orders. A fault band is centred on its kinematic order, so
-    /// +-0.25 order covers slip and speed error (+-7 % at BPFO 3.58, +-2.3 % at 2xBPFI 10.8);
-    /// the median is over the bands (k w, (k+1) w] tiling 0..max_order.
+    /// Width of every band, orders: the analysis stage's [`BAND_WIDTH_ORDER`] (0.5), reported
+    /// with the rule's figures. A fault band is centred on its kinematic order, so +-0.25
+    /// order covers slip and speed error (+-7 % at BPFO 3.58, +-2.3 % at 2xBPFI 10.8); the
+    /// median is over the bands (k w, (k+1) w] tiling 0..max_order.
     pub band_width_order: f64,
 }
 
@@ -36,7 +40,7 @@ impl Default for RuleSettings {
     fn default() -> Self {
         RuleSettings {
             threshold: 3.0,
-            band_width_order: 0.5,
+            band_width_order: BAND_WIDTH_ORDER,
         }
     }
 }
@@ -88,15 +92,24 @@ impl EnvelopeRule {
         }
     }
 
+    /// A meter for this rule's bearing (what the analysis stage measures every window with).
+    pub fn meter(&self) -> FaultBandMeter {
+        let o = &self.orders;
+        FaultBandMeter::new(o.bpfo, o.bpfi, o.two_bsf, self.max_order)
+    }
+
     /// Judge one envelope order spectrum given as power lines `order_step` apart (line 0 at
     /// order 0).
     pub fn judge(&self, order_step: f64, power: &[f32]) -> RuleVerdict {
-        let o = &self.orders;
-        let targets = [o.bpfo, 2.0 * o.bpfo, o.bpfi, 2.0 * o.bpfi];
-        let mut ratios = [0.0; 4];
-        self.ratios_at(order_step, power, &targets, &mut ratios);
-        let outer = ratios[0].max(ratios[1]);
-        let inner = ratios[2].max(ratios[3]);
+        self.judge_bands(&self.meter().measure(order_step, power))
+    }
+
+    /// Judge one window's band ratios at the fault orders (the analysis stage's
+    /// [`WindowAnalysis::fault_bands`]).
+    pub fn judge_bands(&self, bands: &FaultBandRatios) -> RuleVerdict {
+        let ratios = [bands.0[0], bands.0[1], bands.0[2], bands.0[3]];
+        let outer = bands.outer_race();
+        let inner = bands.inner_race();
         let class = if outer.max(inner) < self.settings.threshold {
             0
         } else if outer >= inner {
@@ -112,83 +125,39 @@ impl EnvelopeRule {
         }
     }
 
-    /// The rule's statistic at any orders: RMS of the band (one band width wide) centred at
-    /// each of `centres`, over the median RMS of the bands (k w, (k+1) w] tiling
-    /// 0..max_order, into `out` (0 when the median is 0). `judge` takes it at BPFO, 2xBPFO,
-    /// BPFI and 2xBPFI.
-    pub fn ratios_at(&self, order_step: f64, power: &[f32], centres: &[f64], out: &mut [f64]) {
-        let w = self.settings.band_width_order;
-        let n_bands = ((self.max_order / w).round() as usize).max(1);
-        let mut bands = vec![0.0f32; n_bands];
-        crate::dsp::features::band_rms(power, order_step, w, &mut bands);
-        let mid = n_bands / 2;
-        let median = *bands.select_nth_unstable_by(mid, f32::total_cmp).1 as f64;
-        // RMS of the lines in (centre - w/2, centre + w/2]
-        let band_at = |centre: f64| {
-            let lo = (((centre - 0.5 * w) / order_step + 1e-9).floor() as usize) + 1;
-            let hi = (((centre + 0.5 * w) / order_step + 1e-9).floor() as usize)
-                .min(power.len().saturating_sub(1));
-            (lo..=hi)
-                .map(|j| power[j].max(0.0) as f64)
-                .sum::<f64>()
-                .sqrt()
-        };
-        for (r, &t) in out.iter_mut().zip(centres) {
-            *r = if median > 0.0 {
-                band_at(t) / median
-            } else {
-                0.0
-            };
-        }
-    }
-
     /// The rule's threshold (a band this many times the median is a fault).
     pub fn threshold(&self) -> f64 {
         self.settings.threshold
     }
 
-    /// The rule on every full feature window (`window_s` long, `hop_s` apart) of a
-    /// recording's classifier channel, with the speed source from the rig file.
+    /// The rule on the analysis stage's windows of a recording (as the daemon and the
+    /// scores cut them); windows without band ratios (no speed, failed features) are left
+    /// out. `t_start` and `rpm` are the window's.
     pub fn judge_recording(&self, rec: &Recording, rig: &RigConfig) -> Result<Vec<RuleVerdict>> {
         let what = &rec.provenance.source_path;
         let ch = rig
             .classifier_channel()
             .context("the rig file has no classifier channel (features.classifier_axis)")?;
-        let x = &rec
-            .channel(&ch.name)
-            .with_context(|| {
-                format!(
-                    "{what}: no channel {:?} (the rig's classifier channel) in the recording",
-                    ch.name
-                )
-            })?
-            .samples;
-        let speed = crate::analysis::whole_recording(rec, rig)
-            .with_context(|| format!("speed for {what}"))?;
-        let mut pipe = FeaturePipeline::new(rig, rec.sample_rate)?;
-        let n = pipe.window_len();
-        let hop = ((rig.features.hop_s * rec.sample_rate).round() as usize).max(1);
-        if x.len() < n {
+        if rec.channel(&ch.name).is_none() {
             bail!(
-                "{what}: {:.3} s of signal is shorter than one window ({} s)",
-                rec.duration_s(),
-                rig.features.window_s
+                "{what}: no channel {:?} (the rig's classifier channel) in the recording",
+                ch.name
             );
         }
-        let mut out = Vec::with_capacity((x.len() - n) / hop + 1);
-        let mut start = 0;
-        while start + n <= x.len() {
-            let t = start as f64 / rec.sample_rate;
-            let (step, _, lines) = pipe
-                .envelope_order_power(t, &x[start..start + n], &speed)
-                .with_context(|| format!("{what}: window at t = {t:.3} s"))?;
-            let mut v = self.judge(step, lines);
-            v.rpm = speed.mean_rpm(t, t + n as f64 / rec.sample_rate);
-            v.t_start = t;
-            out.push(v);
-            start += hop;
-        }
-        Ok(out)
+        let windows = crate::analysis::analyse_recording(rec, rig)?;
+        Ok(windows
+            .iter()
+            .filter_map(|w| self.judge_window(w))
+            .collect())
+    }
+
+    /// The rule on one analysed window (None without band ratios).
+    pub fn judge_window(&self, w: &WindowAnalysis) -> Option<RuleVerdict> {
+        let bands = w.fault_bands.as_ref()?;
+        let mut v = self.judge_bands(bands);
+        v.t_start = w.t_start;
+        v.rpm = w.features.as_ref().map_or(f64::NAN, |f| f.rpm);
+        Some(v)
     }
 }
 
@@ -207,6 +176,7 @@ pub fn class_map(labels: &[String]) -> Result<[usize; 3]> {
 mod tests {
     use super::*;
     use crate::dsp::synthetic::Synthetic;
+    use crate::dsp::FeaturePipeline;
 
     fn orders() -> FaultOrders {
         crate::bearing::BearingGeometry {

@@ -5,6 +5,13 @@
 //! Safe defaults: peer mode, listening only where told, multicast scouting off. A session
 //! with `connect` endpoints keeps retrying them forever, so a restarted router is picked up
 //! again without restarting rigmon.
+//!
+//! The fleet sees itself: each daemon holds a liveliness token `<base>/alive/<session id>`.
+//! A daemon refuses to start when another one already holds a token under its own base key
+//! (two daemons with one machine id would interleave their health on one key), and announces
+//! one that appears later (an error in the log, `publish.duplicates` in the status).
+//! Endpoints are checked before a session opens (ports in range, listen ports free), and
+//! zenoh's errors reach the user without the source paths of the machine that built zenoh.
 
 use anyhow::{anyhow, bail, Context, Result};
 use serde::{Deserialize, Serialize};
@@ -54,6 +61,14 @@ pub struct ZenohSettings {
     /// Access-control list (`[zenoh.acl]`).
     #[serde(default, skip_serializing_if = "AclSettings::is_empty")]
     pub acl: AclSettings,
+    /// Health messages kept for late joiners on `<base>/recent` (a historian catching up
+    /// after a restart); 0 turns the cache off. See [`super::recent`].
+    #[serde(default = "default_history_windows")]
+    pub history_windows: usize,
+}
+
+fn default_history_windows() -> usize {
+    super::recent::DEFAULT_WINDOWS
 }
 
 fn yes() -> bool {
@@ -79,6 +94,7 @@ impl Default for ZenohSettings {
             auth: AuthSettings::default(),
             tls: TlsSettings::default(),
             acl: AclSettings::default(),
+            history_windows: default_history_windows(),
         }
     }
 }
@@ -163,12 +179,45 @@ impl ZenohSettings {
             );
         }
         super::access::validate(&self.auth, &self.tls, &self.acl)?;
-        for e in self.listen.iter().chain(&self.connect) {
-            e.parse::<zenoh::config::EndPoint>().map_err(|err| {
-                anyhow!(
-                    "zenoh endpoint {e:?} is not valid ({err}); write it like tcp/127.0.0.1:7448"
-                )
-            })?;
+        for (list, e) in self
+            .listen
+            .iter()
+            .map(|e| ("listen", e))
+            .chain(self.connect.iter().map(|e| ("connect", e)))
+        {
+            let port = endpoint_port(e)?;
+            if list == "connect" && port == Some(0) {
+                bail!("zenoh.connect {e:?}: port 0 names no peer; give the port it listens on, e.g. tcp/127.0.0.1:7448");
+            }
+        }
+        Ok(())
+    }
+
+    /// Every TCP listen endpoint with a numeric address and port can be bound now (its port
+    /// is free, the address is this machine's). The error says which endpoint and why.
+    pub fn check_listen_ports(&self) -> Result<()> {
+        for e in &self.listen {
+            let Some(addr) = socket_addr(e) else {
+                continue;
+            };
+            if addr.port() == 0 {
+                continue;
+            }
+            if let Err(err) = std::net::TcpListener::bind(addr) {
+                let hint = match err.kind() {
+                    std::io::ErrorKind::AddrInUse => {
+                        "another program (another rigmon?) already listens there; stop it or pick another port"
+                    }
+                    std::io::ErrorKind::AddrNotAvailable => {
+                        "the address is not one of this machine's"
+                    }
+                    std::io::ErrorKind::PermissionDenied => {
+                        "ports below 1024 need privileges; use a higher port"
+                    }
+                    _ => "check the address and port",
+                };
+                bail!("zenoh.listen {e:?}: cannot listen there ({err}); {hint}");
+            }
         }
         Ok(())
     }
@@ -177,13 +226,18 @@ impl ZenohSettings {
     pub fn zenoh_config(&self) -> Result<zenoh::Config> {
         self.validate()?;
         let mut c = match &self.config_file {
-            Some(p) => zenoh::Config::from_file(p)
-                .map_err(|e| anyhow!("cannot use zenoh config {}: {e}", p.display()))?,
+            Some(p) => zenoh::Config::from_file(p).map_err(|e| {
+                anyhow!(
+                    "cannot use zenoh config {}: {}",
+                    p.display(),
+                    error_text(&e)
+                )
+            })?,
             None => zenoh::Config::default(),
         };
         let set = |c: &mut zenoh::Config, key: &str, value: String| -> Result<()> {
             c.insert_json5(key, &value)
-                .map_err(|e| anyhow!("zenoh config {key} = {value}: {e}"))
+                .map_err(|e| anyhow!("zenoh config {key} = {value}: {}", error_text(&e)))
         };
         set(&mut c, "mode", format!("\"{}\"", self.mode))?;
         // Always set listen explicitly: an empty zenoh config listens on every interface.
@@ -219,8 +273,14 @@ impl ZenohSettings {
     pub fn open(&self) -> Result<zenoh::Session> {
         let config = self.zenoh_config()?;
         zenoh::open(config).wait().map_err(|e| {
+            let text = error_text(&e);
+            let hint = if text.contains("in use") {
+                "; is the port already in use (another rigmon?)"
+            } else {
+                ""
+            };
             anyhow!(
-                "cannot open a zenoh session (mode {}, listen {:?}, connect {:?}): {e}; is the port already in use?",
+                "cannot open a zenoh session (mode {}, listen {:?}, connect {:?}): {text}{hint}",
                 self.mode,
                 self.listen,
                 self.connect
@@ -228,6 +288,94 @@ impl ZenohSettings {
         })
     }
 
+    /// Where a session with these settings looks for others, for messages: `at
+    /// tcp/127.0.0.1:7448`, `on listen [...]`.
+    pub fn reach(&self) -> String {
+        match (&self.connect[..], &self.listen[..], &self.config_file) {
+            ([], [], Some(f)) => format!("with zenoh config {}", f.display()),
+            ([], [], None) => "anywhere (no endpoint given)".into(),
+            ([], listen, _) => format!("on listen {}", listen.join(", ")),
+            (connect, _, _) => format!("at {}", connect.join(", ")),
+        }
+    }
+}
+
+/// A zenoh error as text, without the ` at <path>.rs:<line>` zenoh appends (the source path
+/// of the machine that built it means nothing to a user).
+pub fn error_text(e: &dyn std::fmt::Display) -> String {
+    let text = e.to_string();
+    let mut out = String::with_capacity(text.len());
+    let mut rest = text.as_str();
+    while let Some(i) = rest.find(" at ") {
+        let after = &rest[i + 4..];
+        match source_location_len(after) {
+            Some(n) => {
+                out.push_str(&rest[..i]);
+                rest = &after[n..];
+            }
+            None => {
+                out.push_str(&rest[..i + 4]);
+                rest = after;
+            }
+        }
+    }
+    out.push_str(rest);
+    out
+}
+
+/// The length of a `<path>.rs:<line>` (and the full stop after it) at the start of `s`.
+fn source_location_len(s: &str) -> Option<usize> {
+    let word = &s[..s.find(char::is_whitespace).unwrap_or(s.len())];
+    let rs = word.find(".rs:")?;
+    let digits = word[rs + 4..]
+        .bytes()
+        .take_while(u8::is_ascii_digit)
+        .count();
+    if digits == 0 {
+        return None;
+    }
+    let end = rs + 4 + digits;
+    Some(if word[end..].starts_with('.') {
+        end + 1
+    } else {
+        end
+    })
+}
+
+/// The port of an endpoint whose address is `host:port` (`tcp/`, `tls/`, `udp/`, `quic/`),
+/// checked to be a port; None for other kinds (unix sockets). Errors say how to write it.
+fn endpoint_port(e: &str) -> Result<Option<u16>> {
+    let ep = e.parse::<zenoh::config::EndPoint>().map_err(|err| {
+        anyhow!(
+            "zenoh endpoint {e:?} is not valid ({}); write it like tcp/127.0.0.1:7448",
+            error_text(&err)
+        )
+    })?;
+    if !matches!(ep.protocol().as_str(), "tcp" | "tls" | "udp" | "quic") {
+        return Ok(None);
+    }
+    let address = ep.address();
+    let Some((_, port)) = address.as_str().rsplit_once(':') else {
+        bail!("zenoh endpoint {e:?} has no port; write it like tcp/127.0.0.1:7448");
+    };
+    match port.parse::<u16>() {
+        Ok(p) => Ok(Some(p)),
+        Err(_) => bail!(
+            "zenoh endpoint {e:?}: port {port:?} is not a port number (0 to 65535); write it like tcp/127.0.0.1:7448"
+        ),
+    }
+}
+
+/// The socket address of a `tcp/` or `tls/` endpoint with a numeric address.
+fn socket_addr(e: &str) -> Option<std::net::SocketAddr> {
+    let ep = e.parse::<zenoh::config::EndPoint>().ok()?;
+    if !matches!(ep.protocol().as_str(), "tcp" | "tls") {
+        return None;
+    }
+    ep.address().as_str().parse().ok()
+}
+
+impl ZenohSettings {
     /// `<prefix>/<rig>/<asset>/<point>`.
     pub fn base_key(&self, rig: &str, asset: &str, point: &str) -> String {
         format!("{}/{rig}/{asset}/{point}", self.key_prefix)
@@ -242,6 +390,55 @@ pub struct PublishStats {
     pub status: u64,
     pub errors: u64,
     pub queries_answered: u64,
+    /// Other daemons that appeared publishing under this daemon's base key (the same machine
+    /// id, asset and point) since it started.
+    #[serde(default)]
+    pub duplicates: u64,
+}
+
+/// How long a daemon with `connect` endpoints waits for one of them before it looks for
+/// another daemon under its base key (it starts anyway when none answers).
+const CONNECT_GRACE: Duration = Duration::from_secs(2);
+
+/// How long the look for another daemon's liveliness token waits for replies.
+const LIVELINESS_QUERY: Duration = Duration::from_secs(1);
+
+/// The zenoh peers and routers a session is connected to.
+fn connected_nodes(session: &zenoh::Session) -> usize {
+    let info = session.info();
+    info.peers_zid().wait().count() + info.routers_zid().wait().count()
+}
+
+/// Wait up to `timeout` until the session is connected to some peer or router.
+fn wait_connected(session: &zenoh::Session, timeout: Duration) -> bool {
+    let deadline = Instant::now() + timeout;
+    loop {
+        if connected_nodes(session) > 0 {
+            return true;
+        }
+        if Instant::now() >= deadline {
+            return false;
+        }
+        std::thread::sleep(Duration::from_millis(20));
+    }
+}
+
+/// Liveliness tokens under `<base>/alive` (of any daemon, this rigmon's form `<base>/alive/<zid>`
+/// and the older `<base>/alive`).
+fn alive_tokens(session: &zenoh::Session, base: &str) -> Result<Vec<String>> {
+    let replies = session
+        .liveliness()
+        .get(format!("{base}/alive/**"))
+        .timeout(LIVELINESS_QUERY)
+        .wait()
+        .map_err(|e| anyhow!("zenoh liveliness query {base}/alive/**: {}", error_text(&e)))?;
+    let mut keys = Vec::new();
+    while let Ok(r) = replies.recv() {
+        if let Ok(s) = r.result() {
+            keys.push(s.key_expr().to_string());
+        }
+    }
+    Ok(keys)
 }
 
 /// The daemon's Zenoh face: three publishers, a liveliness token and two queryables
@@ -255,21 +452,44 @@ pub struct ZenohPublisher {
     latest_health: Arc<Mutex<Option<Vec<u8>>>>,
     running_config: Arc<Mutex<Vec<u8>>>,
     queries: Arc<std::sync::atomic::AtomicU64>,
+    duplicates: Arc<std::sync::atomic::AtomicU64>,
     stats: PublishStats,
+    recent: Option<super::recent::RecentHistory>,
     _token: zenoh::liveliness::LivelinessToken,
+    _watch: zenoh::pubsub::Subscriber<()>,
     _queryables: Vec<zenoh::query::Queryable<()>>,
 }
 
 impl ZenohPublisher {
     /// Open the session and declare everything under `base` (see [`ZenohSettings::base_key`]).
-    /// `config_json` is what the `config` queryable answers.
+    /// `config_json` is what the `config` queryable answers. Refused when another daemon
+    /// already publishes under `base`.
     pub fn open(settings: &ZenohSettings, base: &str, config_json: Vec<u8>) -> Result<Self> {
         let session = settings.open()?;
-        Self::declare(session, base, config_json)
+        if !settings.connect.is_empty() || settings.config_file.is_some() {
+            // Connections open in the background: give them a moment, so that the look for
+            // another daemon below sees the network (start anyway when nothing answers).
+            wait_connected(&session, CONNECT_GRACE);
+        }
+        if let Some(other) = alive_tokens(&session, base)?.into_iter().next() {
+            let _ = session.close().wait();
+            bail!(
+                "another rigmon already publishes as {base} (its liveliness token {other} is alive, reachable {}); two daemons with one machine id would interleave their health on one key. Give this one its own [machine] id, asset or point in its rig file, or stop the other",
+                settings.reach()
+            );
+        }
+        let mut publisher = Self::declare(session, base, config_json)?;
+        publisher.recent = super::recent::RecentHistory::declare(
+            &publisher.session,
+            base,
+            settings.history_windows,
+            publisher.queries.clone(),
+        )?;
+        Ok(publisher)
     }
 
     fn declare(session: zenoh::Session, base: &str, config_json: Vec<u8>) -> Result<Self> {
-        let z = |e: zenoh::Error| anyhow!("zenoh: {e}");
+        let z = |e: zenoh::Error| anyhow!("zenoh: {}", error_text(&e));
         let publisher = |suffix: &str, cc: CongestionControl| {
             session
                 .declare_publisher(format!("{base}/{suffix}"))
@@ -282,11 +502,23 @@ impl ZenohPublisher {
         let health = publisher("health", CongestionControl::Block)?;
         let spectrum = publisher("spectrum", CongestionControl::Drop)?;
         let status = publisher("status", CongestionControl::Block)?;
+        let own = format!("{base}/alive/{}", session.zid());
         let token = session
             .liveliness()
-            .declare_token(format!("{base}/alive"))
+            .declare_token(own.clone())
             .wait()
             .map_err(z)?;
+        let duplicates = Arc::new(std::sync::atomic::AtomicU64::new(0));
+        let watch = session
+            .liveliness()
+            .declare_subscriber(format!("{base}/alive/**"))
+            .callback({
+                let (duplicates, base) = (duplicates.clone(), base.to_string());
+                move |sample| announce_other(&sample, &own, &base, &duplicates)
+            })
+            .wait()
+            .map_err(z)
+            .with_context(|| format!("watching {base}/alive/**"))?;
 
         let latest_health: Arc<Mutex<Option<Vec<u8>>>> = Arc::default();
         let running_config = Arc::new(Mutex::new(config_json));
@@ -303,6 +535,14 @@ impl ZenohPublisher {
             let q = session
                 .declare_queryable(key.clone())
                 .callback(move |query| {
+                    // `_time=[..]` asks for history: historians answer that, not the daemon.
+                    if query
+                        .parameters()
+                        .get(super::time_range::PARAMETER)
+                        .is_some()
+                    {
+                        return;
+                    }
                     let payload = match &store {
                         Store::Health(m) => m.lock().ok().and_then(|g| g.clone()),
                         Store::Config(m) => m.lock().ok().map(|g| g.clone()),
@@ -328,8 +568,11 @@ impl ZenohPublisher {
             latest_health,
             running_config,
             queries,
+            duplicates,
             stats: PublishStats::default(),
+            recent: None,
             _token: token,
+            _watch: watch,
             _queryables: queryables,
         })
     }
@@ -347,6 +590,9 @@ impl ZenohPublisher {
         match self.health.put(json.clone()).wait() {
             Ok(()) => self.stats.health += 1,
             Err(e) => self.error("health", e),
+        }
+        if let Some(r) = &self.recent {
+            r.push(&json);
         }
         if let Ok(mut g) = self.latest_health.lock() {
             *g = Some(json);
@@ -378,16 +624,19 @@ impl ZenohPublisher {
         self.stats.errors += 1;
         if self.stats.errors <= 3 || self.stats.errors.is_power_of_two() {
             tracing::warn!(
-                "zenoh put on {}/{what} failed ({} errors so far): {e}",
+                "zenoh put on {}/{what} failed ({} errors so far): {}",
                 self.base,
-                self.stats.errors
+                self.stats.errors,
+                error_text(&e)
             );
         }
     }
 
     pub fn stats(&self) -> PublishStats {
+        use std::sync::atomic::Ordering::Relaxed;
         PublishStats {
-            queries_answered: self.queries.load(std::sync::atomic::Ordering::Relaxed),
+            queries_answered: self.queries.load(Relaxed),
+            duplicates: self.duplicates.load(Relaxed),
             ..self.stats
         }
     }
@@ -422,12 +671,38 @@ impl ZenohPublisher {
             spectrum,
             status,
             _token,
+            _watch,
             _queryables,
             ..
         } = self;
-        drop((health, spectrum, status, _token, _queryables));
+        drop((health, spectrum, status, _token, _watch, _queryables));
         if let Err(e) = session.close().wait() {
             tracing::debug!("zenoh close: {e}");
+        }
+    }
+}
+
+/// A liveliness change under this daemon's base key: another daemon's token appearing is
+/// announced (an error in the log, counted), its going away noted.
+fn announce_other(
+    sample: &zenoh::sample::Sample,
+    own: &str,
+    base: &str,
+    duplicates: &std::sync::atomic::AtomicU64,
+) {
+    let key = sample.key_expr().as_str();
+    if key == own {
+        return;
+    }
+    match sample.kind() {
+        zenoh::sample::SampleKind::Put => {
+            duplicates.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+            tracing::error!(
+                "another rigmon now publishes as {base} too (liveliness token {key}); its health interleaves with this one's on the same keys. Give one of them its own [machine] id, asset or point"
+            );
+        }
+        zenoh::sample::SampleKind::Delete => {
+            tracing::info!("the other rigmon publishing as {base} ({key}) is gone");
         }
     }
 }
@@ -450,7 +725,7 @@ impl ZenohSubscriber {
         let subscriber = session
             .declare_subscriber(key_expr.to_string())
             .wait()
-            .map_err(|e| anyhow!("cannot subscribe to {key_expr:?}: {e}"))?;
+            .map_err(|e| anyhow!("cannot subscribe to {key_expr:?}: {}", error_text(&e)))?;
         Ok(ZenohSubscriber {
             session,
             subscriber,
@@ -465,18 +740,30 @@ impl ZenohSubscriber {
                 s.payload().to_bytes().into_owned(),
             ))),
             Ok(None) => Ok(None),
-            Err(e) => Err(anyhow!("zenoh subscriber closed: {e}")),
+            Err(e) => Err(anyhow!("zenoh subscriber closed: {}", error_text(&e))),
         }
     }
 
-    /// Ask the queryables under `selector` (e.g. `rigmon/**/health`) and collect the replies.
+    /// The zenoh peers and routers the session is connected to now.
+    pub fn connected(&self) -> usize {
+        connected_nodes(&self.session)
+    }
+
+    /// Wait up to `timeout` until the session is connected to some peer or router.
+    pub fn wait_connected(&self, timeout: Duration) -> bool {
+        wait_connected(&self.session, timeout)
+    }
+
+    /// Ask the queryables under `selector` (e.g. `rigmon/**/health`) and collect every reply:
+    /// no consolidation, so two daemons answering for one key both show.
     pub fn get(&self, selector: &str, timeout: Duration) -> Result<Vec<(String, Vec<u8>)>> {
         let replies = self
             .session
             .get(selector.to_string())
+            .consolidation(zenoh::query::ConsolidationMode::None)
             .timeout(timeout)
             .wait()
-            .map_err(|e| anyhow!("zenoh get {selector:?}: {e}"))?;
+            .map_err(|e| anyhow!("zenoh get {selector:?}: {}", error_text(&e)))?;
         let mut out = Vec::new();
         while let Ok(r) = replies.recv() {
             if let Ok(s) = r.result() {
@@ -532,6 +819,59 @@ mod tests {
             .unwrap_err()
             .to_string()
             .contains("needs at least one"));
+    }
+
+    /// Issue 25, findings 9 and 12: ports are checked before a session opens, and zenoh's
+    /// errors reach the user without the source paths of the machine that built zenoh.
+    /// Before, `tcp/127.0.0.1:99999` passed the checks and the session's error ended `at
+    /// /root/.cargo/registry/src/.../zenoh-link-commons-1.10.2/src/lib.rs:62.`
+    #[test]
+    fn ports_are_checked_and_zenoh_errors_carry_no_source_paths() {
+        let bad = |ep: &str| ZenohSettings {
+            listen: vec![ep.into()],
+            ..Default::default()
+        };
+        let e = bad("tcp/127.0.0.1:99999")
+            .validate()
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("99999") && e.contains("not a port number"),
+            "{e}"
+        );
+        let e = ZenohSettings {
+            connect: vec!["tcp/127.0.0.1:0".into()],
+            ..Default::default()
+        }
+        .validate()
+        .unwrap_err()
+        .to_string();
+        assert!(e.contains("port 0"), "{e}");
+        bad("tcp/127.0.0.1:0").validate().unwrap();
+        // A listen port in use is named before a session would fail on it.
+        let held = std::net::TcpListener::bind("127.0.0.1:0").unwrap();
+        let port = held.local_addr().unwrap().port();
+        let e = bad(&format!("tcp/127.0.0.1:{port}"))
+            .check_listen_ports()
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains(&port.to_string()) && e.contains("already listens"),
+            "{e}"
+        );
+        // A real zenoh error (192.0.2.1 is a documentation address, not this machine's).
+        let e = bad("tcp/192.0.2.1:17448")
+            .open()
+            .err()
+            .expect("cannot listen there");
+        let text = format!("{e:#}");
+        assert!(text.contains("192.0.2.1"), "{text}");
+        assert!(!text.contains(".rs:") && !text.contains(".cargo"), "{text}");
+        assert_eq!(
+            error_text(&"invalid port value at /root/.cargo/registry/src/i/zenoh-link-commons-1.10.2/src/lib.rs:62."),
+            "invalid port value"
+        );
+        assert_eq!(error_text(&"look at me"), "look at me");
     }
 
     #[test]

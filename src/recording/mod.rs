@@ -51,6 +51,14 @@ pub struct Provenance {
     pub notes: Vec<String>,
 }
 
+/// A nominal shaft speed declared for a recording, and where it was declared.
+#[derive(Debug, Clone, PartialEq)]
+pub struct NominalSpeed {
+    pub rpm: f64,
+    /// "labels.csv line 4, column rpm".
+    pub declared_at: String,
+}
+
 /// A recording held in memory.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Recording {
@@ -64,6 +72,9 @@ pub struct Recording {
     pub tacho: Option<Tacho>,
     /// A stored nominal speed (e.g. CWRU's `X<nnn>RPM`).
     pub rpm: Option<f64>,
+    /// A nominal speed declared beside the file (a manifest's `rpm` column): a hint for the
+    /// speed stage to check against the vibration, never used unchecked.
+    pub nominal_rpm: Option<NominalSpeed>,
     pub provenance: Provenance,
     /// Free key/value metadata: labels (`label`, `fault`, `seed`...), rig id, config text.
     pub metadata: BTreeMap<String, String>,

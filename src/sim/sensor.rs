@@ -234,6 +234,7 @@ pub fn finish(
         channels,
         tacho,
         rpm: Some(mean_rpm),
+        nominal_rpm: None,
         provenance: Provenance {
             source_path: String::new(),
             format: "simulated".into(),

@@ -188,6 +188,8 @@ pub fn fit(
         trained_mean: Vec::new(),
         alignment: String::new(),
         lowpass_hz: Some(rig.features.lowpass_hz),
+        window_s: Some(rig.features.window_s),
+        bearing_orders: Some(crate::model::identity::bearing_orders(rig)),
     };
     let mut model = TrainedModel {
         pre: t.pre,

@@ -1,27 +1,165 @@
-//! Scoring labelled recordings of a manifest whole-record: an ONNX model file run through
-//! tract (as the daemon runs it) on the recordings' feature windows, and the rule baseline
-//! ([`crate::model::rule`]) on the same recordings, so both go through the same
+//! Scoring labelled recordings of a manifest whole-record, with what the daemon would say.
+//! Each recording is cut into the daemon's windows by the analysis stage
+//! ([`crate::analysis::analyse_recording`]: real window times, quality flags, the fault-band
+//! ratios, no window dropped), then an ONNX model file runs through tract (as the daemon runs
+//! it) and every window through the daemon's own verdict and health state machine
+//! ([`HealthStateMachine::observe`], default `[health]`); the rule baseline
+//! ([`crate::model::rule`]) judges the same windows. Both go through the same
 //! [`crate::evaluate::score`]. `rigmon evaluate` and `rigmon adapt` share this.
+//!
+//! Every record is scored whatever its label: a class the model lacks (a ball record for a
+//! three-class model) is its own row of the confusion matrix, so a ball fault the model calls
+//! healthy is a missed alarm. A window whose quality forbids a verdict votes for nothing (the
+//! daemon calls it `unknown`).
 
-use super::dataset::RecordingFeatures;
 use crate::config::RigConfig;
-use crate::evaluate::{daemon_outcome, RecordOutcome, WindowEvidence};
-use crate::health::HealthPolicy;
+use crate::dsp::fault_band_ratios::FaultBandRatios;
+use crate::evaluate::{DaemonOutcome, RecordOutcome};
+use crate::health::verdict::quality_problem;
+use crate::health::{Basis, HealthPolicy, HealthStateMachine, WindowInput};
 use crate::importers;
 use crate::manifest::ManifestEntry;
-use crate::model::rule::{class_map, EnvelopeRule};
-use crate::model::OnnxClassifier;
+use crate::model::evidence::{BaselineSpread, FamilyBins};
+use crate::model::rule::{EnvelopeRule, RULE_LABELS};
+use crate::model::{OnnxClassifier, ALL_LABELS};
 use anyhow::{bail, Context, Result};
 use rayon::prelude::*;
 
-/// Per-window outcomes of a model on featurised recordings, plus what was left out.
+/// One window of a labelled recording, as the analysis stage gives it.
+#[derive(Debug, Clone)]
+pub struct ScoredWindow {
+    /// Window start and end, s since the recording's first sample.
+    pub t_start: f64,
+    pub t_end: f64,
+    /// Mean shaft speed (NaN without features).
+    pub rpm: f64,
+    /// The classifier channel's features (empty without features).
+    pub features: Vec<f32>,
+    /// Why the daemon would call the window `unknown` for its data quality (None: it would
+    /// not); [`quality_problem`].
+    pub quality: Option<&'static str>,
+    /// The classifier channel's band ratios at the fault orders (what the rule judges).
+    pub fault_bands: Option<FaultBandRatios>,
+}
+
+/// A labelled recording cut into the daemon's windows.
+#[derive(Debug, Clone)]
+pub struct ScoredRecording {
+    /// As the manifest names it (with its span, if any).
+    pub path_text: String,
+    pub label: String,
+    /// SHA-256 of the file's bytes.
+    pub sha256: String,
+    pub windows: Vec<ScoredWindow>,
+}
+
+impl ScoredRecording {
+    /// Mean rpm over the windows that have one.
+    pub fn rpm(&self) -> f64 {
+        let v: Vec<f64> = self
+            .windows
+            .iter()
+            .map(|w| w.rpm)
+            .filter(|r| r.is_finite())
+            .collect();
+        v.iter().sum::<f64>() / v.len().max(1) as f64
+    }
+}
+
+/// Load one manifest row and cut it into the daemon's windows (those inside its span).
+pub fn analyse_entry(entry: &ManifestEntry, rig: &RigConfig) -> Result<ScoredRecording> {
+    let at = || format!("manifest line {}: {}", entry.line, entry.path.display());
+    let bytes = std::fs::read(&entry.path).with_context(|| format!("{}: cannot read", at()))?;
+    let sha256 = crate::model::digest::sha256_hex(&bytes);
+    drop(bytes);
+    let rec = importers::load(&entry.path, rig, &entry.import_options())
+        .with_context(|| format!("{}: loading", at()))?;
+    let classifier = rig
+        .classifier_channel()
+        .context("the rig file names no classifier channel (features.classifier_axis)")?
+        .name
+        .clone();
+    let all = crate::analysis::analyse_recording(&rec, rig).with_context(at)?;
+    let n_all = all.len();
+    let windows: Vec<ScoredWindow> = all
+        .into_iter()
+        .filter(|a| entry.keeps_window(a.t_start, a.t_end))
+        .map(|a| {
+            let quality = quality_problem(&a, &classifier);
+            let (rpm, features) = match &a.features {
+                Ok(fw) => (fw.rpm, fw.classifier_features(rig).to_vec()),
+                Err(_) => (f64::NAN, Vec::new()),
+            };
+            ScoredWindow {
+                t_start: a.t_start,
+                t_end: a.t_end,
+                rpm,
+                features,
+                quality,
+                fault_bands: a.fault_bands,
+            }
+        })
+        .collect();
+    if windows.is_empty() {
+        bail!(
+            "{}: no whole feature window within the row's span ({:?}; {n_all} windows of {} s in the recording): widen the span or use a longer recording",
+            at(),
+            entry.span,
+            rig.features.window_s
+        );
+    }
+    Ok(ScoredRecording {
+        path_text: entry.display_name(),
+        label: entry.label.clone(),
+        sha256,
+        windows,
+    })
+}
+
+/// [`analyse_entry`] on every row, in parallel, keeping manifest order; `progress` is ticked
+/// per file.
+pub fn analyse_all(
+    entries: &[ManifestEntry],
+    rig: &RigConfig,
+    progress: &indicatif::ProgressBar,
+) -> Result<Vec<ScoredRecording>> {
+    entries
+        .par_iter()
+        .map(|e| {
+            let r = analyse_entry(e, rig);
+            progress.inc(1);
+            r
+        })
+        .collect()
+}
+
+/// Per-window outcomes of a model on labelled recordings.
 #[derive(Debug, Clone, Default)]
 pub struct ModelOutcomes {
+    /// The scored classes: the model's, then those only the records or the verdicts name
+    /// (e.g. `ball` for a three-class model). Outcome class indices point into this list.
+    pub labels: Vec<String>,
     pub outcomes: Vec<RecordOutcome>,
     /// Recordings the model was fine-tuned on (by content hash): never scored.
     pub excluded: Vec<String>,
-    /// Recordings whose label is not among the model's classes.
-    pub skipped: Vec<String>,
+}
+
+impl ModelOutcomes {
+    /// The recordings that were scored (not excluded), in order.
+    pub fn scored<'a>(&self, recs: &'a [ScoredRecording]) -> Vec<&'a ScoredRecording> {
+        recs.iter()
+            .filter(|r| !self.excluded.contains(&r.path_text))
+            .collect()
+    }
+
+    /// Record labels that are not among the model's classes (scored as their own rows).
+    pub fn labels_not_in_model(&self, model: &[String]) -> Vec<String> {
+        self.labels
+            .iter()
+            .filter(|l| !model.contains(l))
+            .cloned()
+            .collect()
+    }
 }
 
 /// Hashes of the recordings a model was fine-tuned on (from its metadata).
@@ -33,113 +171,182 @@ pub fn finetune_hashes(meta: &crate::model::ModelMeta) -> Vec<String> {
         .unwrap_or_default()
 }
 
-/// Run the model on every window of every recording it may be scored on, and the windows
-/// through the daemon's health state machine (default `[health]`, windows of `rig`).
+/// `first`, then every label of `more` not in it: [`ALL_LABELS`] in their order, others
+/// sorted.
+pub fn scored_labels<'a>(first: &[String], more: impl IntoIterator<Item = &'a str>) -> Vec<String> {
+    let mut extra: Vec<&str> = more
+        .into_iter()
+        .filter(|l| !first.iter().any(|f| f == l))
+        .collect();
+    extra.sort_by_key(|l| (ALL_LABELS.iter().position(|a| a == l).unwrap_or(99), *l));
+    extra.dedup();
+    let mut out = first.to_vec();
+    out.extend(extra.into_iter().map(str::to_string));
+    out
+}
+
+/// One record's windows through the model and the daemon's verdict and state machine.
+struct RecordRun {
+    /// The decided class of each window that has one (its name).
+    classes: Vec<String>,
+    /// Whether that window's state is `unknown` (novel or doubtful and not clearly a fault).
+    unknown: Vec<bool>,
+    daemon: DaemonOutcome,
+}
+
+fn run_record(
+    clf: &OnnxClassifier,
+    r: &ScoredRecording,
+    bins: &FamilyBins,
+    spread: Option<BaselineSpread>,
+    policy: &HealthPolicy,
+) -> Result<RecordRun> {
+    let meta = clf.meta();
+    let mut sm = HealthStateMachine::new(policy.clone(), &meta.labels)?;
+    sm.set_hop_fraction(bins.hop_fraction());
+    let mut run = RecordRun {
+        classes: Vec::new(),
+        unknown: Vec::new(),
+        daemon: DaemonOutcome::default(),
+    };
+    for w in &r.windows {
+        let p =
+            match w.quality {
+                None => Some(clf.predict(&w.features).with_context(|| {
+                    format!("{}: window at t = {:.3} s", r.path_text, w.t_start)
+                })?),
+                Some(_) => None,
+            };
+        let evidence = p.as_ref().and_then(|p| {
+            let dev = p.baseline_deviation.as_deref()?;
+            Some(bins.evidence(dev, spread?, w.rpm))
+        });
+        let s = sm.observe(
+            w.t_end,
+            &WindowInput {
+                labels: &meta.labels,
+                probs: p.as_ref().map_or(&[][..], |p| &p.probs),
+                novelty: p.as_ref().map_or(f32::NAN, |p| p.novelty),
+                model_novelty_threshold: meta.novelty_threshold,
+                quality: w.quality,
+                beyond_baseline: p.as_ref().and_then(|p| p.beyond_baseline),
+                evidence,
+            },
+        );
+        let d = &mut run.daemon;
+        match &s.window.class {
+            Some(c) => {
+                run.classes.push(c.clone());
+                run.unknown.push(s.window.unknown_reason.is_some());
+                d.unknown_windows += usize::from(s.window.unknown_reason.is_some());
+            }
+            None => d.bad_quality_windows += 1,
+        }
+        d.alarm_despite_windows += usize::from(s.window.alarm_despite.is_some());
+        d.evidence_windows += usize::from(s.window.basis == Basis::Evidence);
+        d.window_states.push(s.window_state);
+        d.state = s.state;
+    }
+    Ok(run)
+}
+
+/// Run the model on every window of every recording it may be scored on, each window through
+/// the daemon's verdict and health state machine (default `[health]`).
 pub fn model_outcomes(
     clf: &OnnxClassifier,
-    recs: &[RecordingFeatures],
+    recs: &[ScoredRecording],
     rig: &RigConfig,
+) -> Result<ModelOutcomes> {
+    model_outcomes_with(clf, recs, rig, &HealthPolicy::default())
+}
+
+/// [`model_outcomes`] under a given `[health]` policy.
+pub fn model_outcomes_with(
+    clf: &OnnxClassifier,
+    recs: &[ScoredRecording],
+    rig: &RigConfig,
+    policy: &HealthPolicy,
 ) -> Result<ModelOutcomes> {
     let meta = clf.meta();
     let used = finetune_hashes(meta);
-    let mut out = ModelOutcomes::default();
+    let (bins, spread) = (FamilyBins::for_rig(rig), BaselineSpread::of(meta));
+    let mut excluded = Vec::new();
+    let mut runs = Vec::new();
     for r in recs {
         if used.contains(&r.sha256) {
-            out.excluded.push(r.path_text.clone());
+            excluded.push(r.path_text.clone());
             continue;
         }
-        let Some(label) = meta.labels.iter().position(|l| l == &r.label) else {
-            out.skipped.push(r.path_text.clone());
-            continue;
-        };
-        let (mut predicted, mut unknown, mut evidence) = (Vec::new(), Vec::new(), Vec::new());
-        for row in r.windows.rows() {
-            let p = clf.predict(&row.to_vec())?;
-            predicted.push(p.class);
-            unknown.push(p.unknown);
-            evidence.push(WindowEvidence {
-                probs: p.probs,
-                novelty: p.novelty,
-                beyond_baseline: p.beyond_baseline,
-            });
-        }
-        let daemon = daemon_outcome(
-            &meta.labels,
-            &evidence,
-            meta.novelty_threshold,
-            rig.features.window_s,
-            rig.features.hop_s,
-            &HealthPolicy::default(),
-        )?;
-        out.outcomes.push(RecordOutcome {
+        runs.push((r, run_record(clf, r, &bins, spread, policy)?));
+    }
+    let labels = scored_labels(
+        &meta.labels,
+        runs.iter().flat_map(|(r, run)| {
+            std::iter::once(r.label.as_str()).chain(run.classes.iter().map(String::as_str))
+        }),
+    );
+    let index = |l: &str| labels.iter().position(|x| x == l).expect("listed above");
+    let outcomes = runs
+        .into_iter()
+        .map(|(r, run)| RecordOutcome {
             path: r.path_text.clone(),
-            label,
-            predicted,
-            unknown,
-            rpm: r.rpm,
-            daemon: Some(daemon),
-        });
-    }
-    Ok(out)
-}
-
-/// The scored classes of the rule alone: healthy, outer and inner race, and `ball` when a
-/// manifest holds ball records (the rule never names it; such a record counts as an alarm).
-pub fn rule_labels(entries: &[ManifestEntry]) -> Vec<String> {
-    let mut l: Vec<String> = crate::model::rule::RULE_LABELS
-        .iter()
-        .map(|s| s.to_string())
+            label: index(&r.label),
+            predicted: run.classes.iter().map(|c| index(c)).collect(),
+            unknown: run.unknown,
+            rpm: r.rpm(),
+            daemon: Some(run.daemon),
+        })
         .collect();
-    if entries.iter().any(|e| e.label == "ball") {
-        l.push("ball".into());
-    }
-    l
+    Ok(ModelOutcomes {
+        labels,
+        outcomes,
+        excluded,
+    })
 }
 
-/// The rule on every window of the entries whose label is in `labels` (in parallel, manifest
-/// order kept); class indices are into `labels`. `progress` is ticked per file.
+/// The scored classes of the rule: `first` (e.g. a model's scored classes), then healthy,
+/// outer and inner race, then every record's label (a ball record is its own row: the rule
+/// never names it, so it can only be an alarm or a miss).
+pub fn rule_labels(first: &[String], recs: &[&ScoredRecording]) -> Vec<String> {
+    scored_labels(
+        first,
+        RULE_LABELS
+            .iter()
+            .copied()
+            .chain(recs.iter().map(|r| r.label.as_str())),
+    )
+}
+
+/// The rule on the analysis stage's windows of `recs` (windows whose quality forbids a
+/// verdict are not judged, as the daemon judges none); class indices are into `labels`,
+/// which must hold the rule's classes and every record's label ([`rule_labels`]).
 pub fn rule_outcomes(
     rule: &EnvelopeRule,
-    entries: &[ManifestEntry],
-    rig: &RigConfig,
+    recs: &[&ScoredRecording],
     labels: &[String],
-    progress: &indicatif::ProgressBar,
 ) -> Result<Vec<RecordOutcome>> {
-    let map = class_map(labels)?;
-    let scored: Vec<&ManifestEntry> = entries
-        .iter()
-        .filter(|e| labels.contains(&e.label))
-        .collect();
-    scored
-        .par_iter()
-        .map(|e| {
-            let rec = importers::load(&e.path, rig, &e.import_options()).with_context(|| {
-                format!("manifest line {}: loading {}", e.line, e.path.display())
+    let map = crate::model::rule::class_map(labels)?;
+    recs.iter()
+        .map(|r| {
+            let label = labels.iter().position(|l| l == &r.label).with_context(|| {
+                format!(
+                    "{}: label {:?} is not among the scored classes {labels:?}",
+                    r.path_text, r.label
+                )
             })?;
-            let window_s = rig.features.window_s;
-            let v: Vec<_> = rule
-                .judge_recording(&rec, rig)?
-                .into_iter()
-                .filter(|w| e.keeps_window(w.t_start, w.t_start + window_s))
+            let predicted: Vec<usize> = r
+                .windows
+                .iter()
+                .filter(|w| w.quality.is_none())
+                .filter_map(|w| w.fault_bands.as_ref())
+                .map(|b| map[rule.judge_bands(b).class])
                 .collect();
-            if v.is_empty() {
-                bail!(
-                    "{}: no whole window within the manifest row's span (line {})",
-                    e.path.display(),
-                    e.line
-                );
-            }
-            progress.inc(1);
-            let n = v.len().max(1) as f64;
             Ok(RecordOutcome {
-                path: e.display_name(),
-                label: labels
-                    .iter()
-                    .position(|l| l == &e.label)
-                    .expect("filtered on the labels"),
-                predicted: v.iter().map(|w| map[w.class]).collect(),
-                unknown: vec![false; v.len()],
-                rpm: v.iter().map(|w| w.rpm).sum::<f64>() / n,
+                path: r.path_text.clone(),
+                label,
+                unknown: vec![false; predicted.len()],
+                predicted,
+                rpm: r.rpm(),
                 daemon: None,
             })
         })

@@ -6,7 +6,8 @@ usage: check_onnx.py MODEL.onnx [CASES.json]
 - onnx.checker.check_model(full_check=True) must pass (schema + shape inference);
 - IR version 8, default-domain opset >= 13;
 - input `features` [N, n_features]; outputs `probabilities` and `novelty` (and
-  `baseline_distance` for a model aligned to a machine's healthy baseline);
+  `baseline_distance` for a model aligned to a machine's healthy baseline, and
+  `baseline_deviation` for one aligned since the fault-family evidence exists);
 - metadata_props carry the rigmon keys;
 - with CASES.json ({"inputs": [[...]], "probabilities": [[...]], "novelty": [...]}) the
   onnxruntime outputs must equal the expected ones within 1e-5 (novelty: relative to
@@ -54,6 +55,9 @@ def main():
         fail(f"inputs {[(i.name, i.shape) for i in ins]}")
     aligned = "alignment" in meta
     want_outs = ["probabilities", "novelty"] + (["baseline_distance"] if aligned else [])
+    # models aligned since the fault-family evidence exists add each bin's deviation
+    if aligned and outs == want_outs + ["baseline_deviation"]:
+        want_outs = outs
     if outs != want_outs:
         fail(f"outputs {outs}, expected {want_outs}")
     custom = sess.get_modelmeta().custom_metadata_map
@@ -83,6 +87,15 @@ def main():
             report["max_baseline_rel_diff"] = dd
             if dd > 1e-5:
                 fail(f"onnxruntime baseline_distance differs from rigmon by {dd:.3e} (limit 1e-5)")
+        if "baseline_deviation" in cases:
+            if "baseline_deviation" not in want_outs:
+                fail("the cases give baseline_deviation but the model has no such output")
+            want_v = np.asarray(cases["baseline_deviation"], dtype=np.float32)
+            got_v = got[want_outs.index("baseline_deviation")]
+            dv = float(np.max(np.abs(got_v - want_v) / np.maximum(1.0, np.abs(want_v))))
+            report["max_deviation_rel_diff"] = dv
+            if got_v.shape != want_v.shape or dv > 1e-4:
+                fail(f"onnxruntime baseline_deviation differs from rigmon by {dv:.3e} (limit 1e-4)")
     print(json.dumps(report))
 
 

@@ -1,0 +1,373 @@
+//! One window's verdict: the single mapping from what a window says -- the classifier's
+//! probabilities and novelty, the machine's healthy baseline, the fault-family evidence and
+//! the data quality -- to the window's state under a `[health]` policy. The daemon
+//! (`daemon::analyze`) and every offline score (`train::score`, so `evaluate` and `adapt`)
+//! call [`judge`] through [`super::HealthStateMachine::observe`], so a score is what the
+//! daemon would say.
+//!
+//! In order:
+//! 1. **Quality.** A window whose classifier channel cannot be trusted ([`quality_problem`]:
+//!    lost or non-finite samples, clipping, a flat or dropped-out sensor, no speed, a lost
+//!    tacho, a speed the recipe cannot resolve, failed features or inference) is `unknown`
+//!    (`bad_quality`), whatever the classifier says.
+//! 2. **Evidence** (aligned models that output `baseline_deviation`; [`FamilyEvidence`],
+//!    accumulated over the last windows by the state machine): the classifier's fault class
+//!    is *confirmed* when its family's bins stand at least `evidence_z` standard deviations
+//!    above the machine's healthy level; a class the evidence does not support -- `healthy`
+//!    included -- is *overruled* by the family whose bins stand highest beyond `evidence_z`,
+//!    named even when the model lacks that class. When the window is novel or doubtful the
+//!    network is not trusted to choose among supported families: the strongest decides.
+//!    A confirmed or evidence-decided window is an alarm even when it is novel or doubtful
+//!    (flagged `alarm_despite`): the decision follows the spectrum, not the network's guess.
+//! 3. **Doubt** (no evidence either way): a novel window (novelty above the model's or the
+//!    policy's threshold) or one whose top probability is below `min_confidence` is
+//!    `unknown`, unless it is clearly a fault -- beyond the machine's healthy baseline, or a
+//!    fault class of at least `novel_alarm_confidence` -- which keeps its class as an alarm
+//!    flagged `alarm_despite`.
+
+use super::{HealthPolicy, UnknownReason, UNKNOWN};
+use crate::analysis::{WindowAnalysis, WindowError};
+use crate::model::evidence::FamilyEvidence;
+use serde::{Deserialize, Serialize};
+
+/// Why the classifier channel's window cannot be trusted, as the quality flag that says so
+/// (`nan`, `dropout`, `no_speed`, `features_failed`, `tacho_lost`, `clipping`, `flat`,
+/// `speed_out_of_range`); None when it can.
+pub fn quality_problem(a: &WindowAnalysis, classifier: &str) -> Option<&'static str> {
+    if a.classifier_nan {
+        return Some(if a.lost_samples > 0 { "dropout" } else { "nan" });
+    }
+    let fw = match &a.features {
+        Err(WindowError::NoSpeed(_)) => return Some("no_speed"),
+        Err(WindowError::Features(_)) => return Some("features_failed"),
+        Ok(fw) => fw,
+    };
+    if a.tacho_lost {
+        return Some("tacho_lost");
+    }
+    let q = &fw.quality;
+    let on_classifier = |list: &[String]| list.iter().any(|c| c == classifier);
+    for (flag, list) in [
+        ("clipping", &q.clipped),
+        ("flat", &q.flat),
+        ("dropout", &q.dropout),
+        ("nan", &q.non_finite),
+    ] {
+        if on_classifier(list) {
+            return Some(flag);
+        }
+    }
+    q.speed_out_of_range.then_some("speed_out_of_range")
+}
+
+/// What one window says, before the verdict.
+#[derive(Debug, Clone, PartialEq)]
+pub struct WindowInput<'a> {
+    /// Class labels (model order) and their probabilities (empty: the classifier did not run).
+    pub labels: &'a [String],
+    pub probs: &'a [f32],
+    /// Novelty score (NaN: none) and the model's threshold (the policy may override it).
+    pub novelty: f32,
+    pub model_novelty_threshold: f32,
+    /// Why the data forbids a verdict ([`quality_problem`], or `inference_failed`).
+    pub quality: Option<&'static str>,
+    /// The window stands beyond the machine's healthy baseline (None: not aligned).
+    pub beyond_baseline: Option<bool>,
+    /// Fault-family evidence against the machine's healthy baseline (None: not available).
+    pub evidence: Option<FamilyEvidence>,
+}
+
+/// What decided a window's class.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Basis {
+    /// The classifier's top class; the evidence neither confirms nor contradicts it (or there
+    /// is none).
+    #[default]
+    Model,
+    /// The classifier's fault class, its family's bins beyond the machine's healthy level.
+    Confirmed,
+    /// The fault family the evidence points at, overruling a class it does not support.
+    Evidence,
+}
+
+impl Basis {
+    /// The name used in JSON (`model`, `confirmed`, `evidence`).
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Basis::Model => "model",
+            Basis::Confirmed => "confirmed",
+            Basis::Evidence => "evidence",
+        }
+    }
+}
+
+/// The verdict on one window.
+#[derive(Debug, Clone, PartialEq)]
+pub struct WindowVerdict {
+    /// The decided class (None when the quality forbids one).
+    pub class: Option<String>,
+    /// Why the window is `unknown` (None when it has a class).
+    pub unknown_reason: Option<UnknownReason>,
+    /// The window keeps its class although it would be `unknown` for this reason.
+    pub alarm_despite: Option<UnknownReason>,
+    pub basis: Basis,
+    /// The classifier's class when the evidence overruled it.
+    pub overruled: Option<String>,
+}
+
+impl WindowVerdict {
+    /// The window's own state: its class, or `unknown`.
+    pub fn state(&self) -> &str {
+        match (&self.class, self.unknown_reason) {
+            (Some(c), None) => c,
+            _ => UNKNOWN,
+        }
+    }
+}
+
+/// The novelty threshold in force: the policy's override, else the model's.
+pub fn novelty_threshold(policy: &HealthPolicy, model_threshold: f32) -> f32 {
+    policy.novelty_threshold.unwrap_or(model_threshold)
+}
+
+/// The verdict on one window under `policy` (see the module doc for the order of the rules).
+pub fn judge(w: &WindowInput, policy: &HealthPolicy) -> WindowVerdict {
+    let (top, top_p) =
+        w.probs
+            .iter()
+            .copied()
+            .enumerate()
+            .fold((0usize, f32::NEG_INFINITY), |best, (i, p)| {
+                if p > best.1 {
+                    (i, p)
+                } else {
+                    best
+                }
+            });
+    let model_class = w.labels.get(top);
+    let (Some(model_class), None, true) = (model_class, w.quality, top_p.is_finite()) else {
+        return WindowVerdict {
+            class: None,
+            unknown_reason: Some(UnknownReason::BadQuality),
+            alarm_despite: None,
+            basis: Basis::Model,
+            overruled: None,
+        };
+    };
+    let threshold = novelty_threshold(policy, w.model_novelty_threshold);
+    let novel = w.novelty > threshold; // NaN: no novelty score, not novel
+    let doubt = if novel {
+        Some(UnknownReason::Novelty)
+    } else if top_p < policy.min_confidence {
+        Some(UnknownReason::LowConfidence)
+    } else {
+        None
+    };
+    let decided = |class: &str, basis, overruled| WindowVerdict {
+        class: Some(class.to_string()),
+        unknown_reason: None,
+        alarm_despite: doubt,
+        basis,
+        overruled,
+    };
+    if let Some(ev) = &w.evidence {
+        let z = policy.evidence_z;
+        let supported = ev.of(model_class).is_some_and(|v| v >= z);
+        // a doubtful (novel) network is not trusted to pick among supported families
+        let follow = match (doubt, supported) {
+            (None, true) => Some(model_class.as_str()),
+            _ => ev.strongest(z).map(|(family, _)| family),
+        };
+        if let Some(family) = follow {
+            return if family == model_class {
+                decided(model_class, Basis::Confirmed, None)
+            } else {
+                decided(family, Basis::Evidence, Some(model_class.clone()))
+            };
+        }
+    }
+    let Some(doubt) = doubt else {
+        return decided(model_class, Basis::Model, None);
+    };
+    // Beyond the healthy baseline the gate has already zeroed `healthy`: every class left is
+    // a fault, so the window is an alarm whatever the network's doubt.
+    let clearly_faulty = model_class != "healthy"
+        && (w.beyond_baseline == Some(true) || top_p >= policy.novel_alarm_confidence);
+    if clearly_faulty {
+        decided(model_class, Basis::Model, None)
+    } else {
+        WindowVerdict {
+            class: Some(model_class.clone()),
+            unknown_reason: Some(doubt),
+            alarm_despite: None,
+            basis: Basis::Model,
+            overruled: None,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn labels() -> Vec<String> {
+        ["healthy", "outer_race", "inner_race"]
+            .iter()
+            .map(|s| s.to_string())
+            .collect()
+    }
+
+    fn input<'a>(labels: &'a [String], probs: &'a [f32]) -> WindowInput<'a> {
+        WindowInput {
+            labels,
+            probs,
+            novelty: 1.0,
+            model_novelty_threshold: 10.0,
+            quality: None,
+            beyond_baseline: Some(false),
+            evidence: None,
+        }
+    }
+
+    fn ev(outer_race: f32, inner_race: f32, ball: f32) -> Option<FamilyEvidence> {
+        Some(FamilyEvidence {
+            outer_race,
+            inner_race,
+            ball,
+        })
+    }
+
+    #[test]
+    fn bad_quality_wins_over_everything() {
+        let l = labels();
+        let w = WindowInput {
+            quality: Some("clipping"),
+            evidence: ev(0.0, 50.0, 0.0),
+            ..input(&l, &[0.0, 0.0, 1.0])
+        };
+        let v = judge(&w, &HealthPolicy::default());
+        assert_eq!(v.state(), UNKNOWN);
+        assert_eq!(v.class, None);
+        assert_eq!(v.unknown_reason, Some(UnknownReason::BadQuality));
+        // no probabilities (the classifier did not run) is bad quality too
+        let v = judge(&input(&l, &[]), &HealthPolicy::default());
+        assert_eq!(v.unknown_reason, Some(UnknownReason::BadQuality));
+    }
+
+    #[test]
+    fn evidence_overrules_a_class_it_does_not_support() {
+        let l = labels();
+        let p = HealthPolicy::default();
+        // a novel window the network calls outer race; the BPFI bins stand far above healthy
+        let w = WindowInput {
+            novelty: 50.0,
+            evidence: ev(0.5, 12.0, 1.0),
+            ..input(&l, &[0.1, 0.8, 0.1])
+        };
+        let v = judge(&w, &p);
+        assert_eq!(v.state(), "inner_race");
+        assert_eq!(v.basis, Basis::Evidence);
+        assert_eq!(v.overruled.as_deref(), Some("outer_race"));
+        assert_eq!(v.alarm_despite, Some(UnknownReason::Novelty));
+        // the network calls a weak inner-race fault healthy, with confidence: overruled
+        let w = WindowInput {
+            evidence: ev(0.0, p.evidence_z + 0.1, 0.0),
+            ..input(&l, &[0.97, 0.02, 0.01])
+        };
+        let v = judge(&w, &p);
+        assert_eq!((v.state(), v.basis), ("inner_race", Basis::Evidence));
+        assert_eq!(v.alarm_despite, None);
+        // a family the model lacks is named all the same
+        let w = WindowInput {
+            evidence: ev(0.0, 1.0, 30.0),
+            ..input(&l, &[0.9, 0.05, 0.05])
+        };
+        assert_eq!(judge(&w, &p).state(), "ball");
+    }
+
+    #[test]
+    fn evidence_confirms_a_supported_fault_and_decides_for_a_novel_window() {
+        let l = labels();
+        let p = HealthPolicy::default();
+        // familiar window, both races supported: the network's supported pick stands
+        let w = WindowInput {
+            evidence: ev(9.0, 12.0, 0.0),
+            ..input(&l, &[0.1, 0.8, 0.1])
+        };
+        let v = judge(&w, &p);
+        assert_eq!((v.state(), v.basis), ("outer_race", Basis::Confirmed));
+        assert_eq!(v.alarm_despite, None);
+        // the same window novel: the strongest family decides
+        let w = WindowInput { novelty: 50.0, ..w };
+        let v = judge(&w, &p);
+        assert_eq!((v.state(), v.basis), ("inner_race", Basis::Evidence));
+        assert_eq!(v.overruled.as_deref(), Some("outer_race"));
+        assert_eq!(v.alarm_despite, Some(UnknownReason::Novelty));
+        // novel, and the network's pick is the strongest: confirmed, an alarm despite novelty
+        let w = WindowInput {
+            novelty: 50.0,
+            evidence: ev(9.0, 4.0, 0.0),
+            ..input(&l, &[0.3, 0.4, 0.3])
+        };
+        let v = judge(&w, &p);
+        assert_eq!((v.state(), v.basis), ("outer_race", Basis::Confirmed));
+        assert_eq!(v.alarm_despite, Some(UnknownReason::Novelty));
+    }
+
+    #[test]
+    fn without_evidence_the_doubt_rules_hold() {
+        let l = labels();
+        let p = HealthPolicy::default();
+        // silent evidence: a healthy familiar window stays healthy
+        let w = WindowInput {
+            evidence: ev(1.0, -0.5, 2.0),
+            ..input(&l, &[0.95, 0.03, 0.02])
+        };
+        let v = judge(&w, &p);
+        assert_eq!(
+            (v.state(), v.basis, v.alarm_despite),
+            ("healthy", Basis::Model, None)
+        );
+        // novel, inside the baseline, no evidence: unknown (no guess)
+        let w = WindowInput {
+            novelty: 50.0,
+            evidence: ev(1.0, 1.0, 1.0),
+            ..input(&l, &[0.2, 0.6, 0.2])
+        };
+        let v = judge(&w, &p);
+        assert_eq!(v.state(), UNKNOWN);
+        assert_eq!(v.unknown_reason, Some(UnknownReason::Novelty));
+        // beyond the baseline: an alarm despite novelty
+        let w = WindowInput {
+            beyond_baseline: Some(true),
+            ..w
+        };
+        let v = judge(&w, &p);
+        assert_eq!(
+            (v.state(), v.alarm_despite),
+            ("outer_race", Some(UnknownReason::Novelty))
+        );
+        // the policy's threshold overrides the model's
+        let w = WindowInput {
+            novelty: 50.0,
+            ..input(&l, &[0.95, 0.03, 0.02])
+        };
+        assert_eq!(judge(&w, &p).state(), UNKNOWN);
+        let lenient = HealthPolicy {
+            novelty_threshold: Some(100.0),
+            ..HealthPolicy::default()
+        };
+        assert_eq!(judge(&w, &lenient).state(), "healthy");
+        // an infinite evidence threshold switches the evidence off
+        let off = HealthPolicy {
+            evidence_z: f32::INFINITY,
+            ..HealthPolicy::default()
+        };
+        let w = WindowInput {
+            evidence: ev(0.0, 40.0, 0.0),
+            ..input(&l, &[0.97, 0.02, 0.01])
+        };
+        assert_eq!(judge(&w, &off).state(), "healthy");
+    }
+}

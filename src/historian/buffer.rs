@@ -1,0 +1,259 @@
+//! The bounded buffer between Zenoh and the database: first-in first-out, `[buffer]
+//! memory_messages` in memory, then the spill on disk ([`super::spill`], up to
+//! `spill_max_mb`), then dropping (counted, published in the historian's status). Once
+//! anything is spilled, newer messages queue behind it on disk until the spill is read back,
+//! so the order never changes. A batch is only removed for good when the writer says it was
+//! committed ([`Buffer::commit`]).
+
+pub use super::incoming::{Incoming, Kind};
+use super::spill::{Cursor, Spill};
+use std::collections::VecDeque;
+use std::path::Path;
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::Mutex;
+
+/// Where a batch came from, to commit it.
+#[derive(Debug, Clone, Copy)]
+pub enum Origin {
+    Memory,
+    Spill(Cursor),
+}
+
+/// A batch handed to the writer.
+pub struct Batch {
+    pub messages: Vec<Incoming>,
+    pub origin: Origin,
+}
+
+struct Inner {
+    memory: VecDeque<Incoming>,
+    spill: Option<Spill>,
+    /// True while the spill holds messages: newer ones queue behind them.
+    spilling: bool,
+    /// A batch is out with the writer and not yet committed.
+    in_flight: bool,
+}
+
+/// Counters of the buffer, for the status.
+#[derive(Debug, Default)]
+pub struct BufferCounters {
+    pub spilled_total: AtomicU64,
+    pub dropped: AtomicU64,
+    pub spill_errors: AtomicU64,
+}
+
+/// The buffer.
+pub struct Buffer {
+    inner: Mutex<Inner>,
+    memory_cap: usize,
+    spill_max_bytes: u64,
+    pub counters: BufferCounters,
+    pub notify: tokio::sync::Notify,
+}
+
+/// What the buffer holds now.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct Level {
+    pub memory: u64,
+    pub spilled: u64,
+    pub spill_bytes: u64,
+}
+
+impl Buffer {
+    /// A buffer with its spill in `spill_dir` (None: no spill, drop when memory is full).
+    pub fn open(
+        memory_cap: usize,
+        spill_dir: Option<&Path>,
+        spill_max_bytes: u64,
+    ) -> anyhow::Result<Buffer> {
+        let spill = spill_dir.map(Spill::open).transpose()?;
+        let spilling = spill.as_ref().is_some_and(|s| !s.is_empty());
+        if let Some(s) = spill.as_ref().filter(|_| spilling) {
+            tracing::info!(
+                "{} messages left in the spill by an earlier run are written first",
+                s.records()
+            );
+        }
+        Ok(Buffer {
+            inner: Mutex::new(Inner {
+                memory: VecDeque::new(),
+                spill,
+                spilling,
+                in_flight: false,
+            }),
+            memory_cap,
+            spill_max_bytes,
+            counters: BufferCounters::default(),
+            notify: tokio::sync::Notify::new(),
+        })
+    }
+
+    /// Take a message (from Zenoh's callback thread; never blocks on the database).
+    pub fn push(&self, m: Incoming) {
+        let Ok(mut g) = self.inner.lock() else {
+            return;
+        };
+        if !g.spilling && g.memory.len() < self.memory_cap {
+            g.memory.push_back(m);
+        } else if let Some(s) = g
+            .spill
+            .as_mut()
+            .filter(|s| s.bytes() < self.spill_max_bytes)
+        {
+            match s.append(&m) {
+                Ok(()) => {
+                    g.spilling = true;
+                    self.counters.spilled_total.fetch_add(1, Ordering::Relaxed);
+                }
+                Err(e) => {
+                    let n = self.counters.spill_errors.fetch_add(1, Ordering::Relaxed) + 1;
+                    if n == 1 || n.is_power_of_two() {
+                        tracing::error!("cannot spill ({n} errors so far): {e:#}");
+                    }
+                    self.counters.dropped.fetch_add(1, Ordering::Relaxed);
+                }
+            }
+        } else {
+            let n = self.counters.dropped.fetch_add(1, Ordering::Relaxed) + 1;
+            if n == 1 || n.is_power_of_two() {
+                tracing::warn!("buffer and spill full: {n} messages dropped so far (raise [buffer] memory_messages / spill_max_mb)");
+            }
+        }
+        drop(g);
+        self.notify.notify_one();
+    }
+
+    /// Messages waiting (memory + spill).
+    pub fn level(&self) -> Level {
+        self.inner
+            .lock()
+            .map(|g| Level {
+                memory: g.memory.len() as u64,
+                spilled: g.spill.as_ref().map_or(0, |s| s.records()),
+                spill_bytes: g.spill.as_ref().map_or(0, |s| s.bytes()),
+            })
+            .unwrap_or_default()
+    }
+
+    /// Up to `max` of the oldest messages (memory first: it is older than the spill). The
+    /// batch stays owed until [`commit`](Self::commit); taking again before that returns the
+    /// same spill records, so callers retry the batch they hold instead.
+    pub fn take(&self, max: usize) -> Batch {
+        let mut g = self.inner.lock().expect("buffer lock");
+        g.in_flight = true;
+        if !g.memory.is_empty() {
+            let n = g.memory.len().min(max);
+            let messages = g.memory.drain(..n).collect();
+            return Batch {
+                messages,
+                origin: Origin::Memory,
+            };
+        }
+        if g.spilling {
+            if let Some(s) = g.spill.as_ref() {
+                match s.peek(max) {
+                    Ok((messages, c)) => {
+                        return Batch {
+                            messages,
+                            origin: Origin::Spill(c),
+                        }
+                    }
+                    Err(e) => tracing::error!("reading the spill: {e:#}"),
+                }
+            }
+        }
+        Batch {
+            messages: Vec::new(),
+            origin: Origin::Memory,
+        }
+    }
+
+    /// The batch is in the database (or was rejected for good): forget it.
+    pub fn commit(&self, batch: &Batch) {
+        let mut g = self.inner.lock().expect("buffer lock");
+        g.in_flight = false;
+        if let Origin::Spill(c) = batch.origin {
+            if let Some(s) = g.spill.as_mut() {
+                if let Err(e) = s.commit(c, batch.messages.len() as u64) {
+                    tracing::error!("committing the spill: {e:#}");
+                }
+                if s.is_empty() {
+                    g.spilling = false;
+                }
+            }
+        }
+    }
+
+    /// Memory and spill both empty.
+    pub fn is_empty(&self) -> bool {
+        let l = self.level();
+        l.memory == 0 && l.spilled == 0
+    }
+
+    /// On a stop with the database out of reach: move what is in memory to the spill so a
+    /// restart writes it. Returns how many could not be kept.
+    pub fn persist(&self, pending: Vec<Incoming>) -> u64 {
+        let mut g = self.inner.lock().expect("buffer lock");
+        let mut rest: Vec<Incoming> = pending;
+        rest.extend(g.memory.drain(..));
+        let Some(s) = g.spill.as_mut() else {
+            return rest.len() as u64;
+        };
+        // What is in memory may be older than what is spilled already; it goes behind it.
+        // Rows carry their own times and the primary key drops repeats, so only the order
+        // in which a restart writes them changes.
+        let mut lost = 0;
+        for m in &rest {
+            if s.append(m).is_err() {
+                lost += 1;
+            }
+        }
+        lost
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn m(i: u8) -> Incoming {
+        Incoming {
+            kind: Kind::Health,
+            key: "k".into(),
+            payload: vec![i],
+            recovered: false,
+        }
+    }
+
+    #[test]
+    fn memory_then_spill_then_drop_in_order() {
+        let d = tempfile::tempdir().unwrap();
+        let b = Buffer::open(2, Some(d.path()), 30).unwrap();
+        for i in 0..6 {
+            b.push(m(i));
+        }
+        // 2 in memory; each spilled record is 4 + 3 + 1 + 1 = 9 bytes: 4 fit under 30 bytes.
+        let l = b.level();
+        assert_eq!((l.memory, l.spilled), (2, 4));
+        assert_eq!(b.counters.dropped.load(Ordering::Relaxed), 0);
+        b.push(m(6));
+        assert_eq!(b.counters.dropped.load(Ordering::Relaxed), 1);
+        let mut seen = Vec::new();
+        loop {
+            let batch = b.take(3);
+            if batch.messages.is_empty() {
+                break;
+            }
+            seen.extend(batch.messages.iter().map(|m| m.payload[0]));
+            b.commit(&batch);
+        }
+        assert_eq!(seen, [0, 1, 2, 3, 4, 5]);
+        assert!(b.is_empty());
+        b.push(m(9));
+        assert_eq!(
+            b.level().memory,
+            1,
+            "back to memory once the spill is read back"
+        );
+    }
+}

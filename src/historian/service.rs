@@ -1,0 +1,484 @@
+//! The historian as a service: Zenoh intake -> bounded buffer (memory, spill) -> the write
+//! loop (parse, gap tracking, batched COPY transactions, reconnects with backoff), beside it
+//! the recovery task, the history queryable and the status: published every
+//! `status_every_s`, sent to systemd as STATUS=, with READY=1 once subscribed and the
+//! watchdog petted only while the write loop turns. SIGTERM: stop taking messages, write what
+//! is buffered while the database answers (up to 15 s), spill the rest to disk, exit.
+
+use super::buffer::{Batch, Buffer, Incoming, Kind};
+use super::config::HistorianConfig;
+use super::database::Target;
+use super::latency::LatencyHistogram;
+use super::recovery::{Gap, Tracker};
+use super::row::WindowRow;
+use super::status::{self, Counters, HistorianStatus, Phase};
+use super::writer::{is_connection_error, StatusRow, Writer};
+use super::{history, intake, point_config, recovery};
+use crate::daemon::notify::Notifier;
+use crate::daemon::signals;
+use crate::publish::time_range::now_ns;
+use anyhow::{anyhow, Context, Result};
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::sync::{Arc, Mutex};
+use std::time::{Duration, Instant};
+use tokio::sync::mpsc::{unbounded_channel, UnboundedSender};
+
+/// How the caller runs the service.
+#[derive(Debug, Clone, Default)]
+pub struct RunOptions {
+    /// React to SIGTERM/SIGINT (the CLI).
+    pub use_signals: bool,
+    /// Stop flag for library callers.
+    pub stop: Arc<AtomicBool>,
+}
+
+/// Everything the tasks share.
+struct Shared {
+    cfg: HistorianConfig,
+    target: Target,
+    buffer: Arc<Buffer>,
+    counters: Arc<Counters>,
+    latency: Mutex<LatencyHistogram>,
+    /// ms since start at the write loop's last turn.
+    heartbeat_ms: AtomicU64,
+    /// Stop taking new work; write what is buffered and return.
+    draining: AtomicBool,
+    started: Instant,
+}
+
+/// Run until stopped; returns the last status.
+pub fn run(cfg: HistorianConfig, opts: RunOptions) -> Result<HistorianStatus> {
+    let target = cfg.database.resolve()?;
+    let spill_dir = (cfg.spill_max_bytes() > 0).then_some(cfg.buffer.spill_dir.as_path());
+    let buffer = Arc::new(Buffer::open(
+        cfg.buffer.memory_messages,
+        spill_dir,
+        cfg.spill_max_bytes(),
+    )?);
+    let rt = tokio::runtime::Builder::new_multi_thread()
+        .worker_threads(2)
+        .enable_all()
+        .thread_name("rigmon-historian")
+        .build()
+        .context("cannot start the tokio runtime")?;
+    let shared = Arc::new(Shared {
+        cfg,
+        target,
+        buffer,
+        counters: Arc::default(),
+        latency: Mutex::default(),
+        heartbeat_ms: AtomicU64::new(0),
+        draining: AtomicBool::new(false),
+        started: Instant::now(),
+    });
+    if opts.use_signals {
+        signals::install();
+    }
+    rt.block_on(serve(shared, opts))
+}
+
+async fn serve(sh: Arc<Shared>, opts: RunOptions) -> Result<HistorianStatus> {
+    let cfg = &sh.cfg;
+    let prefix = cfg.zenoh.key_prefix.clone();
+    let session = zenoh::open(cfg.zenoh.zenoh_config()?).await.map_err(|e| {
+        anyhow!(
+            "cannot open a zenoh session (mode {}, connect {:?}): {e}",
+            cfg.zenoh.mode,
+            cfg.zenoh.connect
+        )
+    })?;
+    let subscribers =
+        intake::subscribe(&session, &prefix, sh.buffer.clone(), sh.counters.clone()).await?;
+    let status_pub = session
+        .declare_publisher(cfg.status_key())
+        .await
+        .map_err(|e| anyhow!("declaring {}: {e}", cfg.status_key()))?;
+    let (gap_tx, gap_rx) = unbounded_channel::<Gap>();
+    let timeout = Duration::from_secs_f64(cfg.recovery.query_timeout_s);
+    tokio::spawn(recovery::run(
+        session.clone(),
+        prefix.clone(),
+        gap_rx,
+        sh.buffer.clone(),
+        sh.counters.clone(),
+        timeout,
+    ));
+    let history_task = tokio::spawn(history::serve(
+        session.clone(),
+        prefix.clone(),
+        sh.target.clone(),
+        cfg.history.max_replies,
+        sh.counters.clone(),
+    ));
+    let writer = tokio::spawn(write_loop(sh.clone(), session.clone(), gap_tx));
+    tracing::info!(
+        "historian {}: subscribed to {prefix}/**/{{health,status}} (zenoh {} connect {:?}), writing to {}, status on {}",
+        cfg.name, cfg.zenoh.mode, cfg.zenoh.connect, sh.target.describe(), cfg.status_key()
+    );
+    let mut notifier = Notifier::from_env();
+    notifier.ready(&snapshot(&sh, Phase::Running).systemd_line());
+    let watchdog = notifier
+        .watchdog_interval()
+        .unwrap_or(Duration::from_secs(5));
+    let every = Duration::from_secs_f64(cfg.status_every_s);
+    let mut last_status = Instant::now() - every;
+    loop {
+        if opts.stop.load(Ordering::SeqCst) || (opts.use_signals && signals::stop_requested()) {
+            break;
+        }
+        if last_status.elapsed() >= every {
+            let s = snapshot(&sh, Phase::Running);
+            if let Err(e) = status_pub.put(serde_json::to_vec(&s)?).await {
+                tracing::debug!("publishing the historian status: {e}");
+            }
+            notifier.status(&s.systemd_line());
+            last_status = Instant::now();
+        }
+        let beat = sh.heartbeat_ms.load(Ordering::Relaxed);
+        if (sh.started.elapsed().as_millis() as u64).saturating_sub(beat)
+            < watchdog.as_millis() as u64
+        {
+            notifier.progress();
+        }
+        notifier.tick(false);
+        tokio::time::sleep(Duration::from_millis(100)).await;
+    }
+    notifier.stopping("stopping: writing what is buffered");
+    drop(subscribers);
+    sh.draining.store(true, Ordering::SeqCst);
+    let _ = status_pub
+        .put(serde_json::to_vec(&snapshot(&sh, Phase::Stopping))?)
+        .await;
+    let pending = match tokio::time::timeout(Duration::from_secs(15), writer).await {
+        Ok(Ok(p)) => p,
+        _ => Vec::new(),
+    };
+    let unkept = sh.buffer.persist(pending);
+    if unkept > 0 {
+        tracing::warn!("{unkept} buffered messages could not be kept (no spill folder): the daemons' recent history has them for the next start");
+    }
+    history_task.abort();
+    let last = snapshot(&sh, Phase::Finished);
+    let _ = status_pub.put(serde_json::to_vec(&last)?).await;
+    drop(status_pub);
+    let _ = session.close().await;
+    Ok(last)
+}
+
+/// The status now.
+fn snapshot(sh: &Shared, phase: Phase) -> HistorianStatus {
+    let c = &sh.counters;
+    let g = Counters::get;
+    let level = sh.buffer.level();
+    HistorianStatus {
+        schema: status::SCHEMA.into(),
+        schema_version: status::SCHEMA_VERSION,
+        name: sh.cfg.name.clone(),
+        time_ns: now_ns(),
+        uptime_s: sh.started.elapsed().as_secs_f64(),
+        phase,
+        database: status::DatabaseStatus {
+            target: sh.target.describe().to_string(),
+            connected: c.db_connected.load(Ordering::Relaxed),
+            reconnects: g(&c.db_reconnects),
+            schema_version: c.schema_version.load(Ordering::Relaxed),
+            last_error: c.last_error.lock().ok().and_then(|e| e.clone()),
+            last_commit_ns: g(&c.last_commit_ns),
+        },
+        received: status::Received {
+            health: g(&c.received_health),
+            status: g(&c.received_status),
+            rejected: g(&c.rejected),
+        },
+        rows: status::Rows {
+            committed: g(&c.committed_rows),
+            duplicates: g(&c.duplicate_rows),
+            expired: g(&c.expired),
+            events: g(&c.events),
+            batches: g(&c.batches),
+        },
+        buffer: status::BufferStatus {
+            memory: level.memory,
+            spilled: level.spilled,
+            spill_bytes: level.spill_bytes,
+            spilled_total: g(&sh.buffer.counters.spilled_total),
+            dropped: g(&sh.buffer.counters.dropped),
+        },
+        recovery: status::Recovery {
+            gaps: g(&c.gaps),
+            requested: g(&c.requested),
+            recovered: g(&c.recovered),
+            lost: g(&c.lost),
+            backfilled: g(&c.backfilled),
+            not_backfilled: g(&c.not_backfilled),
+        },
+        latency: sh.latency.lock().map(|h| h.summary()).unwrap_or_default(),
+        history: status::HistoryAnswers {
+            queries: g(&c.queries_answered),
+            rows_sent: g(&c.history_rows_sent),
+        },
+        software_version: env!("CARGO_PKG_VERSION").to_string(),
+    }
+}
+
+/// A batch taken from the buffer, parsed once (and retried as is until written).
+struct Pending {
+    batch: Batch,
+    rows: Vec<WindowRow>,
+    statuses: Vec<StatusRow>,
+    /// publish_time_ns of the live rows, for the latency.
+    live_publish_ns: Vec<u64>,
+}
+
+/// Parse a batch: bad messages and expired rows are counted and left out; live windows
+/// go through the gap tracker.
+fn parse(sh: &Shared, batch: Batch, tracker: &mut Tracker, gaps: &UnboundedSender<Gap>) -> Pending {
+    let horizon =
+        now_ns().saturating_sub(u64::from(sh.cfg.retention.windows_days) * 86_400 * 1_000_000_000);
+    let mut p = Pending {
+        rows: Vec::new(),
+        statuses: Vec::new(),
+        live_publish_ns: Vec::new(),
+        batch: Batch {
+            messages: Vec::new(),
+            origin: batch.origin,
+        },
+    };
+    for m in &batch.messages {
+        match m.kind {
+            Kind::Health => match WindowRow::parse(&m.payload, &sh.cfg.default_site) {
+                Ok(r) if r.end_ns < horizon => Counters::add(&sh.counters.expired, 1),
+                Ok(r) => {
+                    if !m.recovered {
+                        if let Some(g) = tracker.observe(&r.point.key(), r.run_start_ns, r.seq) {
+                            Counters::add(&sh.counters.gaps, 1);
+                            let _ = gaps.send(g);
+                        }
+                        p.live_publish_ns.push(r.publish_ns);
+                    }
+                    p.rows.push(r);
+                }
+                Err(e) => reject(sh, m, &e),
+            },
+            Kind::Status => match StatusRow::parse(&m.payload) {
+                Ok(s) => p.statuses.push(s),
+                Err(e) => reject(sh, m, &e),
+            },
+        }
+    }
+    p.batch = batch;
+    p
+}
+
+fn reject(sh: &Shared, m: &Incoming, e: &anyhow::Error) {
+    let n = sh.counters.rejected.fetch_add(1, Ordering::Relaxed) + 1;
+    if n <= 3 || n.is_power_of_two() {
+        tracing::warn!("message on {} skipped ({n} so far): {e:#}", m.key);
+    }
+}
+
+/// Wait for work: a full batch, or the oldest message waiting `max_delay`.
+async fn gather(sh: &Shared) -> bool {
+    let max_delay = Duration::from_millis(sh.cfg.batch.max_delay_ms);
+    if sh.buffer.is_empty() {
+        let _ = tokio::time::timeout(Duration::from_millis(500), sh.buffer.notify.notified()).await;
+        if sh.buffer.is_empty() {
+            return false;
+        }
+    }
+    let t0 = Instant::now();
+    while t0.elapsed() < max_delay
+        && (sh.buffer.level().memory as usize) < sh.cfg.batch.max_rows
+        && sh.buffer.level().spilled == 0
+    {
+        tokio::time::sleep(Duration::from_millis(10).min(max_delay)).await;
+    }
+    true
+}
+
+/// The write loop; returns the messages it could not write when told to stop.
+async fn write_loop(
+    sh: Arc<Shared>,
+    session: zenoh::Session,
+    gaps: UnboundedSender<Gap>,
+) -> Vec<Incoming> {
+    let (limits_tx, mut limits_rx) = unbounded_channel::<(i32, [f64; 3])>();
+    let mut writer: Option<Writer> = None;
+    let mut tracker: Option<Tracker> = None;
+    let mut pending: Option<Pending> = None;
+    let mut backoff = Duration::from_millis(250);
+    let mut last_retention: Option<Instant> = None;
+    loop {
+        sh.heartbeat_ms
+            .store(sh.started.elapsed().as_millis() as u64, Ordering::Relaxed);
+        let draining = sh.draining.load(Ordering::SeqCst);
+        if writer.as_ref().is_some_and(|w| w.is_closed()) {
+            note_down(
+                &sh,
+                &anyhow!("the connection to {} was closed", sh.target.describe()),
+            );
+            Counters::add(&sh.counters.db_reconnects, 1);
+            writer = None;
+        }
+        if writer.is_none() {
+            match connect(&sh).await {
+                Ok((w, seed)) => {
+                    tracker.get_or_insert_with(|| Tracker::seeded(seed));
+                    writer = Some(w);
+                    backoff = Duration::from_millis(250);
+                }
+                Err(e) => {
+                    if draining {
+                        return pending.map(|p| p.batch.messages).unwrap_or_default();
+                    }
+                    note_down(&sh, &e);
+                    sleep_beating(&sh, backoff).await;
+                    backoff = (backoff * 2).min(Duration::from_secs(5));
+                    continue;
+                }
+            }
+        }
+        let Some(w) = writer.as_mut() else { continue };
+        if last_retention.is_none_or(|t| t.elapsed() > Duration::from_secs(3600)) {
+            if let Err(e) = w
+                .retention(sh.cfg.retention.windows_days, sh.cfg.retention.minutes_days)
+                .await
+            {
+                tracing::warn!("retention: {e:#}");
+            }
+            last_retention = Some(Instant::now());
+        }
+        while let Ok((id, limits)) = limits_rx.try_recv() {
+            let _ = w.set_iso_limits(id, limits).await;
+        }
+        if pending.is_none() {
+            if !gather(&sh).await {
+                if draining {
+                    return Vec::new();
+                }
+                continue;
+            }
+            let batch = sh.buffer.take(sh.cfg.batch.max_rows);
+            let t = tracker.get_or_insert_with(Tracker::default);
+            pending = Some(parse(&sh, batch, t, &gaps));
+        }
+        let Some(p) = pending.as_mut() else { continue };
+        let result =
+            tokio::time::timeout(Duration::from_secs(30), w.write(&mut p.rows, &p.statuses)).await;
+        match result {
+            Ok(Ok(outcome)) => {
+                committed(&sh, p, &outcome);
+                for (id, key) in outcome.new_points {
+                    let (s, prefix, tx) = (
+                        session.clone(),
+                        sh.cfg.zenoh.key_prefix.clone(),
+                        limits_tx.clone(),
+                    );
+                    tokio::spawn(async move {
+                        if let Some(l) = point_config::iso_limits(&s, &prefix, &key).await {
+                            let _ = tx.send((id, l));
+                        }
+                    });
+                }
+                sh.buffer.commit(&p.batch);
+                pending = None;
+            }
+            Ok(Err(e)) if !is_connection_error(&e, w.is_closed()) => {
+                tracing::warn!(
+                    "a batch of {} rows was refused ({e:#}); writing its rows one by one",
+                    p.rows.len()
+                );
+                write_each(&sh, w, p).await;
+                sh.buffer.commit(&p.batch);
+                pending = None;
+            }
+            outcome => {
+                let e = match outcome {
+                    Ok(Err(e)) => e,
+                    _ => anyhow!("the database did not answer within 30 s"),
+                };
+                note_down(&sh, &e);
+                Counters::add(&sh.counters.db_reconnects, 1);
+                writer = None;
+            }
+        }
+    }
+}
+
+/// Open a writer and read where each point stands in the database.
+async fn connect(sh: &Shared) -> Result<(Writer, std::collections::HashMap<String, (u64, u64)>)> {
+    let (mut w, version) = Writer::open(&sh.target).await?;
+    w.load_points().await?;
+    let seed = w.last_positions().await?;
+    sh.counters
+        .schema_version
+        .store(i64::from(version), Ordering::Relaxed);
+    sh.counters.db_connected.store(true, Ordering::Relaxed);
+    sh.counters.set_error(None);
+    tracing::info!(
+        "writing to PostgreSQL {} (schema version {version})",
+        sh.target.describe()
+    );
+    Ok((w, seed))
+}
+
+fn note_down(sh: &Shared, e: &anyhow::Error) {
+    let was_up = sh.counters.db_connected.swap(false, Ordering::Relaxed);
+    let text = format!("{e:#}");
+    if was_up
+        || sh
+            .counters
+            .last_error
+            .lock()
+            .map(|g| g.as_deref() != Some(&text))
+            .unwrap_or(true)
+    {
+        tracing::warn!("database unavailable, buffering: {text}");
+    }
+    sh.counters.set_error(Some(text));
+}
+
+async fn sleep_beating(sh: &Shared, d: Duration) {
+    let end = Instant::now() + d;
+    while Instant::now() < end {
+        sh.heartbeat_ms
+            .store(sh.started.elapsed().as_millis() as u64, Ordering::Relaxed);
+        tokio::time::sleep(Duration::from_millis(100).min(end - Instant::now())).await;
+    }
+}
+
+fn committed(sh: &Shared, p: &Pending, o: &super::writer::Outcome) {
+    let c = &sh.counters;
+    Counters::add(&c.committed_rows, o.inserted);
+    Counters::add(&c.duplicate_rows, o.duplicates);
+    Counters::add(&c.events, o.events);
+    Counters::add(&c.batches, 1);
+    let now = now_ns();
+    c.last_commit_ns.store(now, Ordering::Relaxed);
+    if let Ok(mut h) = sh.latency.lock() {
+        for &t in &p.live_publish_ns {
+            h.add((now as f64 - t as f64) / 1e9);
+        }
+    }
+}
+
+/// A refused batch, row by row: the rows the database refuses are counted and skipped.
+async fn write_each(sh: &Shared, w: &mut Writer, p: &mut Pending) {
+    let mut total = super::writer::Outcome::default();
+    for r in p.rows.drain(..) {
+        let key = format!("{} seq {}", r.point.key(), r.seq);
+        let mut one = [r];
+        match w.write(&mut one, &[]).await {
+            Ok(o) => {
+                total.inserted += o.inserted;
+                total.duplicates += o.duplicates;
+                total.events += o.events;
+            }
+            Err(e) => {
+                Counters::add(&sh.counters.rejected, 1);
+                tracing::warn!("window {key} refused by the database: {e:#}");
+            }
+        }
+    }
+    committed(sh, p, &total);
+}

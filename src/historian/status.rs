@@ -1,0 +1,165 @@
+//! The historian's status (`<prefix>/@historian/<name>/status`, JSON, schema
+//! `rigmon.historian.status` version 1; the `@` chunk keeps it out of `rigmon/**`): the
+//! database connection, what was received, committed, buffered, spilled, dropped, rejected,
+//! recovered and lost, and publish-to-committed latency. Also the systemd STATUS= line.
+
+use super::latency::LatencySummary;
+use serde::{Deserialize, Serialize};
+use std::sync::atomic::{AtomicBool, AtomicI64, AtomicU64, Ordering};
+use std::sync::Mutex;
+
+pub const SCHEMA: &str = "rigmon.historian.status";
+pub const SCHEMA_VERSION: u32 = 1;
+
+/// Counters shared by the historian's tasks.
+#[derive(Debug, Default)]
+pub struct Counters {
+    pub received_health: AtomicU64,
+    pub received_status: AtomicU64,
+    /// Messages that are not health/status JSON (counted, skipped).
+    pub rejected: AtomicU64,
+    /// Rows older than the windows retention (never written).
+    pub expired: AtomicU64,
+    pub committed_rows: AtomicU64,
+    /// Rows already in the database (replays, retries, overlaps).
+    pub duplicate_rows: AtomicU64,
+    pub events: AtomicU64,
+    pub batches: AtomicU64,
+    pub db_connected: AtomicBool,
+    pub db_reconnects: AtomicU64,
+    pub schema_version: AtomicI64,
+    pub last_commit_ns: AtomicU64,
+    pub gaps: AtomicU64,
+    /// Missing windows asked of the daemons.
+    pub requested: AtomicU64,
+    pub recovered: AtomicU64,
+    /// Windows missed after the historian knew the point, not recoverable (exact count).
+    pub lost: AtomicU64,
+    /// Windows from before the historian first saw a point, fetched from the daemon's cache.
+    pub backfilled: AtomicU64,
+    /// ...and those already gone from it (not counted as lost: never seen).
+    pub not_backfilled: AtomicU64,
+    pub queries_answered: AtomicU64,
+    pub history_rows_sent: AtomicU64,
+    pub last_error: Mutex<Option<String>>,
+}
+
+impl Counters {
+    pub fn add(c: &AtomicU64, n: u64) {
+        c.fetch_add(n, Ordering::Relaxed);
+    }
+
+    pub fn get(c: &AtomicU64) -> u64 {
+        c.load(Ordering::Relaxed)
+    }
+
+    pub fn set_error(&self, e: Option<String>) {
+        if let Ok(mut g) = self.last_error.lock() {
+            *g = e;
+        }
+    }
+}
+
+/// Life-cycle phase.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Phase {
+    Running,
+    Stopping,
+    Finished,
+}
+
+/// The status message.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct HistorianStatus {
+    pub schema: String,
+    pub schema_version: u32,
+    pub name: String,
+    pub time_ns: u64,
+    pub uptime_s: f64,
+    pub phase: Phase,
+    pub database: DatabaseStatus,
+    pub received: Received,
+    pub rows: Rows,
+    pub buffer: BufferStatus,
+    pub recovery: Recovery,
+    pub latency: LatencySummary,
+    pub history: HistoryAnswers,
+    pub software_version: String,
+}
+
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct DatabaseStatus {
+    /// `user@host:port/db` (never a password).
+    pub target: String,
+    pub connected: bool,
+    pub reconnects: u64,
+    pub schema_version: i64,
+    pub last_error: Option<String>,
+    pub last_commit_ns: u64,
+}
+
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize)]
+pub struct Received {
+    pub health: u64,
+    pub status: u64,
+    pub rejected: u64,
+}
+
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize)]
+pub struct Rows {
+    pub committed: u64,
+    pub duplicates: u64,
+    pub expired: u64,
+    pub events: u64,
+    pub batches: u64,
+}
+
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize)]
+pub struct BufferStatus {
+    pub memory: u64,
+    pub spilled: u64,
+    pub spill_bytes: u64,
+    pub spilled_total: u64,
+    /// Messages dropped because memory and spill were full.
+    pub dropped: u64,
+}
+
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize)]
+pub struct Recovery {
+    pub gaps: u64,
+    pub requested: u64,
+    pub recovered: u64,
+    pub lost: u64,
+    pub backfilled: u64,
+    pub not_backfilled: u64,
+}
+
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize)]
+pub struct HistoryAnswers {
+    pub queries: u64,
+    pub rows_sent: u64,
+}
+
+impl HistorianStatus {
+    /// One line for `systemctl status`.
+    pub fn systemd_line(&self) -> String {
+        format!(
+            "{}: db {} | {} rows, {} dup | buffer {} mem {} spilled | {} dropped | recovered {} lost {} | p99 {:.2} s",
+            match self.phase {
+                Phase::Running => "running",
+                Phase::Stopping => "stopping",
+                Phase::Finished => "finished",
+            },
+            if self.database.connected { "connected" } else { "DOWN" },
+            self.rows.committed,
+            self.rows.duplicates,
+            self.buffer.memory,
+            self.buffer.spilled,
+            self.buffer.dropped,
+            self.recovery.recovered,
+            self.recovery.lost,
+            self.latency.p99_s
+        )
+    }
+}

@@ -1,0 +1,976 @@
+//! The fleet historian end to end, with real parts: a PostgreSQL server started here (initdb
+//! and pg_ctl in a temporary folder, loopback only, password authentication with the password
+//! in a pgpass file), a Zenoh router in this process (loopback, multicast scouting off), three
+//! built `rigmon run` daemons replaying different recordings (the LUT rig's simulated outer
+//! race, CWRU drive end and fan end), and the built `rigmon historian`, `history`, `alarms`
+//! and `ack`. The database is killed for 30 s and the historian killed and restarted mid-run;
+//! every window must end up in the database exactly once. Also: the Grafana provisioning
+//! parses and its queries run on the real database, the systemd unit verifies, and bad
+//! database settings are refused at start.
+
+use rigmon::historian::status::HistorianStatus;
+use rigmon::publish::zenoh::ZenohSettings;
+use std::collections::{BTreeMap, BTreeSet};
+use std::os::unix::fs::PermissionsExt;
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, Output, Stdio};
+use std::sync::{Arc, Mutex};
+use std::time::{Duration, Instant};
+use zenoh::Wait;
+
+fn repo() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+}
+
+fn bin() -> &'static str {
+    env!("CARGO_BIN_EXE_rigmon")
+}
+
+fn free_port() -> u16 {
+    std::net::TcpListener::bind("127.0.0.1:0")
+        .unwrap()
+        .local_addr()
+        .unwrap()
+        .port()
+}
+
+/// Kills a child when dropped (a failing assertion must not leave processes behind).
+struct Guard(Child);
+impl Drop for Guard {
+    fn drop(&mut self) {
+        let _ = self.0.kill();
+        let _ = self.0.wait();
+    }
+}
+
+/// Wait for `cond`, polling; panics naming `what` at the deadline.
+fn wait_until(what: &str, timeout: Duration, mut cond: impl FnMut() -> bool) {
+    let t = Instant::now();
+    while !cond() {
+        assert!(
+            t.elapsed() < timeout,
+            "timed out after {timeout:?} waiting for {what}"
+        );
+        std::thread::sleep(Duration::from_millis(100));
+    }
+}
+
+/// A throwaway PostgreSQL server: its own folder, port and superuser `rigmon` with a password.
+struct Postgres {
+    dir: tempfile::TempDir,
+    bin: PathBuf,
+    port: u16,
+    password: String,
+    passfile: PathBuf,
+}
+
+fn postgres_bin() -> PathBuf {
+    let mut found: Vec<PathBuf> = std::fs::read_dir("/usr/lib/postgresql")
+        .expect("PostgreSQL is needed: apt-get install postgresql (.ci/run does)")
+        .filter_map(|e| e.ok().map(|e| e.path().join("bin")))
+        .filter(|p| p.join("initdb").is_file())
+        .collect();
+    found.sort_by_key(|p| {
+        p.parent()
+            .and_then(|v| v.file_name())
+            .and_then(|v| v.to_str())
+            .and_then(|v| v.parse::<u32>().ok())
+    });
+    found
+        .pop()
+        .expect("no /usr/lib/postgresql/*/bin/initdb: apt-get install postgresql")
+}
+
+fn as_postgres(args: &[&str]) -> Output {
+    let out = Command::new("runuser")
+        .args(["-u", "postgres", "--"])
+        .args(args)
+        .output()
+        .expect("runuser (util-linux)");
+    assert!(
+        out.status.success(),
+        "{args:?} failed: {}{}",
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr)
+    );
+    out
+}
+
+impl Postgres {
+    fn start() -> Postgres {
+        let bin = postgres_bin();
+        let dir = tempfile::tempdir().unwrap();
+        let password = format!("pw-{}-{}", std::process::id(), free_port());
+        let pwfile = dir.path().join("initpw");
+        std::fs::write(&pwfile, format!("{password}\n")).unwrap();
+        Command::new("chown")
+            .args(["-R", "postgres:postgres"])
+            .arg(dir.path())
+            .status()
+            .unwrap();
+        let data = dir.path().join("data");
+        let initdb = bin.join("initdb");
+        as_postgres(&[
+            initdb.to_str().unwrap(),
+            "-D",
+            data.to_str().unwrap(),
+            "-U",
+            "rigmon",
+            "--auth=scram-sha-256",
+            "--pwfile",
+            pwfile.to_str().unwrap(),
+            "-E",
+            "UTF8",
+            "--locale=C",
+        ]);
+        std::fs::remove_file(&pwfile).unwrap();
+        // The client side's pgpass, root's own, mode 0600 as libpq wants it.
+        let passfile = dir.path().join("client.pgpass");
+        let port = free_port();
+        std::fs::write(&passfile, format!("127.0.0.1:{port}:*:rigmon:{password}\n")).unwrap();
+        std::fs::set_permissions(&passfile, std::fs::Permissions::from_mode(0o600)).unwrap();
+        let pg = Postgres {
+            dir,
+            bin,
+            port,
+            password,
+            passfile,
+        };
+        pg.start_server();
+        pg
+    }
+
+    fn start_server(&self) {
+        let d = self.dir.path();
+        as_postgres(&[
+            self.bin.join("pg_ctl").to_str().unwrap(),
+            "-D",
+            d.join("data").to_str().unwrap(),
+            "-w",
+            "-l",
+            d.join("pg.log").to_str().unwrap(),
+            "-o",
+            &format!(
+                "-p {} -k {} -c listen_addresses=127.0.0.1",
+                self.port,
+                d.display()
+            ),
+            "start",
+        ]);
+    }
+
+    /// Kill the server the hard way (no shutdown checkpoint), as a crash would.
+    fn kill(&self) {
+        as_postgres(&[
+            self.bin.join("pg_ctl").to_str().unwrap(),
+            "-D",
+            self.dir.path().join("data").to_str().unwrap(),
+            "-m",
+            "immediate",
+            "stop",
+        ]);
+    }
+
+    fn env(&self, db: &str) -> Vec<(String, String)> {
+        vec![
+            ("PGHOST".into(), "127.0.0.1".into()),
+            ("PGPORT".into(), self.port.to_string()),
+            ("PGUSER".into(), "rigmon".into()),
+            ("PGDATABASE".into(), db.into()),
+            ("PGPASSFILE".into(), self.passfile.display().to_string()),
+        ]
+    }
+
+    fn client(&self, db: &str) -> (tokio::runtime::Runtime, tokio_postgres::Client) {
+        let rt = tokio::runtime::Builder::new_current_thread()
+            .enable_all()
+            .build()
+            .unwrap();
+        let conn = format!(
+            "host=127.0.0.1 port={} user=rigmon dbname={db} password={}",
+            self.port, self.password
+        );
+        let client = rt.block_on(async {
+            let (c, connection) = tokio_postgres::connect(&conn, tokio_postgres::NoTls)
+                .await
+                .unwrap();
+            tokio::spawn(connection);
+            c
+        });
+        (rt, client)
+    }
+}
+
+impl Drop for Postgres {
+    fn drop(&mut self) {
+        let _ = Command::new("runuser")
+            .args(["-u", "postgres", "--"])
+            .arg(self.bin.join("pg_ctl"))
+            .args([
+                "-D",
+                self.dir.path().join("data").to_str().unwrap(),
+                "-m",
+                "immediate",
+                "stop",
+            ])
+            .output();
+    }
+}
+
+/// A daemon config replaying `file` in real time, looping, as a Zenoh client of the router.
+fn daemon(dir: &Path, name: &str, rig: &Path, model: &str, file: &Path, router: &str) -> Guard {
+    let cfg = dir.join(format!("{name}.toml"));
+    std::fs::write(
+        &cfg,
+        format!(
+            "rig = {rig:?}\n[model]\npath = {:?}\n[source]\ntype = \"file\"\npath = {file:?}\nspeed = 1.0\nloop = true\n\
+             [pipeline]\nspectrum = false\nstatus_every_s = 1.0\n\
+             [zenoh]\nmode = \"client\"\nconnect = [\"{router}\"]\nhistory_windows = 1200\n",
+            repo().join("models").join(model),
+        ),
+    )
+    .unwrap();
+    let c = Command::new(bin())
+        .args(["run", "--config", cfg.to_str().unwrap()])
+        .stdout(Stdio::null())
+        .stderr(std::fs::File::create(dir.join(format!("{name}.log"))).unwrap())
+        .spawn()
+        .unwrap();
+    Guard(c)
+}
+
+fn historian(dir: &Path, pg: &Postgres, router: &str) -> Guard {
+    let cfg = dir.join("historian.toml");
+    std::fs::write(
+        &cfg,
+        format!(
+            "name = \"test\"\ndefault_site = \"plant\"\nstatus_every_s = 0.3\n\
+             [zenoh]\nmode = \"client\"\nconnect = [\"{router}\"]\nhistory_windows = 0\n\
+             [buffer]\nmemory_messages = 20\nspill_dir = \"spill\"\n\
+             [batch]\nmax_delay_ms = 200\n[recovery]\nquery_timeout_s = 5.0\n"
+        ),
+    )
+    .unwrap();
+    let log = std::fs::OpenOptions::new()
+        .create(true)
+        .append(true)
+        .open(dir.join("historian.log"))
+        .unwrap();
+    let c = Command::new(bin())
+        .args(["historian", "--config", cfg.to_str().unwrap()])
+        .envs(pg.env("fleet"))
+        .env("RUST_LOG", "info")
+        .stdout(Stdio::null())
+        .stderr(log)
+        .spawn()
+        .unwrap();
+    Guard(c)
+}
+
+fn rigmon(args: &[&str], env: &[(String, String)]) -> Output {
+    Command::new(bin())
+        .args(args)
+        .envs(env.iter().cloned())
+        .output()
+        .unwrap()
+}
+
+/// Every health message seen on the router: address -> seq -> state_changed.
+type Truth = Arc<Mutex<BTreeMap<String, BTreeMap<u64, bool>>>>;
+
+#[test]
+fn three_daemons_a_router_and_the_historian_keep_every_window_once_through_outages() {
+    let data = repo().join("../shared/data");
+    assert!(
+        data.join("cwru/97_Normal_0.mat").is_file(),
+        "../shared/data must sit beside the checkout"
+    );
+    let tmp = tempfile::tempdir().unwrap();
+    let d = tmp.path();
+    let pg = Postgres::start();
+    {
+        let (rt, c) = pg.client("postgres");
+        rt.block_on(c.batch_execute("CREATE DATABASE fleet"))
+            .unwrap();
+    }
+    let router_ep = format!("tcp/127.0.0.1:{}", free_port());
+    let router = ZenohSettings {
+        mode: "router".into(),
+        listen: vec![router_ep.clone()],
+        ..Default::default()
+    }
+    .open()
+    .unwrap();
+    let client = ZenohSettings {
+        mode: "client".into(),
+        connect: vec![router_ep.clone()],
+        ..Default::default()
+    }
+    .open()
+    .unwrap();
+    let truth: Truth = Arc::default();
+    let t2 = truth.clone();
+    let _truth_sub = client
+        .declare_subscriber("rigmon/**/health")
+        .callback(move |s| {
+            let v: serde_json::Value = serde_json::from_slice(&s.payload().to_bytes()).unwrap();
+            let addr = format!(
+                "{}/{}/{}",
+                v["rig"].as_str().unwrap(),
+                v["asset"].as_str().unwrap(),
+                v["point"].as_str().unwrap()
+            );
+            t2.lock().unwrap().entry(addr).or_default().insert(
+                v["seq"].as_u64().unwrap(),
+                v["state_changed"].as_bool().unwrap(),
+            );
+        })
+        .wait()
+        .unwrap();
+    let status: Arc<Mutex<Option<HistorianStatus>>> = Arc::default();
+    let s2 = status.clone();
+    let _status_sub = client
+        .declare_subscriber("rigmon/@historian/test/status")
+        .callback(move |s| {
+            *s2.lock().unwrap() = serde_json::from_slice(&s.payload().to_bytes()).ok()
+        })
+        .wait()
+        .unwrap();
+    let st = || status.lock().unwrap().clone();
+    let mut hist = historian(d, &pg, &router_ep);
+    wait_until(
+        "the historian's status with its database connected",
+        Duration::from_secs(60),
+        || st().is_some_and(|s| s.database.connected),
+    );
+    let cmdline = std::fs::read(format!("/proc/{}/cmdline", hist.0.id())).unwrap();
+    assert!(
+        !String::from_utf8_lossy(&cmdline).contains(&pg.password),
+        "password on the command line"
+    );
+
+    // Three machines: the LUT rig (its rig file names a site), CWRU drive end and fan end.
+    let lut_rig = d.join("lut-rig.toml");
+    let text = std::fs::read_to_string(repo().join("config/lut-rig.toml")).unwrap();
+    std::fs::write(
+        &lut_rig,
+        text.replacen("point = \"nde\"", "point = \"nde\"\nsite = \"lut-lab\"", 1),
+    )
+    .unwrap();
+    let mut daemons = vec![
+        daemon(
+            d,
+            "lut",
+            &lut_rig,
+            "lut-rig.onnx",
+            &repo().join("replay/lut-outer_race-588rpm.mcap"),
+            &router_ep,
+        ),
+        daemon(
+            d,
+            "de",
+            &repo().join("config/cwru-de.toml"),
+            "cwru-de.onnx",
+            &data.join("cwru/12k_Drive_End_Bearing_Fault_Data/OR/007/@6/130@6_0.mat"),
+            &router_ep,
+        ),
+        daemon(
+            d,
+            "fe",
+            &repo().join("config/cwru-fe.toml"),
+            "cwru-fe.onnx",
+            &data.join("cwru-fe/007/IR007_1.mat"),
+            &router_ep,
+        ),
+    ];
+    let points = ["lut-rig/shaft/nde", "cwru-de/motor/de", "cwru-fe/motor/fe"];
+    let (rt, db) = pg.client("fleet");
+    let per_point = |sql: &str| -> BTreeMap<String, i64> {
+        rt.block_on(db.query(sql, &[]))
+            .unwrap()
+            .iter()
+            .map(|r| (r.get::<_, String>(0), r.get::<_, i64>(1)))
+            .collect()
+    };
+    let rows = || {
+        per_point("SELECT p.key, count(*) FROM windows JOIN points p USING (point_id) GROUP BY 1")
+    };
+    wait_until(
+        "10 windows of each daemon in the database",
+        Duration::from_secs(120),
+        || {
+            let r = rows();
+            points.iter().all(|p| r.get(*p).copied().unwrap_or(0) >= 10)
+        },
+    );
+
+    // The database killed for 30 s: the historian buffers (memory, then the spill) and catches up.
+    pg.kill();
+    wait_until(
+        "the historian to see the database down",
+        Duration::from_secs(20),
+        || st().is_some_and(|s| !s.database.connected),
+    );
+    std::thread::sleep(Duration::from_secs(30));
+    let during = st().unwrap();
+    assert!(
+        during.buffer.spilled_total > 0,
+        "30 s down with a 20-message memory buffer must spill: {during:?}"
+    );
+    pg.start_server();
+    wait_until(
+        "the historian to catch up after the database came back",
+        Duration::from_secs(90),
+        || {
+            st().is_some_and(|s| {
+                s.database.connected
+                    && s.buffer.memory == 0
+                    && s.buffer.spilled == 0
+                    && s.database.reconnects > 0
+            })
+        },
+    );
+    let (rt, db) = pg.client("fleet");
+    let rows = || -> BTreeMap<String, i64> {
+        rt.block_on(db.query(
+            "SELECT p.key, count(*) FROM windows JOIN points p USING (point_id) GROUP BY 1",
+            &[],
+        ))
+        .unwrap()
+        .iter()
+        .map(|r| (r.get::<_, String>(0), r.get::<_, i64>(1)))
+        .collect()
+    };
+
+    // The historian killed (no chance to flush) and restarted 8 s later: it asks the daemons
+    // for what it missed.
+    hist.0.kill().unwrap();
+    hist.0.wait().unwrap();
+    *status.lock().unwrap() = None;
+    std::thread::sleep(Duration::from_secs(8));
+    let hist = historian(d, &pg, &router_ep);
+    wait_until(
+        "the restarted historian to recover what it missed",
+        Duration::from_secs(90),
+        || {
+            st().is_some_and(|s| {
+                s.database.connected
+                    && s.recovery.recovered > 0
+                    && s.buffer.memory == 0
+                    && s.buffer.spilled == 0
+            })
+        },
+    );
+
+    // Stop the daemons; everything they published must arrive.
+    for g in &daemons {
+        unsafe { libc::kill(g.0.id() as i32, libc::SIGTERM) };
+    }
+    for g in daemons.iter_mut() {
+        let t = Instant::now();
+        while g.0.try_wait().unwrap().is_none() {
+            assert!(t.elapsed() < Duration::from_secs(30), "daemon did not stop");
+            std::thread::sleep(Duration::from_millis(50));
+        }
+    }
+    let seen: BTreeMap<String, BTreeMap<u64, bool>> = truth.lock().unwrap().clone();
+    for p in points {
+        assert!(
+            seen.get(p).is_some_and(|s| s.len() >= 40),
+            "{p}: the router saw too little: {:?}",
+            seen.get(p).map(|s| s.len())
+        );
+    }
+    let t = Instant::now();
+    loop {
+        let r = rows();
+        if points
+            .iter()
+            .all(|p| r.get(*p).copied().unwrap_or(0) as usize >= seen[*p].len())
+        {
+            break;
+        }
+        if t.elapsed() > Duration::from_secs(60) {
+            let log = std::fs::read_to_string(d.join("historian.log")).unwrap_or_default();
+            let tail: Vec<&str> = log.lines().rev().take(40).collect();
+            let want: Vec<(String, usize, Option<u64>)> = seen
+                .iter()
+                .map(|(k, v)| (k.clone(), v.len(), v.keys().last().copied()))
+                .collect();
+            panic!("not every window the router saw is in the database: {r:?} vs {want:?}\nstatus {:?}\nlog tail:\n{}", st(), tail.join("\n"));
+        }
+        std::thread::sleep(Duration::from_millis(200));
+    }
+    wait_until(
+        "the historian's buffer empty",
+        Duration::from_secs(30),
+        || st().is_some_and(|s| s.buffer.memory == 0 && s.buffer.spilled == 0),
+    );
+
+    check_rows(&rt, &db, &points, &seen);
+    let last = st().unwrap();
+    assert_eq!(last.recovery.lost, 0, "{last:?}");
+    assert_eq!(last.buffer.dropped, 0, "{last:?}");
+    assert_eq!(last.received.rejected, 0, "{last:?}");
+    check_events_and_aggregates(&rt, &db, &points, &seen);
+    check_tree(&rt, &db);
+    check_grafana_queries(&rt, &db);
+    check_history_cli(d, &router_ep, &rt, &db);
+    check_alarms_cli(&pg);
+    check_retention(&rt, &db);
+
+    let log = std::fs::read_to_string(d.join("historian.log")).unwrap();
+    assert!(
+        !log.contains(&pg.password),
+        "the password appears in the historian's log"
+    );
+    let mut hist = hist;
+    unsafe { libc::kill(hist.0.id() as i32, libc::SIGTERM) };
+    let t = Instant::now();
+    let code = loop {
+        if let Some(c) = hist.0.try_wait().unwrap() {
+            break c;
+        }
+        assert!(
+            t.elapsed() < Duration::from_secs(30),
+            "historian did not stop on SIGTERM"
+        );
+        std::thread::sleep(Duration::from_millis(50));
+    };
+    assert!(
+        code.success(),
+        "historian exit {code}: {}",
+        log.lines().rev().take(20).collect::<Vec<_>>().join("\n")
+    );
+    drop(router);
+}
+
+/// One row per window per point: each run's seqs 1..=max, none twice, none missing, and
+/// every window the router carried is there.
+fn check_rows(
+    rt: &tokio::runtime::Runtime,
+    db: &tokio_postgres::Client,
+    points: &[&str],
+    seen: &BTreeMap<String, BTreeMap<u64, bool>>,
+) {
+    for p in points {
+        let rows = rt
+            .block_on(db.query(
+                "SELECT w.run_start, array_agg(w.seq ORDER BY w.seq), count(*), count(DISTINCT w.seq)
+                 FROM windows w JOIN points p USING (point_id) WHERE p.key = $1 GROUP BY 1",
+                &[p],
+            ))
+            .unwrap();
+        assert_eq!(rows.len(), 1, "{p}: one daemon run expected");
+        let seqs: Vec<i64> = rows[0].get(1);
+        let (n, distinct): (i64, i64) = (rows[0].get(2), rows[0].get(3));
+        assert_eq!(n, distinct, "{p}: a window stored twice");
+        let max = *seqs.last().unwrap();
+        assert_eq!(
+            seqs,
+            (1..=max).collect::<Vec<i64>>(),
+            "{p}: windows missing in the database"
+        );
+        let stored: BTreeSet<u64> = seqs.iter().map(|&s| s as u64).collect();
+        let missing: Vec<u64> = seen[*p]
+            .keys()
+            .filter(|s| !stored.contains(s))
+            .copied()
+            .collect();
+        assert!(
+            missing.is_empty(),
+            "{p}: seen on the router, not stored: {missing:?}"
+        );
+    }
+}
+
+/// One event per state change, with the state it left; aggregates add up to the windows.
+fn check_events_and_aggregates(
+    rt: &tokio::runtime::Runtime,
+    db: &tokio_postgres::Client,
+    points: &[&str],
+    seen: &BTreeMap<String, BTreeMap<u64, bool>>,
+) {
+    let q = |sql: &str, p: &str| -> i64 { rt.block_on(db.query_one(sql, &[&p])).unwrap().get(0) };
+    let mut total_events = 0;
+    for p in points {
+        let changes = q("SELECT count(*) FROM windows w JOIN points p USING (point_id) WHERE p.key = $1 AND w.state_changed", p);
+        let events = q(
+            "SELECT count(*) FROM events e JOIN points p USING (point_id) WHERE p.key = $1",
+            p,
+        );
+        let seen_changes = seen[*p].values().filter(|c| **c).count() as i64;
+        assert_eq!(events, changes, "{p}: one event per state change");
+        assert!(
+            events >= seen_changes && events >= 1,
+            "{p}: {events} events, {seen_changes} changes seen on the router"
+        );
+        let wrong = q(
+            "SELECT count(*) FROM events e JOIN points p USING (point_id)
+             JOIN windows w ON w.point_id = e.point_id AND w.time = e.time
+             WHERE p.key = $1 AND (e.to_state <> w.state OR e.from_state IS DISTINCT FROM
+               (SELECT v.state FROM windows v WHERE v.point_id = e.point_id AND v.time < e.time ORDER BY v.time DESC LIMIT 1)
+               OR e.message->>'state' <> e.to_state)",
+            p,
+        );
+        assert_eq!(wrong, 0, "{p}: events disagree with the windows");
+        let windows = q(
+            "SELECT count(*) FROM windows w JOIN points p USING (point_id) WHERE p.key = $1",
+            p,
+        );
+        let in_minutes = q("SELECT coalesce(sum(m.windows), 0)::int8 FROM minutes m JOIN points p USING (point_id) WHERE p.key = $1", p);
+        assert_eq!(
+            in_minutes, windows,
+            "{p}: 1-minute aggregates must count every window once"
+        );
+        let latest = q(
+            "SELECT l.seq FROM point_latest l JOIN points p USING (point_id) WHERE p.key = $1",
+            p,
+        );
+        assert_eq!(latest, windows, "{p}: the latest window is the last seq");
+        let status = q(
+            "SELECT count(*) FROM point_status s JOIN points p USING (point_id) WHERE p.key = $1",
+            p,
+        );
+        assert_eq!(status, 1, "{p}: the daemon's status is stored");
+        total_events += events;
+    }
+    assert!(total_events >= 3);
+}
+
+fn check_tree(rt: &tokio::runtime::Runtime, db: &tokio_postgres::Client) {
+    let tree: Vec<(String, String)> = rt
+        .block_on(db.query("SELECT site, key FROM asset_tree ORDER BY key", &[]))
+        .unwrap()
+        .iter()
+        .map(|r| (r.get(0), r.get(1)))
+        .collect();
+    assert_eq!(
+        tree,
+        [
+            ("plant".to_string(), "cwru-de/motor/de".to_string()),
+            ("plant".into(), "cwru-fe/motor/fe".into()),
+            ("lut-lab".into(), "lut-rig/shaft/nde".into())
+        ],
+        "site from the rig file, else the historian's default_site"
+    );
+}
+
+/// The dashboard's queries with Grafana's macros filled in, run against the database.
+fn check_grafana_queries(rt: &tokio::runtime::Runtime, db: &tokio_postgres::Client) {
+    let g = repo().join("config/grafana");
+    for y in [
+        "provisioning/datasources/rigmon.yaml",
+        "provisioning/dashboards/rigmon.yaml",
+    ] {
+        let v: serde_yaml::Value =
+            serde_yaml::from_str(&std::fs::read_to_string(g.join(y)).unwrap()).unwrap();
+        assert_eq!(v["apiVersion"], serde_yaml::Value::from(1), "{y}");
+    }
+    let dash: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(g.join("dashboards/fleet.json")).unwrap())
+            .unwrap();
+    let var_sql = dash["templating"]["list"][0]["query"].as_str().unwrap();
+    let vars = rt.block_on(db.query(var_sql, &[])).unwrap();
+    assert_eq!(vars.len(), 3, "the point variable lists the three points");
+    let lut: i32 = vars
+        .iter()
+        .find(|r| r.get::<_, String>(0) == "lut-rig/shaft/nde")
+        .unwrap()
+        .get(1);
+    let fill = |sql: &str| {
+        let mut s = sql.replace("$point", &lut.to_string());
+        while let Some(i) = s.find("$__timeFilter(") {
+            let end = i + s[i..].find(')').unwrap();
+            let col = &s[i + "$__timeFilter(".len()..end];
+            let cond =
+                format!("{col} BETWEEN now() - interval '2 hours' AND now() + interval '1 hour'");
+            s.replace_range(i..=end, &cond);
+        }
+        s
+    };
+    let panels = dash["panels"].as_array().unwrap();
+    assert!(panels.len() >= 5);
+    for p in panels {
+        for t in p["targets"].as_array().unwrap() {
+            let sql = fill(t["rawSql"].as_str().unwrap());
+            let rows = rt
+                .block_on(db.query(sql.as_str(), &[]))
+                .unwrap_or_else(|e| panic!("panel {:?}: {e}\n{sql}", p["title"]));
+            assert!(
+                !rows.is_empty(),
+                "panel {:?} shows nothing:\n{sql}",
+                p["title"]
+            );
+            if p["title"] == "State now per point" {
+                assert_eq!(rows.len(), 3);
+            }
+        }
+    }
+    let ds = std::fs::read_to_string(g.join("provisioning/datasources/rigmon.yaml")).unwrap();
+    assert!(
+        ds.contains("$__file{"),
+        "the data source password comes from a file"
+    );
+}
+
+fn check_history_cli(
+    d: &Path,
+    router: &str,
+    rt: &tokio::runtime::Runtime,
+    db: &tokio_postgres::Client,
+) {
+    let stored: i64 = rt
+        .block_on(db.query_one("SELECT count(*) FROM windows w JOIN points p USING (point_id) WHERE p.key = 'lut-rig/shaft/nde'", &[]))
+        .unwrap()
+        .get(0);
+    let z = ["--connect", router];
+    let out = rigmon(
+        &[
+            &[
+                "history",
+                "rigmon/lut-rig/shaft/nde",
+                "--since",
+                "2h",
+                "--json",
+            ][..],
+            &z,
+        ]
+        .concat(),
+        &[],
+    );
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let lines: Vec<serde_json::Value> = String::from_utf8_lossy(&out.stdout)
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap())
+        .collect();
+    assert_eq!(
+        lines.len() as i64,
+        stored,
+        "one history reply per stored window"
+    );
+    let seqs: Vec<u64> = lines.iter().map(|v| v["seq"].as_u64().unwrap()).collect();
+    assert_eq!(
+        seqs,
+        (1..=stored as u64).collect::<Vec<_>>(),
+        "in time order"
+    );
+    assert!(lines
+        .iter()
+        .all(|v| v["schema"] == "rigmon.health" && v["site"] == "lut-lab"));
+    let png = d.join("trend.png");
+    let out = rigmon(
+        &[
+            &[
+                "history",
+                "rigmon/lut-rig/**",
+                "--since",
+                "2h",
+                "--png",
+                png.to_str().unwrap(),
+            ][..],
+            &z,
+        ]
+        .concat(),
+        &[],
+    );
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert_eq!(text.lines().count() as i64, stored);
+    assert!(
+        text.lines().all(|l| l.contains("lut-rig/shaft/nde")),
+        "{text}"
+    );
+    let bytes = std::fs::read(&png).unwrap();
+    assert_eq!(&bytes[..8], b"\x89PNG\r\n\x1a\n");
+    let (w, h) = (
+        u32::from_be_bytes(bytes[16..20].try_into().unwrap()),
+        u32::from_be_bytes(bytes[20..24].try_into().unwrap()),
+    );
+    assert_eq!((w, h), (1400, 900));
+    assert!(
+        bytes.len() > 20_000,
+        "a trend with three panels, not an empty picture ({} bytes)",
+        bytes.len()
+    );
+    let out = rigmon(
+        &[
+            &[
+                "history",
+                "rigmon/**",
+                "--since",
+                "2h",
+                "--png",
+                png.to_str().unwrap(),
+            ][..],
+            &z,
+        ]
+        .concat(),
+        &[],
+    );
+    assert!(
+        !out.status.success()
+            && String::from_utf8_lossy(&out.stderr).contains("--png draws one point")
+    );
+    let out = rigmon(
+        &[
+            &[
+                "history",
+                "rigmon/nowhere/x/y",
+                "--since",
+                "2h",
+                "--timeout",
+                "3",
+            ][..],
+            &z,
+        ]
+        .concat(),
+        &[],
+    );
+    assert!(!out.status.success() && String::from_utf8_lossy(&out.stderr).contains("no history"));
+}
+
+fn check_alarms_cli(pg: &Postgres) {
+    let env = pg.env("fleet");
+    let out = rigmon(&["alarms", "--json"], &env);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let all: Vec<serde_json::Value> = String::from_utf8_lossy(&out.stdout)
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap())
+        .collect();
+    assert!(all.len() >= 3);
+    let id = all[0]["id"].as_i64().unwrap().to_string();
+    let out = rigmon(
+        &[
+            "ack",
+            &id,
+            "--user",
+            "alice",
+            "--comment",
+            "bearing inspected",
+        ],
+        &env,
+    );
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(String::from_utf8_lossy(&out.stdout).contains("acked by alice"));
+    let out = rigmon(&["alarms", "--unacked", "--json"], &env);
+    assert_eq!(
+        String::from_utf8_lossy(&out.stdout).lines().count(),
+        all.len() - 1
+    );
+    let out = rigmon(&["ack", &id, "--user", "bob"], &env);
+    assert!(
+        !out.status.success()
+            && String::from_utf8_lossy(&out.stderr).contains("already acknowledged by alice")
+    );
+    let out = rigmon(&["alarms"], &env);
+    assert!(String::from_utf8_lossy(&out.stdout).contains("bearing inspected"));
+}
+
+fn check_retention(rt: &tokio::runtime::Runtime, db: &tokio_postgres::Client) {
+    rt.block_on(db.batch_execute("CREATE TABLE windows_p20000101 PARTITION OF windows FOR VALUES FROM ('2000-01-01 00:00:00+00') TO ('2000-01-02 00:00:00+00')")).unwrap();
+    let dropped = rt
+        .block_on(rigmon::historian::partitions::apply_retention(
+            db,
+            30,
+            3650,
+            std::time::SystemTime::now(),
+        ))
+        .unwrap();
+    assert_eq!(
+        dropped,
+        ["windows_p20000101"],
+        "only the partition past its retention goes"
+    );
+}
+
+#[test]
+fn bad_database_settings_are_refused_at_start() {
+    let d = tempfile::tempdir().unwrap();
+    let cfg = d.path().join("h.toml");
+    std::fs::write(
+        &cfg,
+        "[database]\nurl = \"postgresql://rigmon:hunter2@127.0.0.1/rigmon\"\n",
+    )
+    .unwrap();
+    let out = rigmon(&["historian", "--config", cfg.to_str().unwrap()], &[]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        !out.status.success() && err.contains("carries a password") && !err.contains("hunter2"),
+        "{err}"
+    );
+    std::fs::write(&cfg, "[database]\n").unwrap();
+    let env = [
+        ("PGSSLMODE".to_string(), "verify-full".to_string()),
+        ("PGUSER".into(), "x".into()),
+    ];
+    let out = rigmon(&["historian", "--config", cfg.to_str().unwrap()], &env);
+    assert!(
+        String::from_utf8_lossy(&out.stderr).contains("without TLS"),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let pass = d.path().join("pgpass");
+    std::fs::write(&pass, "*:*:*:*:pw\n").unwrap();
+    std::fs::set_permissions(&pass, std::fs::Permissions::from_mode(0o644)).unwrap();
+    let env = [
+        ("PGPASSFILE".to_string(), pass.display().to_string()),
+        ("PGHOST".into(), "127.0.0.1".into()),
+        ("PGUSER".into(), "x".into()),
+    ];
+    let out = rigmon(&["alarms"], &env);
+    assert!(
+        String::from_utf8_lossy(&out.stderr).contains("chmod 600"),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+}
+
+#[test]
+fn the_historian_unit_verifies() {
+    let unit = std::fs::read_to_string(repo().join("systemd/rigmon-historian.service")).unwrap();
+    for key in [
+        "Type=notify",
+        "WatchdogSec=",
+        "DynamicUser=yes",
+        "ProtectSystem=strict",
+        "NoNewPrivileges=yes",
+        "LoadCredential=pgpass:",
+        "PGPASSFILE=%d/pgpass",
+    ] {
+        assert!(unit.contains(key), "{key} missing");
+    }
+    let tmp = tempfile::tempdir().unwrap();
+    let p = tmp.path().join("rigmon-historian.service");
+    std::fs::write(&p, unit.replace("/usr/local/bin/rigmon", bin())).unwrap();
+    let out = Command::new("systemd-analyze")
+        .args(["verify", "--man=no"])
+        .arg(&p)
+        .output()
+        .expect("systemd-analyze (apt-get install systemd)");
+    let text = format!(
+        "{}{}",
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(
+        out.status.success() && !text.contains("rigmon-historian.service:"),
+        "{text}"
+    );
+}
