@@ -172,7 +172,7 @@ impl Recorder {
         });
         if self.stats.write_errors <= 3 || self.stats.write_errors.is_power_of_two() {
             tracing::warn!(
-                "recording {file}: {msg} ({} errors so far){}; monitoring continues, retrying with a new file in {:?}",
+                "recording {file}: {msg} ({} errors so far){}; monitoring continues without recording, retrying with a new file in {:?}",
                 self.stats.write_errors,
                 if full { " — disk full: free space or lower recording.max_file_mb" } else { "" },
                 self.retry()
