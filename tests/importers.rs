@@ -2617,6 +2617,17 @@ fn lut_wav(path: &Path, bytes: usize) {
     }
 }
 
+/// Writes the big WAV that docs/reliability.md measures `import` and `replay` on (by hand:
+/// `RIGMON_BIG_WAV=/tmp/big.wav cargo test --all-features --test importers write_a_big_wav --
+/// --ignored`; `RIGMON_BIG_MIB` sets its data size, 2048 MiB unless given).
+#[test]
+#[ignore = "writes a 2 GiB file named by RIGMON_BIG_WAV; run by hand"]
+fn write_a_big_wav() {
+    let path = std::env::var("RIGMON_BIG_WAV").expect("RIGMON_BIG_WAV: where to write the WAV");
+    let mib: usize = std::env::var("RIGMON_BIG_MIB").map_or(2048, |v| v.parse().unwrap());
+    lut_wav(Path::new(&path), mib << 20);
+}
+
 /// Issue 25, finding 3: memory grew with the file (a 2 GiB WAV peaked at 2.1 GB; a file named
 /// `.mcap`/`.mat` was read whole before its magic was checked; a `.csv` of NULs peaked at
 /// 2.2 GB). `import` and `replay` now stream a 48 MiB WAV with the memory they use for a
