@@ -102,10 +102,7 @@ pub fn available() -> Option<Available> {
             .and_then(|t| field_kb(&t, "VmSize:"))
             .unwrap_or(0)
             * 1024;
-        offer(
-            (lim.rlim_cur as u64).saturating_sub(used),
-            "ulimit -v (RLIMIT_AS)",
-        );
+        offer(lim.rlim_cur.saturating_sub(used), "ulimit -v (RLIMIT_AS)");
     }
     best
 }

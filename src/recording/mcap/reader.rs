@@ -53,10 +53,14 @@ pub struct RecordingReader<R> {
     /// took with it).
     damaged_until: u64,
     /// Where the file is cut: byte offset, what is there, the cut chunk's time span.
-    truncated: Option<(u64, String, Option<(u64, u64)>)>,
+    truncated: Option<Cut>,
     /// Rewound for another pass: losses were reported on the first.
     quiet: bool,
 }
+
+/// Where a file is cut: byte offset, what is there, the cut chunk's time span (first and last
+/// sample) when its header could be read.
+type Cut = (u64, String, Option<(u64, u64)>);
 
 impl RecordingReader<File> {
     /// Open a rigmon MCAP file: its magic, then its `rigmon.recording` metadata.

@@ -95,14 +95,12 @@ pub fn repair(input: &Path, output: &Path) -> Result<RepairReport> {
         match item {
             Item::Record { opcode, data, .. } => match opcode {
                 op::SCHEMA | op::CHANNEL => defs.define(&mut out, opcode, &data)?,
-                op::METADATA => {
-                    if lengths_fit(opcode, &data).is_ok() {
-                        if let Ok(mcap::records::Record::Metadata(m)) =
-                            mcap::parse_record(opcode, &data)
-                        {
-                            out.write_metadata(&m)?;
-                            report.metadata_records += 1;
-                        }
+                op::METADATA if lengths_fit(opcode, &data).is_ok() => {
+                    if let Ok(mcap::records::Record::Metadata(m)) =
+                        mcap::parse_record(opcode, &data)
+                    {
+                        out.write_metadata(&m)?;
+                        report.metadata_records += 1;
                     }
                 }
                 op::MESSAGE => {
@@ -181,10 +179,10 @@ impl Definitions {
             return Ok(());
         }
         match mcap::parse_record(opcode, data) {
-            Ok(mcap::records::Record::Schema { header, data }) if header.id != 0 => {
-                if self.schemas.insert(header.id) {
-                    out.add_schema_with_id(header.id, &header.name, &header.encoding, &data)?;
-                }
+            Ok(mcap::records::Record::Schema { header, data })
+                if header.id != 0 && self.schemas.insert(header.id) =>
+            {
+                out.add_schema_with_id(header.id, &header.name, &header.encoding, &data)?;
             }
             Ok(mcap::records::Record::Channel(c)) => {
                 let known = c.schema_id == 0 || self.schemas.contains(&c.schema_id);
