@@ -121,11 +121,21 @@ fn missing_and_extra_tacho_pulses_are_repaired_and_flagged() {
     let rig = rig("lut-rig.toml");
     let (rec, truth) = lut_recording(&syn, false);
     let windows = extract_recording(&rec, &rig).unwrap();
-    let missing_at: Vec<f64> = [20usize, 55, 56].iter().map(|&i| truth[i]).collect();
+    // A missing pulse is known once the next pulse that did arrive is in: a window is
+    // analysed as soon as its own last sample is (no lookahead), so a pulse missing near its
+    // end is repaired, and counted, in the next window.
+    let missing = [20usize, 55, 56];
+    let known: Vec<(f64, f64)> = missing
+        .iter()
+        .map(|&i| {
+            let next = (i + 1..).find(|j| !missing.contains(j)).unwrap();
+            (truth[i], truth[next])
+        })
+        .collect();
     for w in &windows {
-        let expect_missing = missing_at
+        let expect_missing = known
             .iter()
-            .filter(|&&t| t >= w.t_start && t < w.t_end)
+            .filter(|&&(t, confirmed)| t >= w.t_start && t < w.t_end && confirmed < w.t_end)
             .count() as u32;
         let expect_extra = [3.0311, 7.5123]
             .iter()
@@ -335,6 +345,7 @@ fn cwru_estimated_speed_within_one_percent() {
     rig.speed = SpeedConfig::Estimate {
         min_rpm: 300.0,
         max_rpm: 3600.0,
+        check_within_percent: 10.0,
     };
     for c in &CWRU {
         let rec = load_cwru(c.file, &rig);
@@ -448,4 +459,95 @@ fn the_kurtogram_of_a_window_allocates_nothing() {
     let made = alloc_count::count() - before;
     assert_eq!(made, 0, "{made} allocations for one window's kurtogram");
     assert!(best.hi_hz <= 5000.0, "{best:?}");
+}
+
+/// The LUT rig with only its accelerometers: `[speed] estimate` over 250-2000 rpm, and the
+/// shaft lines a real rig shows (residual unbalance and misalignment, 1x-5x falling as 1/k,
+/// growing with speed; the rotor model's own unbalance alone is invisible below ~1000 rpm).
+fn accelerometer_only_lut_rig() -> RigConfig {
+    let mut r = rig("lut-rig.toml");
+    r.speed = SpeedConfig::Estimate {
+        min_rpm: 250.0,
+        max_rpm: 2000.0,
+        check_within_percent: 10.0,
+    };
+    let sim = r.simulation.as_mut().unwrap();
+    sim.shaft_lines = Some(rigmon::sim::config::ShaftLinesConfig {
+        ref_rpm: 1000.0,
+        exponent: 1.0,
+        amplitudes_m_s2: vec![0.2, 0.1, 0.067, 0.05, 0.04],
+        phase_deg: 0.0,
+    });
+    r
+}
+
+/// Issue 23: simulated recordings without a tacho at 300, 600 and 1800 rpm and a run-up from
+/// 300 to 1800 rpm in 20 s: every window's speed read from the vibration alone (through the
+/// one analysis stage) is within 0.5 % of the simulator's (half an order bin at the highest
+/// order) from one second after the tracker's history is full (20 revolutions at 250 rpm =
+/// 4.8 s), within 1 % before, and none of those windows is flagged uncertain. Measured
+/// 2026-11-26: steady speeds within 0.004 %, the run-up within 0.25 % but one window (0.51 %
+/// at 5.5 s, the first after acquisition).
+#[test]
+fn speed_from_the_vibration_alone_follows_the_simulator() {
+    use rigmon::sim::{profile::SpeedProfile, Fault, Scenario};
+    let r = accelerometer_only_lut_rig();
+    let full = 20.0 / (250.0 / 60.0);
+    let mut cases: Vec<(String, Scenario)> = [300.0, 600.0, 1800.0]
+        .iter()
+        .map(|&rpm| {
+            let faults: &[Fault] = if rpm == 600.0 {
+                &[Fault::OuterRace]
+            } else {
+                &[]
+            };
+            (
+                format!("{rpm} rpm"),
+                Scenario::constant(faults, rpm, 8.0, 3),
+            )
+        })
+        .collect();
+    let mut ramp = Scenario::constant(&[], 300.0, 20.0, 5);
+    ramp.profile = SpeedProfile::Ramp {
+        from_rpm: 300.0,
+        to_rpm: 1800.0,
+        seconds: 20.0,
+    };
+    cases.push(("run-up 300 -> 1800 rpm in 20 s".into(), ramp));
+    for (name, sc) in cases {
+        let rec = rigmon::sim::simulate(&r, &sc).unwrap();
+        let wins = extract_recording(&rec, &r).unwrap();
+        let mut checked = 0;
+        for w in wins.iter().filter(|w| w.t_end >= full) {
+            let truth = 0.5 * (sc.profile.rpm_at(w.t_start) + sc.profile.rpm_at(w.t_end));
+            let err = w.rpm / truth - 1.0;
+            // half an order bin (0.5) at the highest order (50): 0.5 %; in the first second
+            // after the history fills, the acquisition's coarse trend is still being refined
+            let bound = if w.t_end >= full + 1.0 { 0.005 } else { 0.01 };
+            assert_eq!(w.speed_source, "estimate", "{name}");
+            assert!(
+                err.abs() < bound && !w.quality.speed_uncertain,
+                "{name}, window ending {:.1} s: {:.1} rpm against {truth:.1} ({:+.2} %), confidence {:?}",
+                w.t_end,
+                w.rpm,
+                100.0 * err,
+                w.speed_confidence
+            );
+            checked += 1;
+        }
+        assert!(checked >= 6, "{name}: {checked} windows checked");
+    }
+}
+
+/// Issue 23: too short for the rig's lowest speed is refused up front, naming both lengths.
+#[test]
+fn a_recording_too_short_for_the_lowest_speed_is_refused_up_front() {
+    use rigmon::sim::Scenario;
+    let r = accelerometer_only_lut_rig();
+    let rec = rigmon::sim::simulate(&r, &Scenario::constant(&[], 900.0, 3.0, 1)).unwrap();
+    let e = format!("{:#}", extract_recording(&rec, &r).unwrap_err());
+    assert!(
+        e.contains("3.00 s of signal") && e.contains("at least 4.80 s") && e.contains("250 rpm"),
+        "{e}"
+    );
 }

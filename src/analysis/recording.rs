@@ -21,7 +21,12 @@ const BLOCK: usize = 4096;
 
 /// Features of every full window of a recording, with the speed source from the rig file.
 pub fn extract_recording(rec: &Recording, rig: &RigConfig) -> Result<Vec<FeatureWindow>> {
-    let speed = SpeedSource::new(&rig.speed, rec.sample_rate, rec.rpm)?;
+    let speed = SpeedSource::with_nominal(
+        &rig.speed,
+        rec.sample_rate,
+        rec.rpm,
+        super::speed_source::nominal_rpm(rec),
+    )?;
     speed
         .check_recording(rec)
         .with_context(|| format!("speed for {}", rec.provenance.source_path))?;

@@ -1,18 +1,25 @@
 //! The one place that turns the rig file's `[speed]` into shaft speed: tacho edges (detected
-//! from an analog tacho or delivered by the source), a fixed rpm, the source's stored rpm
-//! (`recording`, falling back to edges, then to estimation over 300-3600 rpm), or an estimate
-//! from the vibration itself. [`SpeedSource::track`] gives the speed of one window, for the
-//! daemon and for whole recordings alike (features are computed window by window, so
+//! from an analog tacho or delivered by the source), a fixed rpm (checked against the
+//! vibration), the source's stored rpm (`recording`, falling back to edges, then to the
+//! vibration over 300-3600 rpm), or the vibration itself (`estimate`: the streaming
+//! [`SpeedTracker`], which keeps its own signal history, so a window's speed is not limited
+//! to what one window can resolve). A recording's nominal speed (a manifest's `rpm`) is a hint
+//! the vibration is checked against. [`SpeedSource::track`] gives the speed of one window,
+//! for the daemon and for whole recordings alike (features are computed window by window, so
 //! training and serving see the same speed); [`whole_recording`] gives one track over a whole
 //! recording for the analyses that are not per-window features (calibration, whole-recording
-//! spectra, `rigmon inspect`), and [`analog_tacho_to_edges`] turns an analog tacho into the
-//! edges it would read (before a recording is resampled). Also says when the tacho has gone
-//! quiet inside a window (so the state goes `unknown` instead of raising a false alarm).
+//! spectra, `rigmon inspect`), built from the same per-window speeds, and
+//! [`analog_tacho_to_edges`] turns an analog tacho into the edges it would read (before a
+//! recording is resampled). Also says when the tacho has gone quiet inside a window (so the
+//! state goes `unknown` instead of raising a false alarm).
 
+use super::windows::WindowView;
 use crate::config::RigConfig;
 use crate::dsp::speed::SpeedTrack;
 use crate::dsp::speed_config::SpeedConfig;
-use crate::dsp::speed_estimate::SpeedEstimator;
+use crate::dsp::speed_tracker::{
+    SpeedHint, SpeedStatus, SpeedTracker, TrackedSpeed, TrackerSettings, HISTORY_REVS,
+};
 use crate::dsp::tacho;
 use crate::recording::{Recording, Tacho};
 use anyhow::{Context, Result};
@@ -23,7 +30,7 @@ const FALLBACK_RPM: (f64, f64) = (300.0, 3600.0);
 /// Missing pulses for longer than this many revolutions at a window edge = tacho lost.
 const LOST_REVS: f64 = 2.5;
 
-/// What `[speed]` asks for, with the source's stored rpm already applied.
+/// What `[speed]` asks for, with the source's stored rpm and nominal speed already applied.
 #[derive(Debug)]
 enum Mode {
     /// Tacho edges; `analog` names the analog tacho channel (source "tacho") or is None for
@@ -33,18 +40,35 @@ enum Mode {
         analog: Option<String>,
     },
     Constant(SpeedTrack),
-    Estimate {
-        min_rpm: f64,
-        max_rpm: f64,
+    /// The vibration, through the streaming tracker; a hint's own speed is reported under
+    /// `hint_source` when it is used.
+    Tracked {
+        settings: TrackerSettings,
+        hint_source: &'static str,
     },
-    /// `recording` without a stored rpm: edges when there are some, else estimate.
-    EdgesOrEstimate {
+    /// `recording` without a stored rpm: edges when there are some, else the vibration.
+    EdgesOrTracked {
         pulses_per_rev: u32,
+        settings: TrackerSettings,
     },
 }
 
+/// The tracker settings for a range and an optional hint (`within` in per cent; 0 = no check).
+fn tracked(min_rpm: f64, max_rpm: f64, hint: Option<(f64, f64)>) -> TrackerSettings {
+    TrackerSettings {
+        min_rpm,
+        max_rpm,
+        hint: hint
+            .filter(|&(_, within)| within > 0.0)
+            .map(|(rpm, within)| SpeedHint {
+                rpm,
+                within: within / 100.0,
+            }),
+    }
+}
+
 impl Mode {
-    fn new(speed: &SpeedConfig, stored_rpm: Option<f64>) -> Result<Mode> {
+    fn new(speed: &SpeedConfig, stored_rpm: Option<f64>, nominal_rpm: Option<f64>) -> Result<Mode> {
         Ok(match speed {
             SpeedConfig::Tacho {
                 channel,
@@ -58,48 +82,144 @@ impl Mode {
                 pulses_per_rev: *pulses_per_rev,
                 analog: None,
             },
-            SpeedConfig::Fixed { rpm } => Mode::Constant(SpeedTrack::fixed(*rpm)?),
-            SpeedConfig::Recording { .. } => match stored_rpm {
-                Some(rpm) => Mode::Constant(SpeedTrack::constant(rpm, "recording")?),
-                None => Mode::EdgesOrEstimate {
+            SpeedConfig::Fixed {
+                rpm,
+                check_within_percent,
+            } => {
+                SpeedTrack::fixed(*rpm)?;
+                if *check_within_percent > 0.0 {
+                    Mode::Tracked {
+                        settings: tracked(
+                            FALLBACK_RPM.0,
+                            FALLBACK_RPM.1,
+                            Some((*rpm, *check_within_percent)),
+                        ),
+                        hint_source: "fixed",
+                    }
+                } else {
+                    Mode::Constant(SpeedTrack::fixed(*rpm)?)
+                }
+            }
+            SpeedConfig::Recording {
+                check_within_percent,
+            } => match (stored_rpm, nominal_rpm) {
+                (Some(rpm), _) => Mode::Constant(SpeedTrack::constant(rpm, "recording")?),
+                (None, Some(nominal)) if *check_within_percent > 0.0 => Mode::Tracked {
+                    settings: tracked(
+                        FALLBACK_RPM.0,
+                        FALLBACK_RPM.1,
+                        Some((nominal, check_within_percent.max(NOMINAL_WITHIN_PERCENT))),
+                    ),
+                    hint_source: "recording",
+                },
+                (None, Some(nominal)) => {
+                    Mode::Constant(SpeedTrack::constant(nominal, "recording")?)
+                }
+                (None, None) => Mode::EdgesOrTracked {
                     pulses_per_rev: speed.pulses_per_rev(),
+                    settings: tracked(FALLBACK_RPM.0, FALLBACK_RPM.1, None),
                 },
             },
-            SpeedConfig::Estimate { min_rpm, max_rpm } => Mode::Estimate {
-                min_rpm: *min_rpm,
-                max_rpm: *max_rpm,
+            SpeedConfig::Estimate {
+                min_rpm,
+                max_rpm,
+                check_within_percent,
+            } => Mode::Tracked {
+                settings: tracked(
+                    *min_rpm,
+                    *max_rpm,
+                    nominal_rpm.map(|rpm| (rpm, *check_within_percent)),
+                ),
+                hint_source: "estimate",
             },
         })
     }
+
+    /// The tracker settings, for modes that read the vibration.
+    fn tracker_settings(&self) -> Option<TrackerSettings> {
+        match self {
+            Mode::Tracked { settings, .. } | Mode::EdgesOrTracked { settings, .. } => {
+                Some(*settings)
+            }
+            _ => None,
+        }
+    }
 }
 
-/// Builds a [`SpeedTrack`] per window. Buffers and FFT plans are made once and reused.
+/// A nominal speed given beside a recording (labels.csv `rpm`) is searched at least this wide
+/// (per cent) in `recording` mode: a motor setting can be 8 % off the shaft.
+const NOMINAL_WITHIN_PERCENT: f64 = 10.0;
+
+/// The speed of one window and what the vibration tracker said about it (for speeds read from
+/// the vibration).
+#[derive(Debug, Clone)]
+pub struct WindowSpeed {
+    pub track: SpeedTrack,
+    /// 0-1 for speeds read from the vibration (None otherwise).
+    pub confidence: Option<f64>,
+    pub status: Option<SpeedStatus>,
+    /// Half or twice the speed, when the spectrum supports it nearly as well, rpm.
+    pub rival_rpm: Option<f64>,
+    /// The speed is not known well enough to classify the window.
+    pub uncertain: bool,
+}
+
+impl WindowSpeed {
+    fn known(track: SpeedTrack) -> Self {
+        WindowSpeed {
+            track,
+            confidence: None,
+            status: None,
+            rival_rpm: None,
+            uncertain: false,
+        }
+    }
+}
+
+/// Builds a [`SpeedTrack`] per window. Buffers, FFT plans and the tracker's history are made
+/// once and reused.
 pub struct SpeedSource {
     mode: Mode,
-    sample_rate: f64,
     edges: Vec<f64>,
-    estimator: SpeedEstimator,
+    tracker: Option<SpeedTracker>,
+    /// Stream-clock sample up to which the tracker has been fed.
+    fed_until: Option<u64>,
 }
 
 impl SpeedSource {
     /// The speed source `speed` asks for; `stored_rpm` is the speed the source knows up front
     /// (the recording's rpm, for `source = "recording"`).
     pub fn new(speed: &SpeedConfig, sample_rate: f64, stored_rpm: Option<f64>) -> Result<Self> {
-        Ok(Self::with_mode(Mode::new(speed, stored_rpm)?, sample_rate))
+        Self::with_nominal(speed, sample_rate, stored_rpm, None)
+    }
+
+    /// As [`new`](Self::new), with a nominal speed stated beside the recording (a hint the
+    /// vibration is checked against).
+    pub fn with_nominal(
+        speed: &SpeedConfig,
+        sample_rate: f64,
+        stored_rpm: Option<f64>,
+        nominal_rpm: Option<f64>,
+    ) -> Result<Self> {
+        Self::with_mode(Mode::new(speed, stored_rpm, nominal_rpm)?, sample_rate)
     }
 
     /// Every window gets this track (e.g. `rigmon features --rpm`).
     pub fn given(track: SpeedTrack, sample_rate: f64) -> Self {
-        Self::with_mode(Mode::Constant(track), sample_rate)
+        Self::with_mode(Mode::Constant(track), sample_rate).expect("a constant needs no tracker")
     }
 
-    fn with_mode(mode: Mode, sample_rate: f64) -> Self {
-        SpeedSource {
+    fn with_mode(mode: Mode, sample_rate: f64) -> Result<Self> {
+        let tracker = match mode.tracker_settings() {
+            Some(s) => Some(SpeedTracker::new(s, sample_rate)?),
+            None => None,
+        };
+        Ok(SpeedSource {
             mode,
-            sample_rate,
             edges: Vec::with_capacity(256),
-            estimator: SpeedEstimator::new(),
-        }
+            tracker,
+            fed_until: None,
+        })
     }
 
     /// Short name of the speed source (for messages before a window has been computed).
@@ -110,20 +230,24 @@ impl SpeedSource {
             } => "tacho",
             Mode::Edges { analog: None, .. } => "edges",
             Mode::Constant(_) => "fixed",
-            Mode::Estimate { .. } => "estimate",
-            Mode::EdgesOrEstimate { .. } => "recording",
+            Mode::Tracked { hint_source, .. } => hint_source,
+            Mode::EdgesOrTracked { .. } => "recording",
         }
     }
 
-    /// The speed track of one window: `edges` = the window's tacho edge times (s), `signal` =
-    /// the classifier channel's samples (for estimation).
-    pub fn track(
-        &mut self,
-        edges: impl Iterator<Item = f64>,
-        signal: &[f32],
-    ) -> Result<SpeedTrack> {
+    /// Seconds of signal the vibration tracker needs to resolve the lowest speed of its range
+    /// (None for speeds not read from the vibration).
+    pub fn history_s(&self) -> Option<f64> {
+        self.tracker.as_ref().map(SpeedTracker::history_s)
+    }
+
+    /// The speed of one window: `view` supplies its tacho edges and its place on the stream
+    /// clock, `signal` the classifier channel's samples of the window (NaN set to 0), which
+    /// also feed the vibration tracker's history.
+    pub fn track(&mut self, view: &WindowView, signal: &[f32]) -> Result<WindowSpeed> {
         self.edges.clear();
-        self.edges.extend(edges);
+        self.edges.extend(view.edges());
+        self.feed(view, signal);
         match &self.mode {
             Mode::Edges {
                 pulses_per_rev,
@@ -132,34 +256,61 @@ impl SpeedSource {
                 &self.edges,
                 *pulses_per_rev,
                 if analog.is_some() { "tacho" } else { "edges" },
-            ),
-            Mode::Constant(t) => Ok(t.clone()),
-            Mode::Estimate { min_rpm, max_rpm } => {
-                let (lo, hi) = (*min_rpm, *max_rpm);
-                self.estimate(signal, lo, hi)
+            )
+            .map(WindowSpeed::known),
+            Mode::Constant(t) => Ok(WindowSpeed::known(t.clone())),
+            Mode::Tracked { hint_source, .. } => {
+                let source = *hint_source;
+                self.tracked(source)
             }
-            Mode::EdgesOrEstimate { pulses_per_rev } => {
+            Mode::EdgesOrTracked { pulses_per_rev, .. } => {
                 if self.edges.len() >= 3 {
                     SpeedTrack::from_edges(&self.edges, *pulses_per_rev, "edges")
+                        .map(WindowSpeed::known)
                 } else {
-                    self.estimate(signal, FALLBACK_RPM.0, FALLBACK_RPM.1)
+                    self.tracked("recording")
                 }
             }
         }
     }
 
-    /// One speed for the whole window from the vibration (a constant track needs no clock).
-    fn estimate(&mut self, x: &[f32], min_rpm: f64, max_rpm: f64) -> Result<SpeedTrack> {
-        let e = self
-            .estimator
-            .estimate_constant(x, self.sample_rate, min_rpm, max_rpm)?;
-        SpeedTrack::constant(e.rpm, "estimate")
+    /// Give the tracker the window's samples it has not seen yet (a window that does not
+    /// continue the last one restarts its history).
+    fn feed(&mut self, view: &WindowView, signal: &[f32]) {
+        let Some(tracker) = self.tracker.as_mut() else {
+            return;
+        };
+        let (start, end) = (view.first_sample, view.first_sample + signal.len() as u64);
+        let from = match self.fed_until {
+            Some(f) if f > start && f <= end => f,
+            _ => start,
+        };
+        tracker.push(from, &signal[(from - start) as usize..]);
+        self.fed_until = Some(end);
+    }
+
+    /// The tracker's speed for the window; a hint's own speed is reported as `hint_source`.
+    fn tracked(&mut self, hint_source: &'static str) -> Result<WindowSpeed> {
+        let tracker = self.tracker.as_mut().expect("tracked modes have a tracker");
+        let t: TrackedSpeed = tracker.estimate()?;
+        let track = if t.status == SpeedStatus::Hint {
+            SpeedTrack::constant(t.rpm, hint_source)?
+        } else {
+            t.track.clone()
+        };
+        Ok(WindowSpeed {
+            uncertain: t.uncertain(),
+            track,
+            confidence: Some(t.confidence),
+            status: Some(t.status),
+            rival_rpm: t.rival_rpm,
+        })
     }
 
     /// True when tacho pulses stop (or have not started) more than a couple of revolutions
     /// inside the window: the speed there is a guess, so the window must not be classified.
     pub fn lost_pulses(&self, track: &SpeedTrack, t0: f64, t1: f64) -> bool {
-        if !matches!(self.mode, Mode::Edges { .. } | Mode::EdgesOrEstimate { .. })
+        if !matches!(self.mode, Mode::Edges { .. } | Mode::EdgesOrTracked { .. })
             || track.source() == "estimate"
         {
             return false;
@@ -179,6 +330,7 @@ impl SpeedSource {
     /// the fix.
     pub fn check_recording(&self, rec: &Recording) -> Result<()> {
         check_tacho(&self.mode, rec)?;
+        check_length(&self.mode, rec)?;
         match (&self.mode, &rec.tacho) {
             (Mode::Edges { analog: None, .. }, Some(Tacho::Analog { .. })) => anyhow::bail!(
                 "{}: the rig file takes speed from tacho edges, but the recording has an analog tacho; use [speed] source = \"tacho\" with its threshold and hysteresis",
@@ -187,6 +339,34 @@ impl SpeedSource {
             _ => Ok(()),
         }
     }
+}
+
+/// The nominal speed stated beside a recording (a hint, checked against the vibration).
+pub fn nominal_rpm(rec: &Recording) -> Option<f64> {
+    rec.nominal_rpm.as_ref().map(|n| n.rpm)
+}
+
+/// Speed read from the vibration alone (no hint, no tacho) needs [`HISTORY_REVS`]
+/// revolutions at the range's lowest speed: a shorter recording is refused before any work.
+fn check_length(mode: &Mode, rec: &Recording) -> Result<()> {
+    let settings = match mode {
+        Mode::Tracked { settings, .. } => settings,
+        Mode::EdgesOrTracked { settings, .. } if rec.tacho.is_none() => settings,
+        _ => return Ok(()),
+    };
+    if settings.hint.is_some() {
+        return Ok(());
+    }
+    let need = HISTORY_REVS / (settings.min_rpm / 60.0);
+    if rec.duration_s() < need {
+        anyhow::bail!(
+            "{}: {:.2} s of signal; reading the speed from the vibration down to {:.0} rpm needs at least {need:.2} s ({HISTORY_REVS} revolutions at the lowest speed); use a longer recording, raise [speed] min_rpm, or state the speed (labels.csv `rpm`, [speed] source = \"fixed\")",
+            rec.provenance.source_path,
+            rec.duration_s(),
+            settings.min_rpm
+        );
+    }
+    Ok(())
 }
 
 /// A tacho-based mode needs a tacho in the recording.
@@ -205,11 +385,11 @@ fn check_tacho(mode: &Mode, rec: &Recording) -> Result<()> {
 
 /// One speed track over a whole recording, as the rig file asks: `tacho` (analog channel, or
 /// edges if the recording has those), `edges`, `fixed`, `recording` (the stored rpm; falls
-/// back to the tacho, then to estimation) and `estimate` (tracking the 1x line of the
-/// classifier channel). For whole-recording analyses; features use [`SpeedSource::track`]
-/// window by window.
+/// back to the tacho, then to the vibration) and `estimate`. Speeds read from the vibration
+/// are the ones the windows get ([`SpeedSource::track`], every hop), joined into one track.
+/// For whole-recording analyses; features use [`SpeedSource::track`] window by window.
 pub fn whole_recording(rec: &Recording, rig: &RigConfig) -> Result<SpeedTrack> {
-    let mode = Mode::new(&rig.speed, rec.rpm)?;
+    let mode = Mode::new(&rig.speed, rec.rpm, nominal_rpm(rec))?;
     let from_tacho = |tacho: &Tacho, ppr: u32| -> Result<SpeedTrack> {
         match tacho {
             Tacho::Edges { times_s } => SpeedTrack::from_edges(times_s, ppr, "edges"),
@@ -219,16 +399,6 @@ pub fn whole_recording(rec: &Recording, rig: &RigConfig) -> Result<SpeedTrack> {
             }
         }
     };
-    let estimate = |min_rpm: f64, max_rpm: f64| -> Result<SpeedTrack> {
-        let ch = rig
-            .classifier_channel()
-            .and_then(|c| rec.channel(&c.name))
-            .or_else(|| rec.channels.first())
-            .context("the recording has no acceleration channel to estimate speed from")?;
-        SpeedEstimator::new()
-            .estimate_track(&ch.samples, rec.sample_rate, min_rpm, max_rpm)
-            .with_context(|| format!("estimating speed from channel {:?}", ch.name))
-    };
     match &mode {
         Mode::Edges { pulses_per_rev, .. } => {
             check_tacho(&mode, rec)?;
@@ -236,12 +406,86 @@ pub fn whole_recording(rec: &Recording, rig: &RigConfig) -> Result<SpeedTrack> {
             from_tacho(t, *pulses_per_rev)
         }
         Mode::Constant(t) => Ok(t.clone()),
-        Mode::Estimate { min_rpm, max_rpm } => estimate(*min_rpm, *max_rpm),
-        Mode::EdgesOrEstimate { pulses_per_rev } => match &rec.tacho {
+        Mode::Tracked {
+            settings,
+            hint_source,
+        } => tracked_whole(rec, rig, *settings, hint_source),
+        Mode::EdgesOrTracked {
+            pulses_per_rev,
+            settings,
+        } => match &rec.tacho {
             Some(t) => from_tacho(t, *pulses_per_rev),
-            None => estimate(FALLBACK_RPM.0, FALLBACK_RPM.1),
+            None => tracked_whole(rec, rig, *settings, "recording"),
         },
     }
+}
+
+/// The vibration tracker run over a whole recording as the windows would run it (fed up to
+/// every window end), its confident speeds joined into one track: constant when they all lie
+/// within 1 % of their median, else a profile through them.
+fn tracked_whole(
+    rec: &Recording,
+    rig: &RigConfig,
+    settings: TrackerSettings,
+    hint_source: &str,
+) -> Result<SpeedTrack> {
+    check_length(
+        &Mode::Tracked {
+            settings,
+            hint_source: "estimate",
+        },
+        rec,
+    )?;
+    let ch = rig
+        .classifier_channel()
+        .and_then(|c| rec.channel(&c.name))
+        .or_else(|| rec.channels.first())
+        .context("the recording has no acceleration channel to read the speed from")?;
+    let fs = rec.sample_rate;
+    let mut tracker = SpeedTracker::new(settings, fs)?;
+    let window = (rig.features.window_s * fs).round() as usize;
+    let hop = ((rig.features.hop_s * fs).round() as usize).max(1);
+    let x = &ch.samples;
+    let (mut ts, mut hz) = (Vec::new(), Vec::new());
+    let mut fed = 0;
+    let mut end = window.min(x.len());
+    let mut hinted = 0usize;
+    while end <= x.len() && end > fed {
+        tracker.push(fed as u64, &x[fed..end]);
+        fed = end;
+        if let Ok(t) = tracker.estimate() {
+            if t.status == SpeedStatus::Hint {
+                hinted += 1;
+            }
+            if !t.uncertain() {
+                ts.push(end as f64 / fs);
+                hz.push(t.rpm / 60.0);
+            }
+        }
+        end += hop;
+    }
+    if ts.is_empty() {
+        anyhow::bail!(
+            "{}: no clear shaft line in channel {:?} ({:.1} s) between {:.0} and {:.0} rpm; state the speed (labels.csv `rpm`, [speed] source = \"fixed\") or check the channel",
+            rec.provenance.source_path,
+            ch.name,
+            rec.duration_s(),
+            settings.min_rpm,
+            settings.max_rpm
+        );
+    }
+    let source = if hinted == ts.len() {
+        hint_source
+    } else {
+        "estimate"
+    };
+    let mut sorted = hz.clone();
+    sorted.sort_by(f64::total_cmp);
+    let med = sorted[sorted.len() / 2];
+    if hz.iter().all(|f| (f / med - 1.0).abs() < 0.01) {
+        return SpeedTrack::constant(med * 60.0, source);
+    }
+    SpeedTrack::from_profile(&ts, &hz, source)
 }
 
 /// The switching levels of an analog tacho: the rig file's threshold and hysteresis, else
@@ -266,8 +510,8 @@ pub fn analog_tacho_to_edges(rec: &mut Recording, rig: &RigConfig) -> Result<()>
         return Ok(());
     };
     let reads_tacho = matches!(
-        Mode::new(&rig.speed, rec.rpm)?,
-        Mode::Edges { .. } | Mode::EdgesOrEstimate { .. }
+        Mode::new(&rig.speed, rec.rpm, nominal_rpm(rec))?,
+        Mode::Edges { .. } | Mode::EdgesOrTracked { .. }
     );
     rec.tacho = match analog_levels(samples, &rig.speed) {
         Ok((thr, hyst)) => Some(Tacho::Edges {

@@ -57,6 +57,11 @@ pub struct WindowAnalysis {
     pub tacho_lost: bool,
     /// Name of the speed source before a window has been computed (tacho, edges, ...).
     pub speed_source: &'static str,
+    /// How sure the vibration tracker is of the window's speed (0-1; None for speeds not
+    /// read from the vibration).
+    pub speed_confidence: Option<f64>,
+    /// Half or twice the speed, when the vibration supports it nearly as well, rpm.
+    pub speed_rival_rpm: Option<f64>,
     pub features: Result<FeatureWindow, WindowError>,
     /// The classifier channel's band ratios at the bearing's fault orders, from the envelope
     /// order spectrum its features were summed from (None without features).
@@ -169,11 +174,14 @@ impl AnalysisStage {
             .or_else(|| self.absent.iter().position(|a| !a))
             .map_or(&[][..], |k| self.scratch[k].as_slice());
         let mut tacho_lost = false;
+        let (mut speed_confidence, mut speed_rival_rpm) = (None, None);
         let mut fault_bands = None;
-        let features = match self.speed.track(view.edges(), signal) {
+        let features = match self.speed.track(view, signal) {
             Err(e) => Err(WindowError::NoSpeed(e)),
-            Ok(track) => {
-                tacho_lost = self.speed.lost_pulses(&track, view.t_start, view.t_end);
+            Ok(speed) => {
+                let track = &speed.track;
+                (speed_confidence, speed_rival_rpm) = (speed.confidence, speed.rival_rpm);
+                tacho_lost = self.speed.lost_pulses(track, view.t_start, view.t_end);
                 let (names, absent, scratch) = (&self.names, &self.absent, &self.scratch);
                 let chans: Vec<(&str, &[f32])> = (0..names.len())
                     .filter(|&k| !absent[k])
@@ -196,7 +204,13 @@ impl AnalysisStage {
                     )
                 });
                 self.pipeline
-                    .process_window_probed(view.t_start, &chans, &track, probe)
+                    .process_window_probed(view.t_start, &chans, track, probe)
+                    .map(|mut fw| {
+                        fw.quality.speed_uncertain = speed.uncertain;
+                        fw.quality.speed_ambiguous = speed.rival_rpm.is_some();
+                        fw.speed_confidence = speed.confidence.map(|c| c as f32);
+                        fw
+                    })
                     .map_err(WindowError::Features)
             }
         };
@@ -211,6 +225,8 @@ impl AnalysisStage {
             classifier_nan,
             tacho_lost,
             speed_source: self.speed.source_name(),
+            speed_confidence,
+            speed_rival_rpm,
             features,
             fault_bands,
             velocity_mm_s,

@@ -142,7 +142,14 @@ fn cases(rig_path: &Path, replay: &Path, dir: &Path) -> Result<Vec<Case>> {
             },
             &edges_replay,
         ),
-        ("fixed", SpeedConfig::Fixed { rpm }, replay),
+        (
+            "fixed",
+            SpeedConfig::Fixed {
+                rpm,
+                check_within_percent: 10.0,
+            },
+            replay,
+        ),
         (
             "recording",
             toml::from_str("source = \"recording\"")?,

@@ -289,7 +289,15 @@ fn cases(rig: &RigConfig) -> Result<Vec<Case>> {
             TachoForm::Edges,
             None,
         ),
-        case("fixed", SpeedConfig::Fixed { rpm }, TachoForm::Analog, None),
+        case(
+            "fixed",
+            SpeedConfig::Fixed {
+                rpm,
+                check_within_percent: 10.0,
+            },
+            TachoForm::Analog,
+            None,
+        ),
         case(
             "recording",
             toml::from_str("source = \"recording\"")?,

@@ -251,7 +251,7 @@ pub fn twin_speed_track(
         None => SpeedProfile::Constant { rpm },
     };
     match &rig.speed {
-        SpeedConfig::Fixed { rpm } => SpeedTrack::fixed(*rpm),
+        SpeedConfig::Fixed { rpm, .. } => SpeedTrack::fixed(*rpm),
         SpeedConfig::Recording { .. } => {
             SpeedTrack::constant(profile.mean_rpm(seconds), "recording")
         }

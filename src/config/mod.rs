@@ -192,11 +192,12 @@ impl RigConfig {
                 bail!("speed.check_within_percent = {check_within_percent}: use 0 (do not check the stored speed) to 20 (5 is typical)");
             }
         }
-        if let SpeedConfig::Fixed { rpm } = self.speed {
+        if let SpeedConfig::Fixed { rpm, .. } = self.speed {
             if !(rpm.is_finite() && rpm > 0.0) {
                 bail!("speed.rpm = {rpm}: must be a positive number");
             }
         }
+        self.check_speed_hints()?;
         self.check_recipe_bounds()?;
         if self.classifier_channel().is_none() {
             bail!(
@@ -255,6 +256,29 @@ impl RigConfig {
         Ok(())
     }
 
+    /// `[speed]` keys that bound a search from the vibration: the band a fixed or nominal
+    /// speed is checked in, and an estimate's range.
+    fn check_speed_hints(&self) -> Result<()> {
+        match self.speed {
+            SpeedConfig::Fixed {
+                check_within_percent,
+                ..
+            }
+            | SpeedConfig::Estimate {
+                check_within_percent,
+                ..
+            } if !(0.0..=50.0).contains(&check_within_percent) => bail!(
+                "speed.check_within_percent = {check_within_percent}: use 0 (do not check the stated speed) to 50 (10 is the default: nominal motor speeds are often a few per cent off)"
+            ),
+            SpeedConfig::Estimate {
+                min_rpm, max_rpm, ..
+            } if !(min_rpm > 0.0 && max_rpm > min_rpm) => bail!(
+                "speed.min_rpm = {min_rpm}, speed.max_rpm = {max_rpm}: need 0 < min_rpm < max_rpm (the machine's operating range)"
+            ),
+            _ => Ok(()),
+        }
+    }
+
     /// The recipe at the rig's own sample rate (when it sets one) and at the speeds `[speed]`
     /// names (a fixed rpm, the top of an estimate's range): window and hop in samples, the
     /// low-pass below Nyquist, the highest order inside the low-pass band.
@@ -266,7 +290,9 @@ impl RigConfig {
                 .with_context(|| format!("at acquisition.sample_rate_hz = {fs}"))?;
         }
         match self.speed {
-            SpeedConfig::Fixed { rpm } => self.features.check_speed(rpm, "speed.rpm", fs),
+            // the stated speed (a window whose speed the vibration corrects upwards is
+            // checked on its own: speed_out_of_range)
+            SpeedConfig::Fixed { rpm, .. } => self.features.check_speed(rpm, "speed.rpm", fs),
             SpeedConfig::Estimate { max_rpm, .. } => {
                 self.features.check_speed(max_rpm, "speed.max_rpm", fs)
             }

@@ -177,6 +177,8 @@ impl Analyzer {
             evidence: None,
             rpm: None,
             speed_source: analysis.speed_source.to_string(),
+            speed_confidence: analysis.speed_confidence,
+            speed_rival_rpm: analysis.speed_rival_rpm,
             velocity: analysis.velocity_mm_s,
         };
         match analysis.features {
@@ -242,6 +244,13 @@ impl Analyzer {
         if q.speed_out_of_range {
             quality.flag("speed_out_of_range");
         }
+        if q.speed_uncertain {
+            quality.flag("speed_uncertain");
+        }
+        if q.speed_ambiguous {
+            // advisory: classified, the rival speed is in the message
+            quality.flag("speed_ambiguous");
+        }
         quality.dsp = serde_json::to_value(q).unwrap_or_default();
     }
 
@@ -303,6 +312,8 @@ impl Analyzer {
             publish_time_ns: now_ns(),
             rpm: c.rpm,
             speed_source: c.speed_source,
+            speed_confidence: c.speed_confidence,
+            speed_rival_rpm: c.speed_rival_rpm,
             quality: c.quality,
             probabilities: labels
                 .iter()
@@ -419,6 +430,8 @@ struct Classified {
     evidence: Option<FamilyEvidence>,
     rpm: Option<f64>,
     speed_source: String,
+    speed_confidence: Option<f64>,
+    speed_rival_rpm: Option<f64>,
     /// Broadband velocity RMS of the classifier channel, mm/s.
     velocity: Option<f64>,
 }

@@ -25,6 +25,10 @@ pub struct FeatureWindow {
     pub rpm: f64,
     /// Where the speed came from: tacho, edges, fixed, recording, estimate.
     pub speed_source: String,
+    /// How sure the vibration tracker is of the speed (0-1), for speeds read from the
+    /// vibration.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub speed_confidence: Option<f32>,
     pub quality: Quality,
     /// Channel name -> RMS per order bin (bin k covers (k*w, (k+1)*w] orders).
     pub features: BTreeMap<String, Vec<f32>>,
@@ -71,7 +75,9 @@ impl FeaturePipeline {
         f.check_at_rate(sample_rate)?;
         let len = f.window_samples(sample_rate)?;
         let rpm_limits = match *speed {
-            SpeedConfig::Estimate { min_rpm, max_rpm } => Some((min_rpm, max_rpm)),
+            SpeedConfig::Estimate {
+                min_rpm, max_rpm, ..
+            } => Some((min_rpm, max_rpm)),
             _ => None,
         };
         let tracker = OrderTracker::new(len, sample_rate, f.max_order);
@@ -187,6 +193,7 @@ impl FeaturePipeline {
             t_end,
             rpm,
             speed_source: speed.source().to_string(),
+            speed_confidence: None,
             quality,
             features,
         })

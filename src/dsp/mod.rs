@@ -10,11 +10,13 @@
 //! [`resample`] (a whole stretch down to a lower rate, band-limited).
 //! Windows of a stream or a whole recording are cut and given their speed in `analysis`.
 
+pub mod decimate;
 pub mod envelope;
 pub mod fault_band_ratios;
 pub mod feature_settings;
 pub mod features;
 pub mod fft_len;
+pub mod harmonic_sum;
 pub mod kurtogram;
 pub mod order_spectrum;
 pub mod order_tracking;
@@ -23,6 +25,7 @@ pub mod resample;
 pub mod speed;
 pub mod speed_config;
 pub mod speed_estimate;
+pub mod speed_tracker;
 pub mod stored_speed;
 pub mod synthetic;
 pub mod tacho;

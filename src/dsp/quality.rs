@@ -32,6 +32,16 @@ pub struct Quality {
     pub speed_out_of_range: bool,
     /// The window reaches beyond the tacho pulses; speed there is extrapolated.
     pub speed_extrapolated: bool,
+    /// The speed read from the vibration is not known well enough (no clear shaft line, a
+    /// line that just jumped, too little history, or an unresolved octave): the window is
+    /// not to be classified.
+    #[serde(skip_serializing_if = "std::ops::Not::not")]
+    pub speed_uncertain: bool,
+    /// Half or twice the speed read from the vibration explains the spectrum nearly as well
+    /// (advisory: a bearing's fault orders keep their family under doubling, so the window
+    /// is still classified; the health message names the rival speed).
+    #[serde(skip_serializing_if = "std::ops::Not::not")]
+    pub speed_ambiguous: bool,
 }
 
 impl Quality {
@@ -63,6 +73,12 @@ impl Quality {
         }
         if self.speed_extrapolated {
             out.push("speed_extrapolated".into());
+        }
+        if self.speed_uncertain {
+            out.push("speed_uncertain".into());
+        }
+        if self.speed_ambiguous {
+            out.push("speed_ambiguous".into());
         }
         out
     }

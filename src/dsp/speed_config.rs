@@ -26,8 +26,14 @@ pub enum SpeedConfig {
         #[serde(default = "one_u32")]
         pulses_per_rev: u32,
     },
-    /// A fixed, known speed.
-    Fixed { rpm: f64 },
+    /// A fixed, known speed, checked window by window against the vibration's 1x line within
+    /// +-`check_within_percent` (0: not checked): replaced where the line is clear and more
+    /// than 1 % off (a nominal motor speed is often a few per cent from the shaft's).
+    Fixed {
+        rpm: f64,
+        #[serde(default = "default_hint_within_percent")]
+        check_within_percent: f64,
+    },
     /// The speed stored in the recording (e.g. CWRU's `X<nnn>RPM`); falls back to estimation.
     /// A stored speed is checked against the recording's own 1x line, searched within
     /// +-`check_within_percent` of it, and replaced where clearly off ([`super::stored_speed`]);
@@ -36,12 +42,16 @@ pub enum SpeedConfig {
         #[serde(default = "default_check_within_percent")]
         check_within_percent: f64,
     },
-    /// Estimate from the vibration itself by tracking the 1x line.
+    /// Estimate from the vibration itself by tracking the 1x line over `min_rpm..max_rpm`
+    /// (the rig's operating range). A recording's nominal speed (a manifest's `rpm` column)
+    /// narrows the search to +-`check_within_percent` around it.
     Estimate {
         #[serde(default = "default_min_rpm")]
         min_rpm: f64,
         #[serde(default = "default_max_rpm")]
         max_rpm: f64,
+        #[serde(default = "default_hint_within_percent")]
+        check_within_percent: f64,
     },
 }
 
@@ -62,6 +72,11 @@ fn default_max_rpm() -> f64 {
 }
 fn default_check_within_percent() -> f64 {
     5.0
+}
+/// A nominal or fixed speed may be off by several per cent (motor slip, a drive's setting):
+/// searched within +-10 %.
+fn default_hint_within_percent() -> f64 {
+    10.0
 }
 
 impl SpeedConfig {

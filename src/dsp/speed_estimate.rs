@@ -5,104 +5,23 @@
 //! synchronous machine at exactly 3000/3600 rpm needs a tacho or `--rpm`). A steady result (all segments within 1 % of the whole-record
 //! estimate) gives a constant-speed track, otherwise a speed profile.
 
-use crate::dsp::fft_len::fast_len_at_most;
+pub use crate::dsp::harmonic_sum::Estimate;
+use crate::dsp::harmonic_sum::{fundamental, Whitener, HARMONICS};
 use crate::dsp::speed::SpeedTrack;
 use anyhow::{bail, Result};
-use realfft::RealFftPlanner;
-use rustfft::num_complex::Complex32;
 
-/// Harmonics summed per candidate fundamental.
-const HARMONICS: usize = 5;
-/// Width of the running median that defines the spectral background, Hz.
-const BACKGROUND_HZ: f64 = 8.0;
 /// Segment length for tracking, s.
 const SEGMENT_S: f64 = 2.0;
 
-/// The whole-record speed estimate.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Estimate {
-    pub rpm: f64,
-    /// Mean prominence (natural-log units above background) of the harmonics found.
-    pub score: f64,
-}
-
-/// Whitened spectrum: prominence (log magnitude minus running median) per bin up to `f_top`.
-struct Whitened {
-    df: f64,
-    prom: Vec<f64>,
-}
-
-/// FFT plans (cached per length by the planner) and buffers for whitened spectra, made once
-/// and reused: the daemon, estimating speed every window, plans nothing after the first one.
+/// FFT plans and buffers for whitened spectra, made once and reused.
+#[derive(Default)]
 pub struct SpeedEstimator {
-    planner: RealFftPlanner<f32>,
-    buf: Vec<f32>,
-    spec: Vec<Complex32>,
-    scratch: Vec<Complex32>,
-    logm: Vec<f64>,
-    win: Vec<f64>,
-}
-
-impl Default for SpeedEstimator {
-    fn default() -> Self {
-        Self::new()
-    }
+    whitener: Whitener,
 }
 
 impl SpeedEstimator {
     pub fn new() -> Self {
-        SpeedEstimator {
-            planner: RealFftPlanner::new(),
-            buf: Vec::new(),
-            spec: Vec::new(),
-            scratch: Vec::new(),
-            logm: Vec::new(),
-            win: Vec::new(),
-        }
-    }
-
-    /// Whitened spectrum of `x` (cut to the largest fast FFT length, zero-padded `pad` times).
-    fn whitened(&mut self, x: &[f32], fs: f64, pad: usize, f_top: f64) -> Whitened {
-        let n = fast_len_at_most(x.len());
-        let x = &x[..n];
-        let mean = x.iter().map(|&v| v as f64).sum::<f64>() / n as f64;
-        let len = n * pad;
-        let fft = self.planner.plan_fft_forward(len);
-        self.buf.clear();
-        self.buf.resize(len, 0.0);
-        for (i, (b, &v)) in self.buf.iter_mut().zip(x).enumerate() {
-            let w = 0.5 - 0.5 * (2.0 * std::f64::consts::PI * i as f64 / n as f64).cos();
-            *b = ((v as f64 - mean) * w) as f32;
-        }
-        self.spec.clear();
-        self.spec.resize(len / 2 + 1, Complex32::default());
-        self.scratch.clear();
-        self.scratch
-            .resize(fft.get_scratch_len(), Complex32::default());
-        fft.process_with_scratch(&mut self.buf, &mut self.spec, &mut self.scratch)
-            .expect("buffer sizes match the plan");
-        let df = fs / len as f64;
-        let top = ((f_top / df).ceil() as usize).min(self.spec.len() - 1);
-        let half = ((BACKGROUND_HZ / df / 2.0).round() as usize).max(2);
-        self.logm.clear();
-        self.logm.extend(
-            self.spec[..=top + half]
-                .iter()
-                .map(|c| (c.norm() as f64 + 1e-30).ln()),
-        );
-        let (logm, win) = (&self.logm, &mut self.win);
-        let prom = (0..=top)
-            .map(|i| {
-                win.clear();
-                win.extend_from_slice(
-                    &logm[i.saturating_sub(half)..(i + half + 1).min(logm.len())],
-                );
-                let mid = win.len() / 2;
-                let med = *win.select_nth_unstable_by(mid, |a, b| a.total_cmp(b)).1;
-                logm[i] - med
-            })
-            .collect();
-        Whitened { df, prom }
+        SpeedEstimator::default()
     }
 
     /// One speed for the whole signal: see [`estimate_constant`].
@@ -115,7 +34,9 @@ impl SpeedEstimator {
     ) -> Result<Estimate> {
         check_input(x, fs, min_rpm, max_rpm)?;
         let (fmin, fmax) = (min_rpm / 60.0, max_rpm / 60.0);
-        let w = self.whitened(x, fs, 1, (HARMONICS as f64 + 1.0) * fmax);
+        let w = self
+            .whitener
+            .whiten(x, fs, 1, (HARMONICS as f64 + 1.0) * fmax);
         Ok(fundamental(&w, fmin, fmax))
     }
 
@@ -135,12 +56,12 @@ impl SpeedEstimator {
             return SpeedTrack::constant(rpm, "estimate");
         }
         let top = (HARMONICS as f64 + 1.0) * fmax;
-        let whole = self.whitened(x, fs, 1, top);
+        let whole = self.whitener.whiten(x, fs, 1, top);
         let g = fundamental(&whole, fmin, fmax).rpm / 60.0;
         let (mut ts, mut spectra, mut raw) = (Vec::new(), Vec::new(), Vec::new());
         let mut start = 0;
         while start + seg <= x.len() {
-            let w = self.whitened(&x[start..start + seg], fs, 4, top);
+            let w = self.whitener.whiten(&x[start..start + seg], fs, 4, top);
             // prefer the whole-record line when this segment supports it nearly as well as its own
             // best (short segments are easily fooled by fault lines); follow the segment otherwise
             let own = fundamental(&w, fmin, fmax);
@@ -176,83 +97,9 @@ impl SpeedEstimator {
     }
 }
 
-impl Whitened {
-    fn at(&self, f: f64) -> f64 {
-        let i = (f / self.df).round() as usize;
-        self.prom.get(i).copied().unwrap_or(f64::NEG_INFINITY)
-    }
-    /// Mean prominence of harmonics `ks` of `f0`.
-    fn score(&self, f0: f64, ks: impl Iterator<Item = usize>) -> f64 {
-        let (mut s, mut n) = (0.0, 0);
-        for k in ks {
-            s += self.at(k as f64 * f0);
-            n += 1;
-        }
-        s / n as f64
-    }
-    fn full(&self, f0: f64) -> f64 {
-        self.score(f0, 1..=HARMONICS)
-    }
-    /// Best fundamental in [lo, hi] on a grid fine enough that every harmonic lands within a
-    /// quarter bin of its line.
-    fn best_in(&self, lo: f64, hi: f64) -> (f64, f64) {
-        let step = self.df / (2 * HARMONICS) as f64;
-        let mut best = (lo, f64::NEG_INFINITY);
-        let mut f = lo;
-        while f <= hi {
-            let s = self.full(f);
-            if s > best.1 && !is_mains(f) {
-                best = (f, s);
-            }
-            f += step;
-        }
-        best
-    }
-}
-
-/// True within 0.3 % of 50 or 60 Hz: the mains series. An induction motor never turns at
-/// exactly synchronous speed (slip), so these candidates are skipped.
-fn is_mains(f: f64) -> bool {
-    [50.0, 60.0].iter().any(|m| (f / m - 1.0).abs() < 0.003)
-}
-
 /// One speed for the whole record, from the strongest harmonic series of the shaft line.
 pub fn estimate_constant(x: &[f32], fs: f64, min_rpm: f64, max_rpm: f64) -> Result<Estimate> {
     SpeedEstimator::new().estimate_constant(x, fs, min_rpm, max_rpm)
-}
-
-fn fundamental(w: &Whitened, fmin: f64, fmax: f64) -> Estimate {
-    let (mut best, mut score) = w.best_in(fmin, fmax);
-    // octave guard: prefer best/m when the harmonics best/m adds (not multiples of m) are
-    // clearly present too (mains at 60 Hz next to a 2x line at 59.9 Hz is the classic trap)
-    'outer: loop {
-        for m in [2usize, 3] {
-            let c = best / m as f64;
-            if c < fmin {
-                continue;
-            }
-            let (mut cb, mut cs) = (c, f64::NEG_INFINITY);
-            let step = w.df / (2 * HARMONICS) as f64;
-            let mut f = c * 0.995;
-            while f <= c * 1.005 {
-                let s = w.score(f, (1..=HARMONICS).filter(|k| k % m != 0));
-                if s > cs {
-                    (cb, cs) = (f, s);
-                }
-                f += step;
-            }
-            if cs >= 0.5 * score && cs > 1.0 {
-                best = cb;
-                score = w.full(cb);
-                continue 'outer;
-            }
-        }
-        break;
-    }
-    Estimate {
-        rpm: best * 60.0,
-        score,
-    }
 }
 
 fn check_input(x: &[f32], fs: f64, min_rpm: f64, max_rpm: f64) -> Result<()> {

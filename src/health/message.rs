@@ -35,6 +35,13 @@ pub struct HealthMessage {
     pub rpm: Option<f64>,
     /// Where the speed came from (tacho, edges, fixed, recording, estimate).
     pub speed_source: String,
+    /// For a speed read from the vibration: how sure the tracker is (0-1; below 0.5 the
+    /// window carries the `speed_uncertain` flag and is not classified).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub speed_confidence: Option<f64>,
+    /// Half or twice the speed, when the vibration supports it nearly as well, rpm.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub speed_rival_rpm: Option<f64>,
     pub quality: QualityReport,
     /// Class probabilities by label (model order in `model.labels`).
     pub probabilities: BTreeMap<String, f32>,
@@ -249,6 +256,8 @@ mod tests {
             publish_time_ns: 5,
             rpm: Some(588.0),
             speed_source: "tacho".into(),
+            speed_confidence: None,
+            speed_rival_rpm: None,
             quality: QualityReport {
                 ok: true,
                 ..Default::default()

@@ -57,7 +57,10 @@ pub fn quality_problem(a: &WindowAnalysis, classifier: &str) -> Option<&'static 
             return Some(flag);
         }
     }
-    q.speed_out_of_range.then_some("speed_out_of_range")
+    if q.speed_out_of_range {
+        return Some("speed_out_of_range");
+    }
+    q.speed_uncertain.then_some("speed_uncertain")
 }
 
 /// What one window says, before the verdict.

@@ -100,6 +100,8 @@ fn message_of(r: &Row) -> serde_json::Value {
         publish_time_ns: ns_of(r.get::<_, SystemTime>(6)),
         rpm: r.get(26),
         speed_source: r.get(27),
+        speed_confidence: None,
+        speed_rival_rpm: None,
         quality: QualityReport {
             ok: r.get(40),
             flags: flags.unwrap_or_default(),

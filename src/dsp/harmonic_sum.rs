@@ -1,0 +1,273 @@
+//! The evidence for a shaft fundamental in a vibration signal: harmonic summation over a
+//! whitened spectrum (log magnitude minus its running median, so a line counts by how far it
+//! stands above its own neighbourhood, not by its level), with an octave guard against mains
+//! lines and strong 2x/3x harmonics. Used by the whole-signal estimate ([`super::speed_estimate`])
+//! and by the streaming tracker ([`super::speed_tracker`]); plans and buffers are made once.
+
+use crate::dsp::fft_len::fast_len_at_most;
+use realfft::RealFftPlanner;
+use rustfft::num_complex::Complex32;
+
+/// Harmonics summed per candidate fundamental.
+pub const HARMONICS: usize = 5;
+/// Width of the running median that defines the spectral background, Hz.
+const BACKGROUND_HZ: f64 = 8.0;
+
+/// A candidate fundamental and its evidence.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Estimate {
+    pub rpm: f64,
+    /// Mean prominence (natural-log units above background) of the harmonics found.
+    pub score: f64,
+}
+
+/// Whitened spectrum: prominence (log magnitude minus running median) per bin up to a top
+/// frequency. Harmonics that fall on a mains line are skipped when `skip_mains` is set.
+#[derive(Debug, Clone, Default)]
+pub struct Whitened {
+    pub df: f64,
+    pub prom: Vec<f64>,
+    /// Leave out harmonics that sit on a 50/60 Hz mains line (the streaming tracker: a mains
+    /// line must not vote for a fundamental it happens to be a multiple of).
+    pub skip_mains: bool,
+    /// Read the prominence between bins by linear interpolation (the streaming tracker: the
+    /// harmonic sum then varies smoothly with the fundamental, so its peak can be refined
+    /// below the search grid); else the nearest bin.
+    pub interpolate: bool,
+}
+
+/// FFT plans (cached per length by the planner) and buffers for whitened spectra.
+pub struct Whitener {
+    planner: RealFftPlanner<f32>,
+    buf: Vec<f32>,
+    spec: Vec<Complex32>,
+    scratch: Vec<Complex32>,
+    logm: Vec<f64>,
+    win: Vec<f64>,
+}
+
+impl Default for Whitener {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl Whitener {
+    pub fn new() -> Self {
+        Whitener {
+            planner: RealFftPlanner::new(),
+            buf: Vec::new(),
+            spec: Vec::new(),
+            scratch: Vec::new(),
+            logm: Vec::new(),
+            win: Vec::new(),
+        }
+    }
+
+    /// Whitened spectrum of `x` (cut to the largest fast FFT length, Hann window, zero-padded
+    /// `pad` times) up to `f_top` Hz, written into `out` (its buffers are reused). The
+    /// background median is taken at every `stride`-th bin and held in between (1: every bin).
+    pub fn whiten_into(
+        &mut self,
+        x: &[f32],
+        fs: f64,
+        (pad, stride): (usize, usize),
+        f_top: f64,
+        out: &mut Whitened,
+    ) {
+        let n = fast_len_at_most(x.len());
+        let x = &x[..n];
+        let mean = x.iter().map(|&v| v as f64).sum::<f64>() / n as f64;
+        let len = n * pad;
+        let fft = self.planner.plan_fft_forward(len);
+        self.buf.clear();
+        self.buf.resize(len, 0.0);
+        for (i, (b, &v)) in self.buf.iter_mut().zip(x).enumerate() {
+            let w = 0.5 - 0.5 * (2.0 * std::f64::consts::PI * i as f64 / n as f64).cos();
+            *b = ((v as f64 - mean) * w) as f32;
+        }
+        self.spec.clear();
+        self.spec.resize(len / 2 + 1, Complex32::default());
+        self.scratch.clear();
+        self.scratch
+            .resize(fft.get_scratch_len(), Complex32::default());
+        fft.process_with_scratch(&mut self.buf, &mut self.spec, &mut self.scratch)
+            .expect("buffer sizes match the plan");
+        let df = fs / len as f64;
+        let top = ((f_top / df).ceil() as usize).min(self.spec.len() - 1);
+        let half = ((BACKGROUND_HZ / df / 2.0).round() as usize).max(2);
+        self.logm.clear();
+        self.logm.extend(
+            self.spec[..(top + half + 1).min(self.spec.len())]
+                .iter()
+                .map(|c| (c.norm() as f64 + 1e-30).ln()),
+        );
+        let (logm, win) = (&self.logm, &mut self.win);
+        let stride = stride.max(1);
+        let mut med = 0.0;
+        out.df = df;
+        out.prom.clear();
+        out.prom.extend((0..=top).map(|i| {
+            if i % stride == 0 {
+                let c = (i + stride / 2).min(top);
+                win.clear();
+                win.extend_from_slice(
+                    &logm[c.saturating_sub(half)..(c + half + 1).min(logm.len())],
+                );
+                let mid = win.len() / 2;
+                med = *win.select_nth_unstable_by(mid, |a, b| a.total_cmp(b)).1;
+            }
+            logm[i] - med
+        }));
+    }
+
+    /// As [`whiten_into`](Self::whiten_into), into a new spectrum (mains harmonics counted).
+    pub fn whiten(&mut self, x: &[f32], fs: f64, pad: usize, f_top: f64) -> Whitened {
+        let mut w = Whitened::default();
+        self.whiten_into(x, fs, (pad, 1), f_top, &mut w);
+        w
+    }
+}
+
+/// True within 0.3 % of 50 or 60 Hz: the mains series. An induction motor never turns at
+/// exactly synchronous speed (slip), so these candidates are skipped.
+pub fn is_mains(f: f64) -> bool {
+    [50.0, 60.0].iter().any(|m| (f / m - 1.0).abs() < 0.003)
+}
+
+/// True when `f` sits on a harmonic of 50 or 60 Hz, within `tol` Hz (or 0.3 %).
+fn on_mains_harmonic(f: f64, tol: f64) -> bool {
+    [50.0, 60.0].iter().any(|&m: &f64| {
+        let k = (f / m).round();
+        k >= 1.0 && (f - k * m).abs() <= tol.max(0.003 * k * m)
+    })
+}
+
+impl Whitened {
+    /// Prominence at `f` (the nearest bin, or interpolated; -inf beyond the spectrum).
+    pub fn at(&self, f: f64) -> f64 {
+        if self.interpolate {
+            let x = f / self.df;
+            let i = x.floor() as usize;
+            return match (self.prom.get(i), self.prom.get(i + 1)) {
+                (Some(&a), Some(&b)) => {
+                    let w = x - i as f64;
+                    a + w * (b - a)
+                }
+                _ => f64::NEG_INFINITY,
+            };
+        }
+        let i = (f / self.df).round() as usize;
+        self.prom.get(i).copied().unwrap_or(f64::NEG_INFINITY)
+    }
+
+    /// Mean prominence of harmonics `ks` of `f0` (mains lines left out when `skip_mains`).
+    pub fn score(&self, f0: f64, ks: impl Iterator<Item = usize>) -> f64 {
+        let (mut s, mut n) = (0.0, 0);
+        let tol = 1.5 * self.df;
+        for k in ks {
+            let f = k as f64 * f0;
+            if self.skip_mains && on_mains_harmonic(f, tol) {
+                continue;
+            }
+            s += self.at(f);
+            n += 1;
+        }
+        if n == 0 {
+            return f64::NEG_INFINITY;
+        }
+        s / n as f64
+    }
+
+    /// Mean prominence of harmonics 1..=[`HARMONICS`].
+    pub fn full(&self, f0: f64) -> f64 {
+        self.score(f0, 1..=HARMONICS)
+    }
+
+    /// Best fundamental in [lo, hi] on a grid fine enough that every harmonic lands within a
+    /// quarter bin of its line.
+    pub fn best_in(&self, lo: f64, hi: f64) -> (f64, f64) {
+        let step = self.df / (2 * HARMONICS) as f64;
+        let mut best = (lo, f64::NEG_INFINITY);
+        let mut f = lo;
+        while f <= hi {
+            let s = self.full(f);
+            if s > best.1 && !is_mains(f) {
+                best = (f, s);
+            }
+            f += step;
+        }
+        best
+    }
+
+    /// Best score of the harmonics of `f0` that are not multiples of `m` (the lines a true
+    /// fundamental `f0` adds to the series of `m * f0`), searched within +-0.5 % of `f0`.
+    pub fn odd_support(&self, f0: f64, m: usize) -> (f64, f64) {
+        let (mut cb, mut cs) = (f0, f64::NEG_INFINITY);
+        let step = self.df / (2 * HARMONICS) as f64;
+        let mut f = f0 * 0.995;
+        while f <= f0 * 1.005 {
+            let s = self.score(f, (1..=HARMONICS).filter(|k| k % m != 0));
+            if s > cs {
+                (cb, cs) = (f, s);
+            }
+            f += step;
+        }
+        (cb, cs)
+    }
+}
+
+/// The strongest harmonic series in [fmin, fmax] Hz, with the octave guard: prefer best/m
+/// when the harmonics best/m adds (not multiples of m) are clearly present too (mains at 60 Hz
+/// next to a 2x line at 59.9 Hz is the classic trap).
+pub fn fundamental(w: &Whitened, fmin: f64, fmax: f64) -> Estimate {
+    let (mut best, mut score) = w.best_in(fmin, fmax);
+    'outer: loop {
+        for m in [2usize, 3] {
+            let c = best / m as f64;
+            if c < fmin {
+                continue;
+            }
+            let (cb, cs) = w.odd_support(c, m);
+            if cs >= 0.5 * score && cs > 1.0 {
+                best = cb;
+                score = w.full(cb);
+                continue 'outer;
+            }
+        }
+        break;
+    }
+    Estimate {
+        rpm: best * 60.0,
+        score,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn mains_harmonics_are_recognised() {
+        assert!(on_mains_harmonic(100.02, 0.05));
+        assert!(on_mains_harmonic(180.3, 0.05));
+        assert!(!on_mains_harmonic(70.0, 0.05));
+        assert!(!on_mains_harmonic(54.0, 0.05));
+    }
+
+    #[test]
+    fn a_mains_line_does_not_vote_when_skipped() {
+        // background 0, one strong line at 50 Hz only
+        let df = 0.1;
+        let mut w = Whitened {
+            df,
+            prom: vec![0.0; 2000],
+            skip_mains: false,
+            interpolate: false,
+        };
+        w.prom[500] = 10.0;
+        assert!(w.full(10.0) > 1.9, "50 Hz is the 5th harmonic of 10 Hz");
+        w.skip_mains = true;
+        assert!(w.full(10.0).abs() < 1e-12);
+    }
+}

@@ -1,0 +1,814 @@
+//! Shaft speed from the vibration alone, on-line: for machines with only an accelerometer.
+//!
+//! The tracker keeps the signal's recent history (decimated to the few hundred hertz the
+//! shaft harmonics occupy), [`HISTORY_REVS`] revolutions at the slowest speed of the rig's
+//! range, and at every window looks for the strongest harmonic series of the shaft line in
+//! it ([`super::harmonic_sum`]: whitened spectrum, harmonics 1x-5x, octave guard, mains lines
+//! never voting). It does not start from scratch each window:
+//! - **continuity**: the line found before is followed (searched within a few per cent of
+//!   where its trend puts it); a stronger line elsewhere is taken only once it has won two
+//!   windows in a row, and the window where it first wins is marked uncertain;
+//! - **run-ups**: the history is warped in time along the speed trend measured over the last
+//!   windows before its spectrum is taken, so the harmonics of an accelerating shaft stay
+//!   sharp lines; the speed reported is the speed at the end of the history, and the window's
+//!   speed track follows the trend;
+//! - **confidence** (0-1): how clearly the line stands above its background (the harmonic
+//!   prominence that reads about 0.5 on noise and 2 or more on a clear shaft line, the same
+//!   scale as the stored-speed check), how many revolutions the history holds, whether the
+//!   line just jumped, and whether half or twice the speed explains the spectrum nearly as
+//!   well (an octave rival, reported with its speed).
+//! A hint (a fixed or nominal speed) narrows the search to a band around it and is used
+//! itself when the vibration shows no clear line there.
+//!
+//! The input is the stream's samples in order; a discontinuity (a gap or restart of the
+//! sample clock) restarts the history. Given the same samples, the result does not depend on
+//! how they were cut into blocks, so a live stream and a whole recording get the same speeds.
+
+use super::decimate::Decimator;
+use super::harmonic_sum::{fundamental, Whitened, Whitener, HARMONICS};
+use super::speed::SpeedTrack;
+use anyhow::{bail, Result};
+
+/// Revolutions at the rig's lowest speed that the history holds.
+pub const HISTORY_REVS: f64 = 20.0;
+/// Fewest revolutions (at a candidate speed) for the candidate to be considered at all.
+const MIN_REVS: f64 = 8.0;
+/// Revolutions at which a clear line counts as fully resolved.
+const FULL_REVS: f64 = 16.0;
+/// Harmonic prominence of noise (about 0.5, the best of many candidates) and of a clear line
+/// (the stored-speed check's threshold: 2.6-5.2 on every CWRU record).
+const SCORE_NOISE: f64 = 1.0;
+const SCORE_CLEAR: f64 = 2.0;
+/// Mean prominence of the lines only one of two octave-related speeds predicts above which
+/// that speed stays a rival (noise, searched as the octave guard searches, reads 0.3-0.5).
+const RIVAL_SUPPORT: f64 = 0.7;
+/// A window whose confidence is below this is flagged: its speed is not known.
+pub const MIN_CONFIDENCE: f64 = 0.5;
+/// Confidence from which a line is trusted enough to be followed (and a jump away from it
+/// needs confirmation).
+const LOCK_CONFIDENCE: f64 = 0.7;
+/// The line followed is kept while it scores at least this share of the best line elsewhere.
+const KEEP_SHARE: f64 = 0.7;
+/// Relative band around the predicted speed in which the followed line is searched.
+const FOLLOW_BAND: f64 = 0.03;
+/// Largest speed trend followed, relative change per second (a run-up from 300 to 1800 rpm in
+/// 20 s peaks at 0.25 /s).
+const MAX_TREND: f64 = 0.5;
+/// Share of the trend measured in one window that is taken into the followed trend (the rest
+/// is the trend so far): a one-pole smoother against the scatter of a single window.
+const TREND_GAIN: f64 = 0.5;
+/// Trends tried while acquiring (relative speed change per second).
+const ACQUIRE_TRENDS: [f64; 12] = [
+    0.03, -0.03, 0.06, -0.06, 0.1, -0.1, 0.15, -0.15, 0.22, -0.22, 0.3, -0.3,
+];
+/// Windows a followed line may go unconfirmed before it is dropped.
+const MAX_MISSES: u32 = 3;
+/// Output rate of the history, in multiples of the highest frequency searched.
+const OVERSAMPLE: f64 = 4.0;
+
+/// Where the tracker looks.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TrackerSettings {
+    pub min_rpm: f64,
+    pub max_rpm: f64,
+    /// A fixed or nominal speed: searched within +-`within` (fraction), used itself when the
+    /// vibration shows no clear line there.
+    pub hint: Option<SpeedHint>,
+}
+
+/// A speed someone stated (a `fixed` rpm, a manifest's nominal rpm) and how far to trust it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SpeedHint {
+    pub rpm: f64,
+    pub within: f64,
+}
+
+/// What the tracker knows about the window.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum SpeedStatus {
+    /// A clear line, followed from window to window.
+    Tracking,
+    /// Not enough history yet for a confident estimate.
+    Acquiring,
+    /// No clear shaft line in the history.
+    Unclear,
+    /// A new line won this window; it is taken once it wins again.
+    Jumped,
+    /// The hint's own speed is used (no clear line near it).
+    Hint,
+}
+
+/// The speed of one window.
+#[derive(Debug, Clone, PartialEq)]
+pub struct TrackedSpeed {
+    /// Shaft angle and speed over the history, on the stream's clock.
+    pub track: SpeedTrack,
+    /// Speed at the end of the history, rpm.
+    pub rpm: f64,
+    /// 0 (a guess) to 1 (a clear line, followed, no rival).
+    pub confidence: f64,
+    pub status: SpeedStatus,
+    /// Half or twice the speed, when the spectrum supports it nearly as well.
+    pub rival_rpm: Option<f64>,
+    /// Harmonic prominence of the line (natural-log units above the background).
+    pub score: f64,
+}
+
+impl TrackedSpeed {
+    /// The window's speed is not known well enough to classify it.
+    pub fn uncertain(&self) -> bool {
+        self.confidence < MIN_CONFIDENCE
+    }
+}
+
+/// The line being followed.
+#[derive(Debug, Clone, Copy)]
+struct Lock {
+    /// Shaft frequency at the end of the history, Hz, and that time (s, stream clock).
+    hz: f64,
+    t: f64,
+    /// A confident estimate (else a guess while acquiring).
+    confirmed: bool,
+    /// Relative speed trend (1/s) the line was found along.
+    trend: f64,
+}
+
+/// The streaming tracker (see the module doc). Buffers and FFT plans are made once.
+pub struct SpeedTracker {
+    fs: f64,
+    fmin: f64,
+    fmax: f64,
+    hint: Option<SpeedHint>,
+    decimator: Decimator,
+    fs_d: f64,
+    /// Decimated history, oldest first; `cap` samples are kept.
+    hist: Vec<f32>,
+    cap: usize,
+    /// Stream-clock index of the first input since the last restart, and of the next input.
+    origin: u64,
+    next: Option<u64>,
+    /// Input index (since the restart) of the newest decimated sample.
+    newest: u64,
+    whitener: Whitener,
+    spec: Whitened,
+    warped: Vec<f32>,
+    lock: Option<Lock>,
+    /// A rival line that won the last window (Hz).
+    pending: Option<f64>,
+    /// Windows since the followed line was last confirmed.
+    misses: u32,
+}
+
+impl SpeedTracker {
+    /// A tracker for a signal sampled at `fs` Hz.
+    pub fn new(settings: TrackerSettings, fs: f64) -> Result<SpeedTracker> {
+        let (mut lo, mut hi) = (settings.min_rpm, settings.max_rpm);
+        if !(lo.is_finite() && hi.is_finite() && lo > 0.0 && hi > lo) {
+            bail!("speed range {lo}-{hi} rpm: need 0 < min_rpm < max_rpm");
+        }
+        if let Some(h) = settings.hint {
+            if !(h.rpm.is_finite() && h.rpm > 0.0 && h.within > 0.0 && h.within < 1.0) {
+                bail!(
+                    "speed hint {} rpm +-{} %: need a positive speed and a band between 0 and 100 %",
+                    h.rpm,
+                    h.within * 100.0
+                );
+            }
+            (lo, hi) = (h.rpm * (1.0 - h.within), h.rpm * (1.0 + h.within));
+        }
+        let (fmin, fmax) = (lo / 60.0, hi / 60.0);
+        let top = (HARMONICS as f64 + 1.0) * fmax;
+        if top > fs / 2.0 {
+            bail!(
+                "sample rate {fs} Hz is too low to see {HARMONICS} shaft harmonics at {hi} rpm (needs more than {:.0} Hz)",
+                2.0 * top
+            );
+        }
+        let factor = ((fs / (OVERSAMPLE * top)).floor() as usize).max(1);
+        let fs_d = fs / factor as f64;
+        let cap = (HISTORY_REVS / fmin * fs_d).ceil() as usize;
+        Ok(SpeedTracker {
+            fs,
+            fmin,
+            fmax,
+            hint: settings.hint,
+            decimator: Decimator::new(factor, 0.8),
+            fs_d,
+            hist: Vec::with_capacity(2 * cap),
+            cap,
+            origin: 0,
+            next: None,
+            newest: 0,
+            whitener: Whitener::new(),
+            spec: Whitened {
+                skip_mains: true,
+                interpolate: true,
+                ..Whitened::default()
+            },
+            warped: Vec::with_capacity(cap),
+            lock: None,
+            pending: None,
+            misses: 0,
+        })
+    }
+
+    /// Seconds of signal the history holds when full ([`HISTORY_REVS`] at the lowest speed).
+    pub fn history_s(&self) -> f64 {
+        HISTORY_REVS / self.fmin
+    }
+
+    /// Seconds of signal the history holds now.
+    pub fn buffered_s(&self) -> f64 {
+        self.hist.len() as f64 / self.fs_d
+    }
+
+    /// Forget everything (a new stream).
+    pub fn reset(&mut self) {
+        self.decimator.reset();
+        self.hist.clear();
+        self.next = None;
+        self.lock = None;
+        self.pending = None;
+        self.misses = 0;
+    }
+
+    /// Add the samples `x` that start at stream-clock sample `first`; a jump in the clock
+    /// restarts the history. Non-finite samples count as 0.
+    pub fn push(&mut self, first: u64, x: &[f32]) {
+        if self.next != Some(first) {
+            self.reset();
+            self.origin = first;
+        }
+        self.next = Some(first + x.len() as u64);
+        let (hist, newest) = (&mut self.hist, &mut self.newest);
+        self.decimator.push(x, |i, v| {
+            hist.push(v);
+            *newest = i;
+        });
+        if self.hist.len() >= 2 * self.cap {
+            let n = self.hist.len();
+            self.hist.copy_within(n - self.cap.., 0);
+            self.hist.truncate(self.cap);
+        }
+    }
+
+    /// Stream-clock time (s) of the newest history sample (the filter's delay removed).
+    fn t_newest(&self) -> f64 {
+        (self.origin as f64 + self.newest as f64 - self.decimator.delay()) / self.fs
+    }
+
+    /// The speed at the end of what was pushed so far. An error only when the history is too
+    /// short to say anything (fewer than a few revolutions at the highest speed).
+    pub fn estimate(&mut self) -> Result<TrackedSpeed> {
+        let n = self.hist.len().min(self.cap);
+        let span = n as f64 / self.fs_d;
+        if span * self.fmax < MIN_REVS {
+            bail!(
+                "speed estimate: {span:.2} s of signal so far; at least {:.2} s are needed to see the shaft line at {:.0} rpm ({} s to resolve it down to {:.0} rpm)",
+                MIN_REVS / self.fmax,
+                self.fmax * 60.0,
+                fmt_s(self.history_s()),
+                self.fmin * 60.0
+            );
+        }
+        let t_end = self.t_newest();
+        let best = match self.lock.filter(|l| l.confirmed) {
+            Some(lock) => self.follow(lock, n),
+            None => self.acquire(n),
+        };
+        Ok(self.decide(best, t_end))
+    }
+
+    /// Following a line: the spectrum over [`HISTORY_REVS`] revolutions at the line's speed
+    /// (so an accelerating shaft smears no more at 300 than at 3000 rpm), warped along the
+    /// trend of the last estimates, with the trend itself refined by a parabola through its
+    /// neighbours.
+    fn follow(&mut self, lock: Lock, n: usize) -> Candidate {
+        let last = self.hist.len();
+        let min_n = (MIN_REVS / self.fmax * self.fs_d).ceil() as usize;
+        // the trend is held as a constant change in Hz per second (a linear run-up), so
+        // relative to the speed now it is smaller than it was relative to the last speed
+        let pred = lock.hz * (1.0 + lock.trend * (self.t_newest() - lock.t));
+        let r0 = if pred > 0.0 {
+            lock.trend * lock.hz / pred
+        } else {
+            lock.trend
+        };
+        // steady: the whole history (finest lines); changing: 20 revolutions of it, or half
+        // of it if that is longer (a longer span lifts a line above the noise)
+        let m = if r0.abs() < 0.002 {
+            n
+        } else {
+            let revs = (HISTORY_REVS / lock.hz * self.fs_d).ceil() as usize;
+            revs.max(self.cap / 2).clamp(min_n.min(n), n)
+        };
+        let mut best = self.search(last - m, last, r0);
+        // the trend left over after warping moves the line between the halves of the span
+        if let Some(dr) = self.residual_trend(last - m, last, r0, best.hz) {
+            let r1 = (r0 + TREND_GAIN * dr).clamp(-MAX_TREND, MAX_TREND);
+            // a trend that moves the line by less than a bin over the span is no trend
+            let span = m as f64 / self.fs_d;
+            let resolvable = r1.abs() * best.hz * span * span >= 1.0;
+            let c = self.search(last - m, last, if resolvable { r1 } else { 0.0 });
+            if c.followed || !best.followed {
+                if c.score >= KEEP_SHARE * best.score {
+                    best = c;
+                }
+            }
+        }
+        best
+    }
+
+    /// The relative trend left in `hist[first..last]` after warping along `r`: the line's
+    /// speed in the second half of the span against the first (None when either half shows
+    /// no line near `hz`).
+    fn residual_trend(&mut self, first: usize, last: usize, r: f64, hz: f64) -> Option<f64> {
+        let fs_u = if r == 0.0 {
+            self.warped.clear();
+            self.warped.extend_from_slice(&self.hist[first..last]);
+            self.fs_d
+        } else {
+            warp(&self.hist[first..last], self.fs_d, r, &mut self.warped)
+        };
+        let n = self.warped.len();
+        let h = n / 2;
+        if (h as f64 / fs_u) * hz < MIN_REVS / 2.0 {
+            return None;
+        }
+        let top = (HARMONICS as f64 + 1.0) * self.fmax;
+        let mut f = [0.0; 2];
+        for (k, (a, b)) in [(0, h), (n - h, n)].into_iter().enumerate() {
+            self.whitener
+                .whiten_into(&self.warped[a..b], fs_u, (4, 1), top, &mut self.spec);
+            let (line, score) = self.spec.best_in(hz * 0.95, hz * 1.05);
+            if score < SCORE_NOISE {
+                return None;
+            }
+            f[k] = refine(&self.spec, line);
+        }
+        // half centres sit at -3/4 and -1/4 of the span (in warped time)
+        let span = (n - 1) as f64 / fs_u;
+        Some(2.0 * (f[1] - f[0]) / (hz * span))
+    }
+
+    /// Looking for a line: the whole history straight, then (while nothing is clear) halves
+    /// and quarters of it along a grid of trends, since a fast run-up smears a long history.
+    fn acquire(&mut self, n: usize) -> Candidate {
+        let last = self.hist.len();
+        let mut best = self.search(last - n, last, 0.0);
+        if best.confidence() >= MIN_CONFIDENCE {
+            return best;
+        }
+        for part in [1, 2, 4] {
+            let m = n / part;
+            if (m as f64 / self.fs_d) * self.fmax < MIN_REVS {
+                break;
+            }
+            for r in ACQUIRE_TRENDS {
+                let c = self.search(last - m, last, r);
+                if (c.confidence(), c.score) > (best.confidence(), best.score) {
+                    best = c;
+                }
+            }
+        }
+        best
+    }
+
+    /// The best line of the history `hist[first..last]`, warped along relative trend `r`:
+    /// the line followed from the last window when it holds, else the best anywhere.
+    fn search(&mut self, first: usize, last: usize, r: f64) -> Candidate {
+        let top = (HARMONICS as f64 + 1.0) * self.fmax;
+        let span = (last - first) as f64 / self.fs_d;
+        let lo = self.fmin.max(MIN_REVS / span);
+        let stride = 4;
+        if r == 0.0 {
+            self.whitener.whiten_into(
+                &self.hist[first..last],
+                self.fs_d,
+                (2, stride),
+                top,
+                &mut self.spec,
+            );
+        } else {
+            let fs_u = warp(&self.hist[first..last], self.fs_d, r, &mut self.warped);
+            self.whitener
+                .whiten_into(&self.warped, fs_u, (2, stride), top, &mut self.spec);
+        }
+        let global = fundamental(&self.spec, lo, self.fmax);
+        let mut c = Candidate {
+            hz: global.rpm / 60.0,
+            score: global.score,
+            followed: false,
+            trend: r,
+            span,
+            rival: None,
+            unresolved: false,
+        };
+        if let Some(lock) = self.lock {
+            let t = self.t_newest();
+            let pred = lock.hz * (1.0 + lock.trend * (t - lock.t));
+            let band = FOLLOW_BAND + 0.5 * lock.trend.abs() * (t - lock.t);
+            let (f, s) = self.spec.best_in(
+                (pred * (1.0 - band)).max(lo),
+                (pred * (1.0 + band)).min(self.fmax),
+            );
+            if s >= KEEP_SHARE * global.score {
+                (c.hz, c.score, c.followed) = (f, s, true);
+                // the octave guard applies to a followed line too: a longer history may
+                // now show the half speed it could not resolve before
+                let (half, support) = self.spec.odd_support(f / 2.0, 2);
+                if f / 2.0 >= lo && support >= 0.5 * s && support > SCORE_NOISE {
+                    (c.hz, c.score, c.followed) = (half, self.spec.full(half), false);
+                }
+            }
+        }
+        c.hz = refine(&self.spec, c.hz);
+        c.rival = self.rival(c.hz);
+        // half this speed is in the rig's range but not yet resolvable in this span
+        c.unresolved = lo > self.fmin && c.hz / 2.0 >= self.fmin && c.hz / 2.0 < lo;
+        c
+    }
+
+    /// Turn the best candidate into the window's speed, update the lock and the trend.
+    fn decide(&mut self, c: Candidate, t_end: f64) -> TrackedSpeed {
+        let following = self.lock.is_some_and(|l| l.confirmed);
+        let mut status = SpeedStatus::Tracking;
+        if following && !c.followed {
+            // a new line won: it is taken once it wins twice in a row
+            if self
+                .pending
+                .is_some_and(|p| (p / c.hz - 1.0).abs() < FOLLOW_BAND)
+            {
+                self.pending = None;
+            } else {
+                self.pending = Some(c.hz);
+                status = SpeedStatus::Jumped;
+            }
+        } else {
+            self.pending = None;
+        }
+        let filled = c.filled();
+        let rival = c.rival;
+        let mut confidence = c.confidence();
+        if status == SpeedStatus::Jumped {
+            confidence = confidence.min(0.3);
+        } else if confidence < MIN_CONFIDENCE {
+            status = if filled < 1.0 {
+                SpeedStatus::Acquiring
+            } else {
+                SpeedStatus::Unclear
+            };
+        }
+        let mut hz = c.hz;
+        if let (Some(h), true) = (self.hint, confidence < MIN_CONFIDENCE) {
+            hz = h.rpm / 60.0;
+            status = SpeedStatus::Hint;
+            confidence = 1.0;
+        }
+        if matches!(status, SpeedStatus::Tracking | SpeedStatus::Hint) {
+            self.misses = 0;
+        } else {
+            self.misses += 1;
+            if self.misses > MAX_MISSES {
+                // the line followed is gone: look afresh
+                self.lock = None;
+                self.pending = None;
+                self.misses = 0;
+            }
+        }
+        match status {
+            SpeedStatus::Tracking | SpeedStatus::Hint => {
+                self.lock = Some(Lock {
+                    hz,
+                    t: t_end,
+                    // a barely clear line is followed, not yet trusted; an octave rival
+                    // does not unsettle a line that was already being followed
+                    confirmed: status == SpeedStatus::Hint
+                        || confidence >= LOCK_CONFIDENCE
+                        || (c.followed && c.clear().min(c.filled()) >= LOCK_CONFIDENCE),
+                    trend: if status == SpeedStatus::Tracking {
+                        c.trend
+                    } else {
+                        0.0
+                    },
+                });
+            }
+            SpeedStatus::Jumped => {}
+            // not yet sure: follow the best guess, without a trend
+            SpeedStatus::Acquiring | SpeedStatus::Unclear => {
+                if !following {
+                    self.lock = Some(Lock {
+                        hz,
+                        t: t_end,
+                        confirmed: false,
+                        trend: c.trend,
+                    });
+                }
+            }
+        }
+        let trend = if status == SpeedStatus::Hint {
+            0.0
+        } else {
+            c.trend
+        };
+        TrackedSpeed {
+            track: track_along(hz, trend, t_end, c.span),
+            rpm: hz * 60.0,
+            confidence,
+            status,
+            rival_rpm: rival.map(|f| f * 60.0),
+            score: c.score,
+        }
+    }
+
+    /// Half or twice `hz` when the spectrum supports it nearly as well: for half, the odd
+    /// harmonics of hz / 2 (the lines it would add) stand out; for twice, the odd harmonics
+    /// of `hz` (the lines that rule out 2 hz) do not.
+    fn rival(&self, hz: f64) -> Option<f64> {
+        if self.hint.is_some() {
+            return None;
+        }
+        let half = hz / 2.0;
+        if half >= self.fmin && self.spec.odd_support(half, 2).1 > RIVAL_SUPPORT {
+            return Some(half);
+        }
+        let double = 2.0 * hz;
+        if double <= self.fmax && self.spec.score(hz, (1..=HARMONICS).step_by(2)) < RIVAL_SUPPORT {
+            return Some(double);
+        }
+        None
+    }
+}
+
+/// A line found in one spectrum.
+#[derive(Debug, Clone, Copy)]
+struct Candidate {
+    hz: f64,
+    score: f64,
+    /// The line followed from the last window (else the best line anywhere).
+    followed: bool,
+    trend: f64,
+    /// Seconds of history the spectrum was taken over.
+    span: f64,
+    /// Half or twice the speed, when the spectrum supports it nearly as well (Hz).
+    rival: Option<f64>,
+    /// Half the speed is in range but the span is too short to rule it out.
+    unresolved: bool,
+}
+
+impl Candidate {
+    /// How clearly the line stands above its background (0-1).
+    fn clear(&self) -> f64 {
+        ((self.score - SCORE_NOISE) / (SCORE_CLEAR - SCORE_NOISE)).clamp(0.0, 1.0)
+    }
+
+    /// How many revolutions the span holds, relative to a fully resolved line (0-1).
+    fn filled(&self) -> f64 {
+        (self.span * self.hz / FULL_REVS).clamp(0.0, 1.0)
+    }
+
+    /// Confidence before continuity: the weaker of clarity and resolution, at most
+    /// [`MIN_CONFIDENCE`] with an octave rival.
+    fn confidence(&self) -> f64 {
+        let c = self.clear().min(self.filled());
+        if self.unresolved {
+            c.min(0.49 * MIN_CONFIDENCE / 0.5)
+        } else if self.rival.is_some() {
+            c.min(MIN_CONFIDENCE)
+        } else {
+            c
+        }
+    }
+}
+
+/// Sub-grid position of the harmonic-sum maximum near `hz` (a parabola through three
+/// points of the search grid).
+fn refine(w: &Whitened, hz: f64) -> f64 {
+    let step = w.df / (2 * HARMONICS) as f64;
+    let (a, b, c) = (w.full(hz - step), w.full(hz), w.full(hz + step));
+    let den = a - 2.0 * b + c;
+    if !(den < 0.0) || !a.is_finite() || !c.is_finite() {
+        return hz;
+    }
+    hz + step * (0.5 * (a - c) / den).clamp(-0.5, 0.5)
+}
+
+/// Resample `x` (rate `fs`, its last sample at t = 0) uniformly in the time `u` a shaft would
+/// need at its final speed to turn as far as it did along f(t) = f_end (1 + r t): harmonics of
+/// such a shaft become steady lines at multiples of f_end. Returns the rate of the warped
+/// samples (per unit of u).
+fn warp(x: &[f32], fs: f64, r: f64, out: &mut Vec<f32>) -> f64 {
+    let n = x.len();
+    out.clear();
+    if n < 2 {
+        out.extend_from_slice(x);
+        return fs;
+    }
+    let t0 = -((n - 1) as f64) / fs;
+    // u(t) = t + r t^2 / 2 is increasing on [t0, 0] while 1 + r t > 0
+    let u0 = t0 + 0.5 * r * t0 * t0;
+    for j in 0..n {
+        let u = u0 * (1.0 - j as f64 / (n - 1) as f64);
+        let t = if r.abs() < 1e-12 {
+            u
+        } else {
+            let d = 1.0 + 2.0 * r * u;
+            if d <= 0.0 {
+                t0
+            } else {
+                (d.sqrt() - 1.0) / r
+            }
+        };
+        let p = ((t - t0) * fs).clamp(0.0, (n - 1) as f64);
+        let i = (p.floor() as usize).min(n - 2);
+        let a = p - i as f64;
+        out.push(((1.0 - a) * x[i] as f64 + a * x[i + 1] as f64) as f32);
+    }
+    (n - 1) as f64 / -u0
+}
+
+/// The speed track of a history of `span` s ending at `t_end` with speed `hz` there and
+/// relative trend `r`: constant when the trend changes the speed by less than 0.1 % over it.
+fn track_along(hz: f64, r: f64, t_end: f64, span: f64) -> SpeedTrack {
+    let constant = || SpeedTrack::constant(hz * 60.0, "estimate").expect("a positive speed");
+    if (r * span).abs() < 0.001 {
+        return constant();
+    }
+    // knots over the history and half a second beyond its end (so the end of a window is
+    // not the end of the profile, where a monotone cubic holds the last segment's mean)
+    const KNOTS: usize = 17;
+    let t0 = t_end - span;
+    let t1 = t_end + 0.5;
+    let ts: Vec<f64> = (0..KNOTS)
+        .map(|k| t0 + (t1 - t0) * k as f64 / (KNOTS - 1) as f64)
+        .collect();
+    let fs: Vec<f64> = ts
+        .iter()
+        .map(|&t| (hz * (1.0 + r * (t - t_end))).max(1e-3))
+        .collect();
+    SpeedTrack::from_profile(&ts, &fs, "estimate").unwrap_or_else(|_| constant())
+}
+
+fn fmt_s(s: f64) -> String {
+    format!("{s:.2}")
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Shaft harmonics along a speed law (Hz at t), mains 50 Hz lines, noise.
+    fn shaft(fs: f64, seconds: f64, hz: impl Fn(f64) -> f64, seed: u64) -> Vec<f32> {
+        let mut s = seed;
+        let mut theta = 0.0;
+        (0..(fs * seconds) as usize)
+            .map(|i| {
+                let t = i as f64 / fs;
+                theta += hz(t) / fs;
+                let mut v = 0.0;
+                for k in 1..=6 {
+                    let a = if k % 2 == 1 { 0.4 } else { 1.0 } / k as f64;
+                    v += a * (std::f64::consts::TAU * k as f64 * theta + k as f64).sin();
+                }
+                for k in 1..=3 {
+                    v += 0.8 * (std::f64::consts::TAU * 50.0 * k as f64 * t).sin();
+                }
+                s = s
+                    .wrapping_mul(6364136223846793005)
+                    .wrapping_add(1442695040888963407);
+                v += ((s >> 11) as f64 / (1u64 << 53) as f64 - 0.5) * 2.0;
+                v as f32
+            })
+            .collect()
+    }
+
+    fn run(x: &[f32], fs: f64, settings: TrackerSettings, hop: usize) -> Vec<(f64, TrackedSpeed)> {
+        let mut tr = SpeedTracker::new(settings, fs).unwrap();
+        let mut out = Vec::new();
+        for (k, c) in x.chunks(hop).enumerate() {
+            tr.push((k * hop) as u64, c);
+            if let Ok(e) = tr.estimate() {
+                out.push((((k + 1) * hop) as f64 / fs, e));
+            }
+        }
+        out
+    }
+
+    fn range(lo: f64, hi: f64) -> TrackerSettings {
+        TrackerSettings {
+            min_rpm: lo,
+            max_rpm: hi,
+            hint: None,
+        }
+    }
+
+    #[test]
+    fn steady_speeds_within_half_a_percent_once_the_history_is_full() {
+        let fs = 5_000.0;
+        for rpm in [300.0, 600.0, 1800.0] {
+            let x = shaft(fs, 8.0, |_| rpm / 60.0, 7);
+            let est = run(&x, fs, range(250.0, 2000.0), 2_500);
+            let full = HISTORY_REVS / (250.0 / 60.0);
+            for (t, e) in est.iter().filter(|(t, _)| *t >= full) {
+                assert!(
+                    (e.rpm / rpm - 1.0).abs() < 0.005 && !e.uncertain(),
+                    "{rpm} rpm at {t} s: {e:?}"
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn a_run_up_is_followed() {
+        // 300 -> 1800 rpm in 20 s: 25 % per second at the start
+        let fs = 5_000.0;
+        let law = |t: f64| (300.0 + 75.0 * t) / 60.0;
+        let x = shaft(fs, 20.0, law, 3);
+        let est = run(&x, fs, range(250.0, 2000.0), 2_500);
+        let mut errs = Vec::new();
+        for (t, e) in est.iter().filter(|(t, _)| *t >= 8.0) {
+            // the window's mean speed against the truth's (the law is linear: its mid-point)
+            let truth = 60.0 * law(t - 0.5);
+            let err = e.track.mean_rpm(t - 1.0, *t) / truth - 1.0;
+            assert!(
+                err.abs() < 0.0075 && !e.uncertain(),
+                "at {t} s: {err:+.4} ({e:?})"
+            );
+            errs.push(err.abs());
+        }
+        errs.sort_by(f64::total_cmp);
+        assert!(
+            errs[errs.len() / 2] < 0.003,
+            "median error {}",
+            errs[errs.len() / 2]
+        );
+    }
+
+    #[test]
+    fn blocks_do_not_change_the_estimate() {
+        let fs = 5_000.0;
+        let x = shaft(fs, 6.0, |_| 17.0, 11);
+        let mut a = SpeedTracker::new(range(300.0, 3000.0), fs).unwrap();
+        let mut b = SpeedTracker::new(range(300.0, 3000.0), fs).unwrap();
+        a.push(0, &x);
+        for (k, c) in x.chunks(97).enumerate() {
+            b.push((k * 97) as u64, c);
+        }
+        assert_eq!(a.estimate().unwrap(), b.estimate().unwrap());
+    }
+
+    #[test]
+    fn noise_is_not_a_speed() {
+        let fs = 5_000.0;
+        let mut s = 5u64;
+        let x: Vec<f32> = (0..(fs * 8.0) as usize)
+            .map(|_| {
+                s = s
+                    .wrapping_mul(6364136223846793005)
+                    .wrapping_add(1442695040888963407);
+                ((s >> 11) as f64 / (1u64 << 53) as f64 - 0.5) as f32
+            })
+            .collect();
+        let est = run(&x, fs, range(300.0, 3000.0), 2_500);
+        assert!(est.iter().all(|(_, e)| e.uncertain()), "{est:?}");
+    }
+
+    #[test]
+    fn a_hint_is_used_where_the_line_is_unclear() {
+        let fs = 5_000.0;
+        let mut s = 9u64;
+        let x: Vec<f32> = (0..(fs * 8.0) as usize)
+            .map(|_| {
+                s = s
+                    .wrapping_mul(6364136223846793005)
+                    .wrapping_add(1442695040888963407);
+                ((s >> 11) as f64 / (1u64 << 53) as f64 - 0.5) as f32
+            })
+            .collect();
+        let hint = TrackerSettings {
+            hint: Some(SpeedHint {
+                rpm: 900.0,
+                within: 0.1,
+            }),
+            ..range(300.0, 3000.0)
+        };
+        let est = run(&x, fs, hint, 2_500);
+        let (_, last) = est.last().unwrap();
+        assert_eq!((last.status, last.rpm), (SpeedStatus::Hint, 900.0));
+        // and a clear line 6 % off the hint replaces it
+        let y = shaft(fs, 8.0, |_| 954.0 / 60.0, 4);
+        let est = run(&y, fs, hint, 2_500);
+        let (_, last) = est.last().unwrap();
+        assert!((last.rpm / 954.0 - 1.0).abs() < 0.005, "{last:?}");
+        assert_eq!(last.status, SpeedStatus::Tracking);
+    }
+
+    #[test]
+    fn too_little_signal_is_a_clear_error() {
+        let mut tr = SpeedTracker::new(range(300.0, 3000.0), 5_000.0).unwrap();
+        tr.push(0, &[0.0; 500]);
+        let e = tr.estimate().unwrap_err().to_string();
+        assert!(e.contains("0.10 s of signal so far"), "{e}");
+    }
+}
