@@ -1,8 +1,12 @@
-//! File replay: any recording `importers::load` reads (rigmon MCAP, any-layout .mat, WAV, CSV)
-//! streamed as [`SampleBlock`]s of about `block_ms`, at a real-time factor or as fast as the
+//! File replay: any recording the importers read (rigmon MCAP, any-layout .mat, WAV, CSV)
+//! delivered as [`SampleBlock`]s of about `block_ms`, at a real-time factor or as fast as the
 //! consumer takes them, optionally looping. Channels come out in rig order; an analog tacho
-//! becomes `tacho_analog`, recorded tacho edges become `tacho_edges`.
+//! becomes `tacho_analog`, recorded tacho edges become `tacho_edges`. The `[source] type =
+//! "file"` section ([`FileSourceConfig`]); the daemon streams the file
+//! ([`FileSourceConfig::open`], [`StreamReplay`]); [`FileReplay`] replays a recording held in
+//! memory (the serial emulator).
 
+use super::stream_replay::StreamReplay;
 use super::{
     send_block, sleep_unless_stopped, BlockSender, SampleBlock, Source, SourceStats, StopToken,
 };
@@ -141,7 +145,24 @@ impl FileSourceConfig {
         }
     }
 
-    /// Read the recording and check it against the rig.
+    /// Open the recording as the daemon's source: streamed from disk (rigmon MCAP, WAV) with
+    /// bounded memory, checked against the rig (see [`StreamReplay`]).
+    pub fn open(&self, rig: &RigConfig) -> Result<StreamReplay> {
+        check_block_ms(self.block_ms)?;
+        let opts = ImportOptions {
+            sample_rate: self.sample_rate_hz,
+            rpm: self.rpm,
+            ..Default::default()
+        };
+        let name = self.path.display().to_string();
+        let stream = importers::open(&self.path, rig, &opts)
+            .with_context(|| format!("file source: cannot replay {name}"))?;
+        StreamReplay::new(stream, rig, self.speed, self.looping, self.block_ms, &name)
+            .with_context(|| format!("file source {name}"))
+    }
+
+    /// Read the whole recording into memory and check it against the rig (the serial
+    /// emulator needs it whole; the daemon uses [`open`](Self::open)).
     pub fn build(&self, rig: &RigConfig) -> Result<FileReplay> {
         check_block_ms(self.block_ms)?;
         let opts = ImportOptions {

@@ -3,12 +3,16 @@
 //! a stored speed if the file has one, and provenance.
 //!
 //! The MCAP layout that stores a recording on disk is in [`mcap`]; a block of samples
-//! as it streams from a source is a [`SampleBlock`] ([`block`]).
+//! as it streams from a source is a [`SampleBlock`] ([`block`]); what a reader could not
+//! deliver from a damaged or cut file is a [`Losses`] report ([`losses`]).
 
 pub mod block;
+pub mod losses;
 pub mod mcap;
+pub mod stream;
 
 pub use block::SampleBlock;
+pub use losses::{LossReport, Losses};
 
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
