@@ -301,9 +301,9 @@ impl FileReplay {
         &self.rec
     }
 
-    /// The block holding samples `[start, end)` of the recording, pass `pass` (for loops).
-    pub(crate) fn block_at(&self, start: usize, end: usize, pass: u64) -> SampleBlock {
-        let n = self.rec.len() as u64;
+    /// The block holding samples `[start, end)` of the recording (every pass of a loop
+    /// alike).
+    pub(crate) fn block_at(&self, start: usize, end: usize) -> SampleBlock {
         let fs = self.rec.sample_rate;
         let channels = self
             .order
@@ -313,19 +313,21 @@ impl FileReplay {
                 None => vec![f32::NAN; end - start],
             })
             .collect();
-        let offset_s = (pass * n) as f64 / fs;
         let (tacho_analog, tacho_edges) = match &self.rec.tacho {
             Some(Tacho::Analog { samples, .. }) => (Some(samples[start..end].to_vec()), Vec::new()),
             Some(Tacho::Edges { times_s }) => {
                 let (t0, t1) = (start as f64 / fs, end as f64 / fs);
                 let lo = times_s.partition_point(|&t| t < t0);
                 let hi = times_s.partition_point(|&t| t < t1);
-                (None, times_s[lo..hi].iter().map(|t| t + offset_s).collect())
+                (None, times_s[lo..hi].to_vec())
             }
             None => (None, Vec::new()),
         };
+        // Each pass starts the sample clock again: the seam is a clock going backwards,
+        // which restarts the windows and their speed (analysis::windows), instead of joining
+        // the end of the recording to its start as if the shaft had turned on across it.
         SampleBlock {
-            first_sample: pass * n + start as u64,
+            first_sample: start as u64,
             sample_rate: fs,
             channels,
             tacho_analog,
@@ -386,7 +388,7 @@ impl Source for FileReplay {
                     break 'outer;
                 }
                 let end = (start + self.block).min(n);
-                let block = self.block_at(start, end, pass);
+                let block = self.block_at(start, end);
                 if let ReplaySpeed::Factor(x) = self.speed {
                     // A live DAQ delivers a block once its last sample has been taken.
                     let due = t0
@@ -538,7 +540,7 @@ mod tests {
     }
 
     #[test]
-    fn edges_follow_their_block_and_loops_keep_the_clock_running() {
+    fn edges_follow_their_block_and_each_loop_restarts_the_clock() {
         let n = 1200; // 0.1 s at 12 kHz
         let edges: Vec<f64> = (0..10).map(|k| 0.005 + 0.01 * k as f64).collect();
         let rec = recording(
@@ -563,7 +565,7 @@ mod tests {
         h.join().unwrap().unwrap();
         assert_eq!(
             blocks.iter().map(|b| b.first_sample).collect::<Vec<_>>(),
-            [0, 600, 1200, 1800, 2400, 3000]
+            [0, 600, 0, 600, 0, 600]
         );
         assert!(
             blocks[0].channels[2].iter().all(|v| v.is_nan()),
@@ -582,7 +584,7 @@ mod tests {
                 b.tacho_edges
             );
         }
-        assert!((blocks[4].tacho_edges[0] - (0.2 + 0.005)).abs() < 1e-12);
+        assert!((blocks[4].tacho_edges[0] - 0.005).abs() < 1e-12);
     }
 
     #[test]

@@ -239,12 +239,14 @@ impl Source for StreamReplay {
             let mut delivered = 0u64;
             while let Some(b) = self.stream.next_block()? {
                 self.report_losses(&mut seen, &stats);
-                let b = self.to_rig_order(b, offset);
+                // Each pass starts the sample clock again: the seam is a clock going
+                // backwards, which restarts the windows and their speed (analysis::windows).
+                let b = self.to_rig_order(b, 0);
                 for part in split(b, self.block) {
                     if stop.is_stopped() {
                         break 'outer;
                     }
-                    let part_end = part.first_sample + part.len() as u64;
+                    let part_end = part.first_sample + part.len() as u64 + offset;
                     if let ReplaySpeed::Factor(x) = self.speed {
                         // A live DAQ delivers a block once its last sample has been taken.
                         let due = t0 + Duration::from_secs_f64(part_end as f64 / fs / x);
