@@ -6,7 +6,9 @@
 //! and `ack`. The database is killed for 30 s and the historian killed and restarted mid-run;
 //! every window must end up in the database exactly once. Also: the Grafana provisioning
 //! parses and its queries run on the real database, the systemd unit verifies, and bad
-//! database settings are refused at start.
+//! database settings are refused at start. And: a health message with every field set goes
+//! through the historian into a database that started at schema version 1 (migrated in place)
+//! and comes back over `rigmon history` field for field.
 
 use rigmon::historian::status::HistorianStatus;
 use rigmon::publish::zenoh::ZenohSettings;
