@@ -21,6 +21,8 @@ struct Cli {
 enum Command {
     /// Convert a recording (any-layout .mat, WAV, CSV) into a rigmon MCAP file.
     Import(cli::import::Args),
+    /// Rewrite a damaged, cut or unfinished MCAP file as a clean one any MCAP reader opens.
+    Repair(cli::repair::Args),
     /// Print envelope-order-spectrum features per window as JSON Lines.
     Features(cli::features::Args),
     /// Draw a recording's envelope order spectrum with fault-order markers (PNG).
@@ -76,6 +78,7 @@ fn main() -> std::process::ExitCode {
         .init();
     let result = match cli.command {
         Command::Import(a) => cli::import::run(a),
+        Command::Repair(a) => cli::repair::run(a),
         Command::Features(a) => cli::features::run(a),
         Command::Inspect(a) => cli::inspect::run(a),
         Command::Simulate(a) => cli::simulate::run(a),

@@ -761,3 +761,56 @@ print(json.dumps(out))
         }
     }
 }
+
+/// Issue 25, finding 11: a looping replay joined the end of the recording to its start as if
+/// the shaft had turned on across the seam, so 3 windows per loop read 564-583 rpm instead of
+/// 588 with quality ok. Each pass now starts the sample clock again; the windower restarts at
+/// the seam, and every window of three passes of the shipped 588 rpm replay reads its speed
+/// from its own pass.
+#[test]
+fn a_looping_replay_restarts_the_speed_at_the_seam() {
+    use rigmon::analysis::{AnalysisStage, SpeedSource, Windower};
+    let rig = rig("lut-rig.toml");
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("replay/lut-healthy-588rpm.mcap");
+    let rec = rigmon::recording::mcap::read_recording(&path).unwrap();
+    let (fs, n) = (rec.sample_rate, rec.len() as u64);
+    let channels: Vec<(String, String)> = rig
+        .acceleration_channels()
+        .map(|c| (c.name.clone(), c.unit.clone()))
+        .collect();
+    let src = FileReplay::from_recording(rec, &rig, ReplaySpeed::Max, true, 100.0).unwrap();
+    let (tx, rx) = std::sync::mpsc::sync_channel(8);
+    let stop = StopToken::new();
+    let st = stop.clone();
+    let h = std::thread::spawn(move || Box::new(src).run(tx, Arc::new(SourceStats::default()), st));
+    let speed = SpeedSource::new(&rig.speed, fs, None).unwrap();
+    let mut stage = AnalysisStage::new(&rig, fs, &channels, &[], speed).unwrap();
+    let mut windower = Windower::for_rig(&rig.speed, &rig.features, fs, channels.len()).unwrap();
+    let (mut delivered, mut rpms) = (0u64, Vec::new());
+    for block in rx.iter() {
+        delivered += block.len() as u64;
+        windower.push(&block);
+        while let Some(view) = windower.window() {
+            let a = stage.analyse(&view);
+            drop(view);
+            windower.advance();
+            let fw = a.features.expect("every window has its speed and features");
+            assert!(!a.tacho_lost, "window at {:.1} s: tacho lost", a.t_start);
+            rpms.push((a.t_start, fw.rpm, fw.quality.missing_pulses, fw.quality.extra_pulses));
+        }
+        if delivered >= 3 * n {
+            break;
+        }
+    }
+    stop.stop();
+    drop(rx);
+    let _ = h.join().unwrap();
+    assert_eq!(windower.stats().restarts, 2, "one restart per seam");
+    assert!(rpms.len() >= 3 * 13, "{} windows in three passes", rpms.len());
+    for (t, rpm, missing, extra) in rpms {
+        assert!(
+            (rpm / 588.0 - 1.0).abs() < 0.01 && missing == 0 && extra == 0,
+            "window at {t:.1} s: {rpm:.1} rpm, {missing} pulses inserted, {extra} removed"
+        );
+    }
+}

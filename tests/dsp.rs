@@ -551,3 +551,60 @@ fn a_recording_too_short_for_the_lowest_speed_is_refused_up_front() {
         "{e}"
     );
 }
+
+/// Issue 23: training data in estimate mode takes the simulator's own speed (the revolution
+/// times it writes on a rig without a tacho channel), not the tracker's reading. This shows
+/// what that leaves out: on the same simulated recordings, features from the tracked speed
+/// and from the simulator's speed differ by a small fraction of what separates a healthy
+/// machine from an outer-race fault at the same speed.
+#[test]
+fn training_on_the_simulators_speed_gives_the_features_the_tracker_would() {
+    use rigmon::sim::{Fault, Scenario};
+    let mut r = accelerometer_only_lut_rig();
+    r.channels
+        .retain(|c| c.kind != rigmon::config::ChannelKind::Tacho);
+    let full = 20.0 / (250.0 / 60.0) + 1.0;
+    let dist = |a: &[f32], b: &[f32]| -> f64 {
+        a.iter()
+            .zip(b)
+            .map(|(x, y)| f64::from(x - y).powi(2))
+            .sum::<f64>()
+            .sqrt()
+    };
+    for rpm in [600.0, 1800.0] {
+        let features = |faults: &[Fault], tracked: bool| {
+            let mut rec =
+                rigmon::sim::simulate(&r, &Scenario::constant(faults, rpm, 8.0, 4)).unwrap();
+            assert!(
+                matches!(rec.tacho, Some(Tacho::Edges { .. })),
+                "the simulator writes its revolution times"
+            );
+            if tracked {
+                rec.tacho = None;
+            }
+            let wins = extract_recording(&rec, &r).unwrap();
+            let source = if tracked { "estimate" } else { "simulator" };
+            assert!(wins.iter().all(|w| w.speed_source == source), "{rpm} rpm");
+            wins.into_iter()
+                .filter(|w| w.t_end >= full)
+                .map(|w| (w.rpm, w.classifier_features(&r).to_vec()))
+                .collect::<Vec<_>>()
+        };
+        let (truth, tracked) = (features(&[], false), features(&[], true));
+        let faulty = features(&[Fault::OuterRace], false);
+        assert!(truth.len() >= 4 && truth.len() == tracked.len());
+        for ((t, k), f) in truth.iter().zip(&tracked).zip(&faulty) {
+            assert!(
+                (k.0 / t.0 - 1.0).abs() < 0.005,
+                "{rpm} rpm: {} vs {}",
+                k.0,
+                t.0
+            );
+            let (speed_gap, class_gap) = (dist(&t.1, &k.1), dist(&t.1, &f.1));
+            assert!(
+                speed_gap < 0.1 * class_gap,
+                "{rpm} rpm: tracked vs true speed {speed_gap:.4}, healthy vs outer race {class_gap:.4}"
+            );
+        }
+    }
+}

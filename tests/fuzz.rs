@@ -860,6 +860,287 @@ fn mcap_target() -> Target {
     }
 }
 
+/// A finished rigmon recording and what the damage targets need to know about it: its
+/// samples, and per chunk the byte range of its compressed data and the sample span its header
+/// declares. 2.4 s of the synthetic signal with tacho edges, blocks of 0.1 s, chunks of
+/// 16 KiB (13 of them, the first holding the definitions only).
+struct Pristine {
+    bytes: Vec<u8>,
+    rec: Recording,
+    chunks: Vec<PristineChunk>,
+    block: u64,
+}
+
+#[derive(Debug, Clone, Copy)]
+struct PristineChunk {
+    at: usize,
+    end: usize,
+    data_at: usize,
+    data_len: usize,
+    /// Declared first and last message start, samples (none for the definitions chunk).
+    span: Option<(u64, u64)>,
+}
+
+fn pristine() -> &'static Pristine {
+    static P: std::sync::OnceLock<Pristine> = std::sync::OnceLock::new();
+    P.get_or_init(|| {
+        let n = 24_000;
+        let edges: Vec<f64> = (0..240).map(|k| 0.004 + k as f64 * 0.01).collect();
+        let rec = synthetic(n, Some(Tacho::Edges { times_s: edges }));
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("pristine.mcap");
+        let settings = rigmon_mcap::WriterSettings {
+            chunk_size: 16 * 1024,
+            zstd_level: 1,
+        };
+        let mut w = rigmon_mcap::RecordingWriter::create_with(
+            &p,
+            &rigmon_mcap::RecordingInfo::of(&rec),
+            &settings,
+        )
+        .unwrap();
+        let block = 1000usize;
+        let Some(Tacho::Edges { times_s }) = &rec.tacho else {
+            unreachable!()
+        };
+        for s in (0..n).step_by(block) {
+            let chans: Vec<&[f32]> = rec
+                .channels
+                .iter()
+                .map(|c| &c.samples[s..s + block])
+                .collect();
+            let (t0, t1) = (s as f64 / 1e4, (s + block) as f64 / 1e4);
+            let e: Vec<f64> = times_s
+                .iter()
+                .copied()
+                .filter(|&t| t >= t0 && t < t1)
+                .collect();
+            w.write_block(s as u64, &chans, None, &e).unwrap();
+        }
+        w.finish().unwrap();
+        let bytes = std::fs::read(&p).unwrap();
+        let u64_at = |b: &[u8], at: usize| u64::from_le_bytes(b[at..at + 8].try_into().unwrap());
+        let mut chunks = Vec::new();
+        let mut at = 8;
+        while at + 9 <= bytes.len() {
+            let len = u64_at(&bytes, at + 1) as usize;
+            if bytes[at] == 0x06 {
+                let c_len =
+                    u32::from_le_bytes(bytes[at + 37..at + 41].try_into().unwrap()) as usize;
+                let data_at = at + 9 + 32 + c_len + 8;
+                let (t0, t1) = (u64_at(&bytes, at + 9), u64_at(&bytes, at + 17));
+                let sample = |t: u64| ((t - rec.start_time_ns) as f64 * 1e-9 * 1e4).round() as u64;
+                chunks.push(PristineChunk {
+                    at,
+                    end: at + 9 + len,
+                    data_at,
+                    data_len: at + 9 + len - data_at,
+                    span: (t1 > 0).then(|| (sample(t0), sample(t1))),
+                });
+            }
+            at += 9 + len;
+        }
+        assert!(chunks.len() >= 8 && chunks[0].span.is_none(), "{chunks:?}");
+        Pristine {
+            bytes,
+            rec,
+            chunks,
+            block: block as u64,
+        }
+    })
+}
+
+/// What the damage targets check on every read: the samples read are the original ones
+/// wherever they are not NaN, NaN stands exactly for the gaps reported, and the samples
+/// reported lost are never more than those really missing. Returns (samples really missing,
+/// samples reported lost), or what is broken.
+fn check_against_pristine(
+    rec: &Recording,
+    losses: &rigmon::recording::Losses,
+) -> Result<(u64, u64), String> {
+    let orig = &pristine().rec;
+    let n = rec.len();
+    if n > orig.len() {
+        return Err(format!("{n} samples read from {} written", orig.len()));
+    }
+    for (c, o) in rec.channels.iter().zip(&orig.channels) {
+        if c.samples.len() != n {
+            return Err(format!(
+                "channel {} has {} samples, not {n}",
+                c.name,
+                c.samples.len()
+            ));
+        }
+        if let Some(i) = (0..n)
+            .find(|&i| !c.samples[i].is_nan() && c.samples[i].to_bits() != o.samples[i].to_bits())
+        {
+            return Err(format!(
+                "{} sample {i}: read {} but {} was written",
+                c.name, c.samples[i], o.samples[i]
+            ));
+        }
+    }
+    let nan = rec.channels[0]
+        .samples
+        .iter()
+        .filter(|x| x.is_nan())
+        .count() as u64;
+    let in_gaps: u64 = losses
+        .gaps
+        .iter()
+        .map(|g| {
+            (g.first_sample + g.samples)
+                .min(n as u64)
+                .saturating_sub(g.first_sample.min(n as u64))
+        })
+        .sum();
+    if nan != in_gaps {
+        return Err(format!(
+            "{nan} NaN samples but {in_gaps} in the gaps reported: {losses:?}"
+        ));
+    }
+    let actual = orig.len() as u64 - (n as u64 - nan);
+    let reported = losses.samples_lost();
+    if reported > actual {
+        return Err(format!(
+            "{reported} samples reported lost but {actual} are missing: {losses:?}"
+        ));
+    }
+    Ok((actual, reported))
+}
+
+/// Damaged chunks, structure-aware: each 6-byte group of the input flips bits in one byte of
+/// one chunk's compressed data (2 bytes pick the chunk, 3 the byte, 1 the bits). The read must
+/// skip exactly the damaged chunks, report each, keep every other sample exact, and report as
+/// lost exactly the samples that are missing (all but the last block of a damaged last chunk,
+/// whose length no intact header states).
+fn mcap_damage_target() -> Target {
+    Target {
+        name: "mcap-damage",
+        kind: Kind::Binary,
+        fixup: None,
+        run: Box::new(|input: &[u8]| {
+            let p = pristine();
+            let mut bytes = p.bytes.clone();
+            let mut hit = std::collections::BTreeSet::new();
+            for op in input.chunks_exact(6).take(8) {
+                let k = u16::from_le_bytes([op[0], op[1]]) as usize % p.chunks.len();
+                let c = p.chunks[k];
+                let off = u32::from_le_bytes([op[2], op[3], op[4], 0]) as usize % c.data_len;
+                bytes[c.data_at + off] ^= op[5].max(1);
+                hit.insert(k);
+            }
+            let data_chunks = p.chunks.iter().filter(|c| c.span.is_some()).count();
+            let all_data_hit =
+                hit.iter().filter(|&&k| p.chunks[k].span.is_some()).count() == data_chunks;
+            let (rec, losses) = match rigmon_mcap::read_recording_bytes_with_losses(&bytes) {
+                Ok(r) => r,
+                Err(_) if all_data_hit => return Verdict::Rejected,
+                Err(e) => {
+                    return Verdict::Broken(format!("chunks {hit:?} damaged: read failed: {e:#}"))
+                }
+            };
+            // Every damaged stretch reported is one of the chunks hit (a flip zstd and the CRC
+            // both miss, if there is such a one, changes nothing and is not reported).
+            let at: Vec<u64> = hit.iter().map(|&k| p.chunks[k].at as u64).collect();
+            if losses.damaged.len() > hit.len()
+                || losses.damaged.iter().any(|d| !at.contains(&d.at_byte))
+            {
+                return Verdict::Broken(format!(
+                    "chunks {hit:?} (at {at:?}) damaged but reported: {losses:?}"
+                ));
+            }
+            let (actual, reported) = match check_against_pristine(&rec, &losses) {
+                Ok(x) => x,
+                Err(e) => return Verdict::Broken(format!("chunks {hit:?} damaged: {e}")),
+            };
+            // A damaged chunk holding the first message of the last block: that block's length
+            // is stated nowhere intact, so it may be missing without being counted.
+            let last_block = p.rec.len() as u64 - p.block;
+            let last_hit = hit
+                .iter()
+                .any(|&k| p.chunks[k].span.is_some_and(|s| s.1 >= last_block));
+            let slack = if last_hit { p.block } else { 0 };
+            let causes_ok = losses
+                .gaps
+                .iter()
+                .all(|g| g.cause == rigmon::recording::losses::GapCause::Damaged);
+            if !causes_ok {
+                return Verdict::Broken(format!(
+                    "chunks {hit:?} damaged: a gap not put down to the damage: {losses:?}"
+                ));
+            }
+            if actual - reported > slack {
+                return Verdict::Broken(format!(
+                    "chunks {hit:?} damaged: {actual} samples missing, {reported} reported lost: {losses:?}"
+                ));
+            }
+            Verdict::Accepted
+        }),
+    }
+}
+
+/// Truncation, structure-aware: the input's first 4 bytes pick where the file is cut. Every
+/// chunk before the cut must be read (all but a block split by the cut), and the samples
+/// reported lost are at least what the cut chunk's header declares and never more than what
+/// is really missing.
+fn mcap_cut_target() -> Target {
+    Target {
+        name: "mcap-cut",
+        kind: Kind::Binary,
+        fixup: None,
+        run: Box::new(|input: &[u8]| {
+            let p = pristine();
+            let mut b = [0u8; 4];
+            b[..input.len().min(4)].copy_from_slice(&input[..input.len().min(4)]);
+            let cut = u32::from_le_bytes(b) as usize % (p.bytes.len() + 1);
+            let bytes = &p.bytes[..cut];
+            // The first chunk the cut leaves incomplete, if any.
+            let first_cut = p.chunks.iter().find(|c| c.end > cut);
+            let readable_before =
+                first_cut.map_or(p.rec.len() as u64, |c| c.span.map_or(0, |s| s.0));
+            let (rec, losses) = match rigmon_mcap::read_recording_bytes_with_losses(bytes) {
+                Ok(r) => r,
+                // Nothing complete to read before the cut.
+                Err(_) if readable_before <= p.block => return Verdict::Rejected,
+                Err(e) => return Verdict::Broken(format!("cut at {cut}: read failed: {e:#}")),
+            };
+            if !losses.gaps.is_empty() {
+                return Verdict::Broken(format!("cut at {cut}: gaps reported: {losses:?}"));
+            }
+            let (actual, reported) = match check_against_pristine(&rec, &losses) {
+                Ok(x) => x,
+                Err(e) => return Verdict::Broken(format!("cut at {cut}: {e}")),
+            };
+            if (rec.len() as u64) + p.block < readable_before {
+                return Verdict::Broken(format!(
+                    "cut at {cut}: {} samples read, the chunks before the cut hold {readable_before}",
+                    rec.len()
+                ));
+            }
+            if let Some(c) = first_cut {
+                let legible = cut >= c.at + 58;
+                if let (true, Some((_, end))) = (legible, c.span) {
+                    let after = p.rec.len() as u64 - end;
+                    if actual - reported > after {
+                        return Verdict::Broken(format!(
+                            "cut at {cut} in a chunk declaring samples up to {end}: {actual} missing, only {reported} reported: {losses:?}"
+                        ));
+                    }
+                }
+                if losses.truncated.is_none() {
+                    return Verdict::Broken(format!("cut at {cut}: not reported as cut"));
+                }
+            } else if actual != 0 {
+                return Verdict::Broken(format!(
+                    "cut at {cut} after every chunk, {actual} samples missing"
+                ));
+            }
+            Verdict::Accepted
+        }),
+    }
+}
+
 fn mat_target() -> Target {
     let rig = rig("cwru-de.toml");
     Target {
@@ -1112,6 +1393,16 @@ fn fuzz_mcap_reader() {
 }
 
 #[test]
+fn fuzz_mcap_damaged_chunks() {
+    fuzz(mcap_damage_target());
+}
+
+#[test]
+fn fuzz_mcap_truncated() {
+    fuzz(mcap_cut_target());
+}
+
+#[test]
 fn fuzz_mat_importer() {
     fuzz(mat_target());
 }
@@ -1143,6 +1434,8 @@ fn replay() {
         "serial" => serial_target(),
         "can" => can_target(),
         "mcap" => mcap_target(),
+        "mcap-damage" => mcap_damage_target(),
+        "mcap-cut" => mcap_cut_target(),
         "mat" => mat_target(),
         "wav" => file_target("wav", Kind::Binary, "fuzz.wav", "lut-rig.toml"),
         "csv" => file_target("csv", Kind::Text, "fuzz.csv", "lut-rig.toml"),
@@ -1569,6 +1862,49 @@ fn mcap_seeds() {
     }
 }
 
+/// Seeds of the damage targets: damage specs, not files (the file is [`pristine`]).
+fn mcap_damage_seeds() {
+    let p = pristine();
+    let last = (p.chunks.len() - 1) as u16;
+    let op = |k: u16, off: u32, mask: u8| {
+        let mut v = k.to_le_bytes().to_vec();
+        v.extend_from_slice(&off.to_le_bytes()[..3]);
+        v.push(mask);
+        v
+    };
+    let specs: [(&str, Vec<u8>); 4] = [
+        ("middle", op(5, 1000, 0xFF)),
+        (
+            "two-in-a-row",
+            [op(3, 77, 0x10), op(4, 4000, 0x01)].concat(),
+        ),
+        ("last", op(last, 500, 0x80)),
+        ("definitions", op(0, 40, 0xFF)),
+    ];
+    for (name, spec) in specs {
+        write_seed("mcap-damage", &format!("{name}.bin"), &spec);
+    }
+    let len = p.bytes.len() as u32;
+    for (name, cut) in [
+        ("quarter", len / 4),
+        ("half", len / 2),
+        ("inside-a-header", p.chunks[6].at as u32 + 20),
+        ("whole", len),
+    ] {
+        write_seed("mcap-cut", &format!("{name}.bin"), &cut.to_le_bytes());
+    }
+}
+
+/// Regenerate only the damage targets' seeds:
+/// `cargo test --test fuzz -- --ignored regenerate_mcap_damage_corpus`.
+#[test]
+#[ignore]
+fn regenerate_mcap_damage_corpus() {
+    let _ = std::fs::remove_dir_all(corpus_dir("mcap-damage"));
+    let _ = std::fs::remove_dir_all(corpus_dir("mcap-cut"));
+    mcap_damage_seeds();
+}
+
 /// A minimal MAT v5 writer (independent of the importer).
 struct Mat {
     be: bool,
@@ -1845,6 +2181,7 @@ fn regenerate_corpus() {
     serial_seeds();
     can_seeds();
     mcap_seeds();
+    mcap_damage_seeds();
     mat_seeds();
     wav_seeds();
     csv_seeds();
@@ -1866,7 +2203,17 @@ fn regenerate_opendaq_corpus() {
 fn corpus_is_small() {
     let mut total = 0;
     for t in [
-        "serial", "can", "mcap", "mat", "wav", "csv", "rig", "daemon", "opendaq",
+        "serial",
+        "can",
+        "mcap",
+        "mcap-damage",
+        "mcap-cut",
+        "mat",
+        "wav",
+        "csv",
+        "rig",
+        "daemon",
+        "opendaq",
     ] {
         total += load_corpus(t).iter().map(|(_, b)| b.len()).sum::<usize>();
     }

@@ -6,7 +6,9 @@
 //! and `ack`. The database is killed for 30 s and the historian killed and restarted mid-run;
 //! every window must end up in the database exactly once. Also: the Grafana provisioning
 //! parses and its queries run on the real database, the systemd unit verifies, and bad
-//! database settings are refused at start.
+//! database settings are refused at start. And: a health message with every field set goes
+//! through the historian into a database that started at schema version 1 (migrated in place)
+//! and comes back over `rigmon history` field for field.
 
 use rigmon::historian::status::HistorianStatus;
 use rigmon::publish::zenoh::ZenohSettings;
@@ -973,4 +975,322 @@ fn the_historian_unit_verifies() {
         out.status.success() && !text.contains("rigmon-historian.service:"),
         "{text}"
     );
+}
+
+/// A version-1 database as the first historian left it: the schema migration 1 recorded and
+/// one window of `lut-rig/shaft/nde` at `time` (columns as version 1 had them).
+fn version_1_database(
+    rt: &tokio::runtime::Runtime,
+    db: &tokio_postgres::Client,
+    time: std::time::SystemTime,
+) {
+    let (version, name, sql) = rigmon::historian::migrations::MIGRATIONS[0];
+    assert_eq!(version, 1);
+    rt.block_on(async {
+        db.batch_execute(
+            "CREATE TABLE rigmon_schema_migrations (version integer PRIMARY KEY,
+                 name text NOT NULL, applied_at timestamptz NOT NULL DEFAULT now())",
+        )
+        .await
+        .unwrap();
+        db.batch_execute(sql).await.unwrap();
+        db.execute(
+            "INSERT INTO rigmon_schema_migrations (version, name) VALUES ($1, $2)",
+            &[&version, &name],
+        )
+        .await
+        .unwrap();
+        rigmon::historian::partitions::Partitions::default()
+            .ensure(db, [time].into_iter())
+            .await
+            .unwrap();
+        db.batch_execute(
+            "WITH s AS (INSERT INTO sites (name) VALUES ('lut-lab') RETURNING site_id),
+                  m AS (INSERT INTO machines (site_id, name) SELECT site_id, 'lut-rig' FROM s
+                        RETURNING machine_id),
+                  a AS (INSERT INTO assets (machine_id, name) SELECT machine_id, 'shaft' FROM m
+                        RETURNING asset_id)
+             INSERT INTO points (asset_id, name, key, band_channel, band_orders, software_version)
+             SELECT asset_id, 'nde', 'lut-rig/shaft/nde', 'vertical', '{\"bpfo\": 3.58}', '0.1.0'
+             FROM a;
+             INSERT INTO models (name, sha256, labels) VALUES ('lut-rig', 'ab', '{healthy,outer_race}');",
+        )
+        .await
+        .unwrap();
+        db.execute(
+            "INSERT INTO windows (point_id, time, window_s, run_start, seq, publish_time, state,
+                 state_since, state_changed, confidence, window_state, model_id, p_healthy,
+                 p_outer_race, novelty, novelty_threshold, rpm, speed_source, quality_ok,
+                 clipped_samples, nan_samples, dropout_samples, missing_tacho_pulses)
+             SELECT point_id, $1::timestamptz, 1.0, $1::timestamptz - interval '10 s', 10, $1,
+                 'healthy', $1::timestamptz - interval '9 s', false, 0.875, 'healthy', model_id,
+                 0.875, 0.125, 0.25, 1.0,
+                 588.0, 'tacho', true, 0, 0, 0, 0
+             FROM points, models",
+            &[&time],
+        )
+        .await
+        .unwrap();
+    });
+}
+
+/// A window of `lut-rig/shaft/nde` from a run that started at `run_ns`, every field set: a
+/// class decided by the fault-family evidence overruling the classifier, the evidence, a
+/// speed read from the vibration with its confidence and rival, a foreign model allowed on
+/// purpose. Not stored, so left empty: `quality.dsp` and `quality.flat_channels`. The
+/// numbers are exact in `real` where the column is `real`.
+fn every_field_set(run_ns: u64, seq: u64) -> rigmon::health::message::HealthMessage {
+    use rigmon::health::message::*;
+    let labels: Vec<String> = rigmon::model::ALL_LABELS
+        .iter()
+        .map(|s| s.to_string())
+        .collect();
+    let end_s = 2.0 + seq as f64;
+    HealthMessage {
+        schema: SCHEMA.into(),
+        schema_version: SCHEMA_VERSION,
+        rig: "lut-rig".into(),
+        asset: "shaft".into(),
+        point: "nde".into(),
+        site: Some("lut-lab".into()),
+        seq,
+        window: WindowTimes {
+            start_s: end_s - 1.0,
+            end_s,
+            start_ns: run_ns + (end_s as u64 - 1) * 1_000_000_000,
+            end_ns: run_ns + end_s as u64 * 1_000_000_000,
+        },
+        publish_time_ns: run_ns + end_s as u64 * 1_000_000_000 + 12_345_000,
+        rpm: Some(1_471.5),
+        speed_source: "estimate".into(),
+        speed_confidence: Some(0.8125),
+        speed_rival_rpm: Some(735.75),
+        quality: QualityReport {
+            ok: false,
+            flags: vec!["dc_offset".into()],
+            clipped_samples: 1,
+            nan_samples: 2,
+            dropout_samples: 3,
+            flat_channels: Vec::new(),
+            missing_tacho_pulses: 4,
+            dsp: serde_json::Value::Null,
+        },
+        probabilities: labels
+            .iter()
+            .cloned()
+            .zip([0.625, 0.0625, 0.25, 0.0625])
+            .collect(),
+        window_state: "inner_race".into(),
+        unknown_reason: None,
+        alarm_despite: Some(rigmon::health::UnknownReason::Novelty),
+        decision: rigmon::health::Basis::Evidence,
+        overruled: Some("healthy".into()),
+        evidence: Some(rigmon::model::evidence::FamilyEvidence {
+            outer_race: 0.5,
+            inner_race: 7.25,
+            ball: -1.125,
+        }),
+        state: "inner_race".into(),
+        state_since_s: 2.5,
+        state_changed: seq == 1,
+        confidence: 0.75,
+        novelty: 1.5,
+        novelty_threshold: 1.25,
+        baseline_distance: Some(6.5),
+        beyond_baseline: Some(true),
+        fault_bands: FaultBands {
+            channel: "vertical".into(),
+            orders: [("bpfo".to_string(), 3.58), ("bpfi".to_string(), 5.42)].into(),
+            bpfo: vec![0.5, 0.25, 0.125],
+            bpfi: vec![2.0, 1.0, 0.5],
+            two_bsf: vec![0.0625, 0.03125, 0.015625],
+            floor: 0.0078125,
+        },
+        velocity_rms_mm_s: Some(2.875),
+        iso_zone: Some(rigmon::health::iso20816::Zone::B),
+        model: ModelInfo {
+            id: "lut-rig".into(),
+            sha256: "ab".into(),
+            labels,
+            foreign: vec![
+                "rig_id: model cwru-de, rig file lut-rig".into(),
+                "axis: model radial, rig file axial".into(),
+            ],
+        },
+        calibration_id: Some("cal-2026-11-26".into()),
+        software_version: "0.1.0".into(),
+    }
+}
+
+#[test]
+fn every_health_field_survives_the_historian_and_a_version_1_database_is_upgraded() {
+    let tmp = tempfile::tempdir().unwrap();
+    let d = tmp.path();
+    let pg = Postgres::start();
+    {
+        let (rt, c) = pg.client("postgres");
+        rt.block_on(c.batch_execute("CREATE DATABASE fleet"))
+            .unwrap();
+    }
+    let now_ms = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .unwrap()
+        .as_millis() as u64;
+    let old_time = std::time::UNIX_EPOCH + Duration::from_millis(now_ms - 30 * 60_000);
+    let (rt, db) = pg.client("fleet");
+    version_1_database(&rt, &db, old_time);
+
+    let router_ep = format!("tcp/127.0.0.1:{}", free_port());
+    let router = ZenohSettings {
+        mode: "router".into(),
+        listen: vec![router_ep.clone()],
+        ..Default::default()
+    }
+    .open()
+    .unwrap();
+    let _hist = historian(d, &pg, &router_ep);
+    let versions = || -> Vec<i32> {
+        rt.block_on(db.query(
+            "SELECT version FROM rigmon_schema_migrations ORDER BY 1",
+            &[],
+        ))
+        .unwrap()
+        .iter()
+        .map(|r| r.get(0))
+        .collect()
+    };
+    wait_until(
+        "the historian to migrate the version-1 database",
+        Duration::from_secs(60),
+        || versions() == [1, 2],
+    );
+
+    // A daemon's two windows: the first with every field set, the second with the optional
+    // ones absent (they must come back absent, not as zeros).
+    let run_ns = (now_ms - 60_000) * 1_000_000;
+    let full = every_field_set(run_ns, 1);
+    let mut bare = every_field_set(run_ns, 2);
+    bare.decision = rigmon::health::Basis::Model;
+    bare.overruled = None;
+    bare.evidence = None;
+    bare.speed_confidence = None;
+    bare.speed_rival_rpm = None;
+    bare.model.foreign.clear();
+    let client = ZenohSettings {
+        mode: "client".into(),
+        connect: vec![router_ep.clone()],
+        ..Default::default()
+    }
+    .open()
+    .unwrap();
+    let rows = || -> i64 {
+        rt.block_on(db.query_one("SELECT count(*) FROM windows", &[]))
+            .unwrap()
+            .get(0)
+    };
+    wait_until(
+        "both windows in the database",
+        Duration::from_secs(60),
+        || {
+            // published until stored (the historian may still be subscribing; it skips repeats)
+            for m in [&full, &bare] {
+                client
+                    .put(
+                        "rigmon/lut-rig/shaft/nde/health",
+                        serde_json::to_vec(m).unwrap(),
+                    )
+                    .wait()
+                    .unwrap();
+            }
+            std::thread::sleep(Duration::from_millis(500));
+            rows() == 3
+        },
+    );
+
+    let stored = rt
+        .block_on(db.query_one(
+            "SELECT decision, overruled, evidence_outer_race, evidence_inner_race, evidence_ball,
+                    speed_confidence, speed_rival_rpm, model_foreign
+             FROM windows WHERE seq = 1",
+            &[],
+        ))
+        .unwrap();
+    assert_eq!(stored.get::<_, String>(0), "evidence");
+    assert_eq!(
+        stored.get::<_, Option<String>>(1).as_deref(),
+        Some("healthy")
+    );
+    assert_eq!(
+        (1..=3)
+            .map(|i| stored.get::<_, f32>(i + 1))
+            .collect::<Vec<_>>(),
+        [0.5, 7.25, -1.125]
+    );
+    assert_eq!(stored.get::<_, f32>(5), 0.8125);
+    assert_eq!(stored.get::<_, f64>(6), 735.75);
+    assert_eq!(stored.get::<_, Vec<String>>(7), full.model.foreign);
+    let refused = rt.block_on(db.execute("UPDATE windows SET decision = 'guess'", &[]));
+    assert!(
+        refused.is_err_and(|e| format!("{e:?}").contains("windows_decision_check")),
+        "decision is one of model, confirmed, evidence"
+    );
+
+    // Back over Zenoh, as `rigmon history` asks: field for field what the daemon sent.
+    let out = rigmon(
+        &[
+            "history",
+            "rigmon/lut-rig/shaft/nde",
+            "--since",
+            "2h",
+            "--json",
+            "--connect",
+            &router_ep,
+        ],
+        &[],
+    );
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let back: Vec<rigmon::health::message::HealthMessage> = String::from_utf8_lossy(&out.stdout)
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap())
+        .collect();
+    assert_eq!(back.len(), 3, "the version-1 window and the two new ones");
+    assert_eq!(back[1], full);
+    assert_eq!(back[2], bare);
+    assert_eq!(
+        (
+            back[1].decision,
+            back[1].overruled.as_deref(),
+            back[1].evidence.map(|e| e.inner_race),
+            back[1].speed_confidence,
+            back[1].speed_rival_rpm,
+            back[1].model.foreign.len()
+        ),
+        (
+            rigmon::health::Basis::Evidence,
+            Some("healthy"),
+            Some(7.25),
+            Some(0.8125),
+            Some(735.75),
+            2
+        )
+    );
+    // The version-1 window reads as its message did: decided by the model, the rest absent.
+    let old = &back[0];
+    assert_eq!(
+        (old.seq, old.state.as_str(), old.rpm, old.confidence),
+        (10, "healthy", Some(588.0), 0.875)
+    );
+    assert_eq!(old.decision, rigmon::health::Basis::Model);
+    assert!(
+        old.overruled.is_none()
+            && old.evidence.is_none()
+            && old.speed_confidence.is_none()
+            && old.speed_rival_rpm.is_none()
+            && old.model.foreign.is_empty()
+    );
+    drop(router);
 }

@@ -66,6 +66,16 @@ fn assert_mentions(msg: &str, parts: &[&str]) {
     }
 }
 
+/// `rigmon <args> --rig config/lut-rig.toml`.
+fn rigmon_cmd(args: &[&str]) -> std::process::Output {
+    std::process::Command::new(env!("CARGO_BIN_EXE_rigmon"))
+        .args(args)
+        .arg("--rig")
+        .arg(Path::new(env!("CARGO_MANIFEST_DIR")).join("config/lut-rig.toml"))
+        .output()
+        .unwrap()
+}
+
 // ------------------------------------------- an independent MAT v5 builder
 
 struct Mat {
@@ -2131,8 +2141,11 @@ fn mcap_streaming_writer_survives_kill_and_truncation() {
     );
 }
 
+/// Issue 25, finding 6: blocks the writer never wrote (a recorder that fell behind) were
+/// zero-filled (silence) and read as complete. Now they are NaN in a whole recording, noted,
+/// and reported as a gap (`not_recorded`) with samples and seconds.
 #[test]
-fn mcap_gaps_are_zero_filled_and_noted() {
+fn mcap_gaps_are_never_silence_and_are_reported() {
     let dir = tempfile::tempdir().unwrap();
     let full = synthetic(1000, None);
     let p = dir.path().join("gap.mcap");
@@ -2146,9 +2159,12 @@ fn mcap_gaps_are_zero_filled_and_noted() {
         w.write_block((b * 250) as u64, &chans, None, &[]).unwrap();
     }
     w.finish().unwrap();
-    let r = mcap::read_recording(&p).unwrap();
+    let (r, losses) = mcap::read_recording_with_losses(&p).unwrap();
     assert_eq!(r.len(), 1000);
-    assert!(r.channels[0].samples[500..750].iter().all(|&x| x == 0.0));
+    assert!(
+        r.channels[0].samples[500..750].iter().all(|x| x.is_nan()),
+        "a gap is not silence"
+    );
     assert_eq!(
         r.channels[0].samples[750..],
         full.channels[0].samples[750..]
@@ -2161,6 +2177,32 @@ fn mcap_gaps_are_zero_filled_and_noted() {
         "{:?}",
         r.provenance.notes
     );
+    assert_eq!(losses.gaps.len(), 1, "{losses:?}");
+    let g = &losses.gaps[0];
+    assert_eq!((g.first_sample, g.samples), (500, 250));
+    assert_eq!(g.cause, rigmon::recording::losses::GapCause::NotRecorded);
+    assert!((g.seconds - 0.025).abs() < 1e-12 && (g.at_s - 0.05).abs() < 1e-12);
+    assert!(losses.damaged.is_empty() && losses.truncated.is_none());
+    // `import` reports the span as incomplete (it said nothing before).
+    let out = dir.path().join("gap-out.mcap");
+    let o = rigmon_cmd(&[
+        "import",
+        p.to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+        "--json",
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(v["losses"]["samples_lost"], 250, "{v}");
+    assert_eq!(v["losses"]["gaps"][0]["cause"], "not_recorded", "{v}");
+    assert_mentions(
+        &String::from_utf8_lossy(&o.stderr),
+        &["warning:", "gap.mcap", "0.025 s"],
+    );
+    // The gap is still a gap in the copy.
+    let (_, again) = mcap::read_recording_with_losses(&out).unwrap();
+    assert_eq!(again.gap_samples(), 250);
 }
 
 // ------------------------------------------------------------- independent reader (Python)
@@ -2324,5 +2366,495 @@ fn rigmon_import_writes_mcap_and_prints_a_summary() {
     assert_mentions(
         &String::from_utf8_lossy(&o.stderr),
         &["/nonexistent/file.mat"],
+    );
+}
+
+// ------------------------------------- damaged, cut and huge recordings (issue 25)
+
+fn shipped(name: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("replay")
+        .join(name)
+}
+
+/// (offset, record length) of every top-level Chunk record of an MCAP file.
+fn chunks_of(bytes: &[u8]) -> Vec<(usize, usize)> {
+    let mut at = 8;
+    let mut out = Vec::new();
+    while at + 9 <= bytes.len() {
+        let len = u64::from_le_bytes(bytes[at + 1..at + 9].try_into().unwrap()) as usize;
+        if at + 9 + len > bytes.len() {
+            break;
+        }
+        if bytes[at] == 0x06 {
+            out.push((at, len));
+        }
+        at += 9 + len;
+    }
+    out
+}
+
+/// The shipped 8 s replay with one byte flipped in the middle of its second (of three)
+/// chunks: the file, and the original recording.
+fn replay_with_a_flipped_byte(dir: &Path) -> (PathBuf, Recording) {
+    let src = shipped("lut-outer_race-588rpm.mcap");
+    let mut bytes = std::fs::read(&src).unwrap();
+    let chunks = chunks_of(&bytes);
+    assert_eq!(chunks.len(), 3, "the shipped replay has three chunks");
+    let (at, len) = chunks[1];
+    bytes[at + 9 + 60 + len / 2] ^= 0xFF;
+    let p = dir.join("flipped.mcap");
+    std::fs::write(&p, bytes).unwrap();
+    (p, mcap::read_recording(&src).unwrap())
+}
+
+/// Issue 25, finding 4: one flipped byte in the middle chunk made every reader stop there
+/// (3.2 of 8.0 s, rc 0, nothing printed). The damaged chunk is skipped, the last one read,
+/// and the loss reported with samples and seconds.
+#[test]
+fn a_damaged_chunk_is_skipped_and_reading_resumes_at_the_next_intact_one() {
+    let dir = tempfile::tempdir().unwrap();
+    let (p, orig) = replay_with_a_flipped_byte(dir.path());
+    let (rec, losses) = mcap::read_recording_with_losses(&p).unwrap();
+    assert_eq!(rec.len(), orig.len(), "the chunk after the damage is read");
+    assert_eq!(losses.damaged.len(), 1, "{losses:?}");
+    assert_eq!(losses.gaps.len(), 1, "{losses:?}");
+    let g = &losses.gaps[0];
+    assert_eq!(g.cause, rigmon::recording::losses::GapCause::Damaged);
+    // The chunk held 3.2-6.4 s; the block at 6.4 s lost one channel with it.
+    assert_eq!((g.first_sample, g.samples), (32_000, 33_000));
+    assert!((g.seconds - 3.3).abs() < 1e-9);
+    for (a, b) in rec.channels.iter().zip(&orig.channels) {
+        assert_eq!(a.samples[..32_000], b.samples[..32_000]);
+        assert!(a.samples[32_000..65_000].iter().all(|x| x.is_nan()));
+        assert_eq!(a.samples[65_000..], b.samples[65_000..], "{}", a.name);
+    }
+    // `features`, `inspect`, ... (importers::load) see the same.
+    assert_eq!(
+        importers::load(&p, &rig("lut-rig.toml"), &no_opts())
+            .unwrap()
+            .len(),
+        orig.len()
+    );
+    // `import`: a warning on stderr, the loss in the summary line and the JSON.
+    let out = dir.path().join("out.mcap");
+    let o = rigmon_cmd(&["import", p.to_str().unwrap(), "-o", out.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert_mentions(
+        &String::from_utf8_lossy(&o.stderr),
+        &[
+            "warning:",
+            "flipped.mcap",
+            "damaged",
+            "3.300 s (33000 samples)",
+        ],
+    );
+    assert_mentions(
+        &String::from_utf8_lossy(&o.stdout),
+        &[
+            "80000 samples",
+            "8.000 s",
+            "3.300 s (33000 samples) lost in the input",
+        ],
+    );
+    let o = rigmon_cmd(&[
+        "import",
+        p.to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+        "--json",
+    ]);
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(v["losses"]["samples_lost"], 33_000, "{v}");
+    assert_eq!(
+        v["losses"]["damaged"][0]["at_byte"],
+        chunks_of(&std::fs::read(&p).unwrap())[1].0
+    );
+    assert_eq!(v["samples_present"], 47_000, "{v}");
+}
+
+/// Issue 25, finding 5: a recording cut at 50 % read 3.2 of 8.0 s without a word. Now the
+/// cut is reported with where it is and the seconds its cut chunk is known to have held.
+#[test]
+fn a_cut_recording_says_where_and_how_much_was_lost() {
+    let dir = tempfile::tempdir().unwrap();
+    let bytes = std::fs::read(shipped("lut-outer_race-588rpm.mcap")).unwrap();
+    let p = dir.path().join("cut.mcap");
+    std::fs::write(&p, &bytes[..bytes.len() / 2]).unwrap();
+    let (rec, losses) = mcap::read_recording_with_losses(&p).unwrap();
+    assert_eq!(rec.len(), 32_000);
+    let t = losses.truncated.as_ref().expect("reported as cut");
+    assert_eq!(
+        (t.at_byte, t.file_bytes),
+        (chunks_of(&bytes)[1].0 as u64, bytes.len() as u64 / 2)
+    );
+    // The cut chunk's header says it held messages up to 6.4 s: at least 3.2 s are gone.
+    assert_eq!(t.lost_samples_at_least, 32_000);
+    assert_eq!(losses.samples_lost(), 32_000);
+    assert!(rec.provenance.notes.iter().any(|n| n.contains("cut short")));
+    let out = dir.path().join("out.mcap");
+    let o = rigmon_cmd(&[
+        "import",
+        p.to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+        "--json",
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert_mentions(
+        &String::from_utf8_lossy(&o.stderr),
+        &[
+            "warning:",
+            "cut.mcap",
+            "cut short at byte",
+            "readable up to 3.200 s",
+            "at least 3.200 s",
+        ],
+    );
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(v["seconds"], 3.2);
+    assert_eq!(v["losses"]["truncated"]["lost_s_at_least"], 3.2, "{v}");
+}
+
+/// Issue 25, finding 12: a CSV written with decimal commas got "\"1,5\" is not a number" and
+/// no hint. The error now says it looks like decimal commas and what to do.
+#[test]
+fn a_decimal_comma_csv_gets_a_hint() {
+    let dir = tempfile::tempdir().unwrap();
+    let r = rig("lut-rig.toml");
+    let semicolons = write(
+        dir.path(),
+        "de.csv",
+        b"time;axial;vertical;horizontal;tacho\n0,0;1,5;-0,25;0,125;0\n0,0001;1,5;0,5;1;0\n",
+    );
+    let e = err_of(importers::load(&semicolons, &r, &no_opts()));
+    assert_mentions(
+        &e,
+        &[
+            "de.csv",
+            "line 2",
+            "column 1",
+            "\"0,0\"",
+            "decimal comma",
+            "1.5, not 1,5",
+        ],
+    );
+    let commas = write(dir.path(), "de2.csv", b"time,axial\n0,0,1,5\n0,1,2,5\n");
+    let e = err_of(importers::load(&commas, &r, &no_opts()));
+    assert_mentions(
+        &e,
+        &[
+            "de2.csv",
+            "line 2",
+            "4 values",
+            "2 columns",
+            "decimal commas",
+        ],
+    );
+    // A plain wrong cell gets no such hint.
+    let wrong = write(dir.path(), "w.csv", b"axial\n1.0\nabc\n");
+    let e = err_of(importers::load(&wrong, &r, &no_opts()));
+    assert!(!e.contains("decimal"), "{e}");
+}
+
+/// `rigmon <args>` under GNU time: exit code, stdout, stderr (without time's line) and the
+/// peak resident memory, kB. (wait4(2) from this process would count this process's own
+/// memory: Linux carries the peak across the spawn's exec.)
+fn run_measured(args: &[&str]) -> (i32, String, String, i64) {
+    let o = std::process::Command::new("/usr/bin/time")
+        .args(["-f", "PEAK_RSS_KB %M", env!("CARGO_BIN_EXE_rigmon")])
+        .args(args)
+        .output()
+        .expect("GNU time (/usr/bin/time, Debian package `time`) measures peak memory");
+    let err = String::from_utf8_lossy(&o.stderr).into_owned();
+    let (rss_line, rest): (Vec<&str>, Vec<&str>) =
+        err.lines().partition(|l| l.starts_with("PEAK_RSS_KB "));
+    let rss = rss_line
+        .last()
+        .and_then(|l| l["PEAK_RSS_KB ".len()..].trim().parse().ok())
+        .unwrap_or_else(|| panic!("no peak memory from /usr/bin/time: {err}"));
+    let code = o.status.code().unwrap_or(-1);
+    // GNU time exits with the command's status.
+    (
+        code,
+        String::from_utf8_lossy(&o.stdout).into_owned(),
+        rest.join("\n"),
+        rss,
+    )
+}
+
+/// A 16-bit WAV for lut-rig (3 accelerations + tacho) of `bytes` data bytes, written raw.
+fn lut_wav(path: &Path, bytes: usize) {
+    let frames = bytes / 8;
+    let mut f = std::io::BufWriter::new(std::fs::File::create(path).unwrap());
+    let data = (frames * 8) as u32;
+    f.write_all(b"RIFF").unwrap();
+    f.write_all(&(36 + data).to_le_bytes()).unwrap();
+    f.write_all(b"WAVEfmt ").unwrap();
+    for v in [
+        16u32.to_le_bytes().to_vec(),
+        1u16.to_le_bytes().to_vec(),
+        4u16.to_le_bytes().to_vec(),
+        10_000u32.to_le_bytes().to_vec(),
+        80_000u32.to_le_bytes().to_vec(),
+        8u16.to_le_bytes().to_vec(),
+        16u16.to_le_bytes().to_vec(),
+    ] {
+        f.write_all(&v).unwrap();
+    }
+    f.write_all(b"data").unwrap();
+    f.write_all(&data.to_le_bytes()).unwrap();
+    let mut frame = [0u8; 8];
+    for i in 0..frames {
+        for c in 0..3 {
+            let x = ((i * (7 + c) % 4001) as i32 - 2000) as i16;
+            frame[2 * c..2 * c + 2].copy_from_slice(&x.to_le_bytes());
+        }
+        // 588 rpm: one 5 V-ish pulse per 1020 samples (the rig's tacho has sensitivity 1).
+        let t: i16 = if i % 1020 < 100 { 32_000 } else { 0 };
+        frame[6..8].copy_from_slice(&t.to_le_bytes());
+        f.write_all(&frame).unwrap();
+    }
+}
+
+/// Writes the big WAV that docs/reliability.md measures `import` and `replay` on (by hand:
+/// `RIGMON_BIG_WAV=/tmp/big.wav cargo test --all-features --test importers write_a_big_wav --
+/// --ignored`; `RIGMON_BIG_MIB` sets its data size, 2048 MiB unless given).
+#[test]
+#[ignore = "writes a 2 GiB file named by RIGMON_BIG_WAV; run by hand"]
+fn write_a_big_wav() {
+    let path = std::env::var("RIGMON_BIG_WAV").expect("RIGMON_BIG_WAV: where to write the WAV");
+    let mib: usize = std::env::var("RIGMON_BIG_MIB").map_or(2048, |v| v.parse().unwrap());
+    lut_wav(Path::new(&path), mib << 20);
+}
+
+/// Issue 25, finding 3: memory grew with the file (a 2 GiB WAV peaked at 2.1 GB; a file named
+/// `.mcap`/`.mat` was read whole before its magic was checked; a `.csv` of NULs peaked at
+/// 2.2 GB). `import` and `replay` now stream a 48 MiB WAV with the memory they use for a
+/// 1 MiB one, and a file that is not what its name says is refused at once.
+#[test]
+fn huge_files_stream_with_flat_memory_and_other_files_are_refused_at_once() {
+    let dir = match Path::new("/dev/shm").is_dir() {
+        true => tempfile::tempdir_in("/dev/shm").unwrap(),
+        false => tempfile::tempdir().unwrap(),
+    };
+    let d = dir.path();
+    let (small, big) = (d.join("small.wav"), d.join("big.wav"));
+    lut_wav(&small, 1 << 20);
+    lut_wav(&big, 48 << 20);
+    let rig = Path::new(env!("CARGO_MANIFEST_DIR")).join("config/lut-rig.toml");
+    let model = Path::new(env!("CARGO_MANIFEST_DIR")).join("models/lut-rig.onnx");
+    let (rig, model) = (rig.to_str().unwrap(), model.to_str().unwrap());
+    let out = d.join("out.mcap");
+    let out = out.to_str().unwrap();
+    let import = |f: &Path| run_measured(&["import", f.to_str().unwrap(), "--rig", rig, "-o", out]);
+    let replay = |f: &Path| {
+        run_measured(&[
+            "replay",
+            f.to_str().unwrap(),
+            "--rig",
+            rig,
+            "--model",
+            model,
+            "--quiet",
+            "--speed",
+            "max",
+            "--summary-json",
+        ])
+    };
+    let (rc, _, e, import_small) = import(&small);
+    assert_eq!(rc, 0, "{e}");
+    let (rc, o, e, import_big) = import(&big);
+    assert_eq!(rc, 0, "{e}");
+    assert_mentions(&o, &["6291456 samples @ 10000 Hz", "629.146 s"]);
+    let (rc, _, e, replay_small) = replay(&small);
+    assert_eq!(rc, 0, "{e}");
+    let (rc, _, e, replay_big) = replay(&big);
+    assert_eq!(rc, 0, "{e}");
+    let summary: serde_json::Value =
+        serde_json::from_str(e.lines().last().unwrap()).unwrap_or_else(|_| panic!("{e}"));
+    assert_eq!(summary["samples_in"], 6_291_456, "{summary}");
+    // 48 MiB of 16-bit samples are 96 MiB as f32: holding them whole would add that.
+    println!(
+        "FIGURE peak RSS, 1 MiB vs 48 MiB WAV: import {import_small} vs {import_big} kB, replay {replay_small} vs {replay_big} kB"
+    );
+    assert!(
+        import_big < import_small + 16 * 1024,
+        "import: {import_small} kB vs {import_big} kB"
+    );
+    assert!(
+        replay_big < replay_small + 16 * 1024,
+        "replay: {replay_small} kB vs {replay_big} kB"
+    );
+
+    // 48 MiB that are not what their names say: refused before being read.
+    let junk: Vec<u8> = (0..48u32 << 20)
+        .map(|i| (i.wrapping_mul(2_654_435_761) >> 13) as u8)
+        .collect();
+    let cases: [(&str, Vec<u8>, &[&str]); 4] = [
+        ("junk.mcap", junk.clone(), &["not an MCAP file", "48 MiB"]),
+        ("junk.mat", junk.clone(), &["not a MAT v5 file", "48 MiB"]),
+        ("junk.wav", junk, &["not a WAV file", "48 MiB"]),
+        (
+            "nul.csv",
+            vec![0u8; 48 << 20],
+            &["not a text file", "NUL", "line 1", "48 MiB"],
+        ),
+    ];
+    for (name, bytes, want) in cases {
+        let p = d.join(name);
+        std::fs::write(&p, bytes).unwrap();
+        let t0 = std::time::Instant::now();
+        let (rc, _, e, rss) = import(&p);
+        let took = t0.elapsed();
+        assert_ne!(rc, 0, "{name}");
+        assert_mentions(&e, &[name]);
+        assert_mentions(&e, want);
+        println!(
+            "FIGURE {name} (48 MiB): refused in {:.0} ms, peak RSS {rss} kB",
+            took.as_secs_f64() * 1e3
+        );
+        assert!(
+            rss < import_small + 8 * 1024,
+            "{name}: {rss} kB: read whole before refusing"
+        );
+        std::fs::remove_file(&p).unwrap();
+    }
+}
+
+/// Issue 25, finding 12: after kill -9 the trailing placeholder chunk made the Python `mcap`
+/// package's usual reader (`make_reader(f).iter_messages()`) return nothing. rigmon's writer
+/// now keeps the file a complete MCAP after every chunk: the usual reader reads a file whose
+/// writer was killed, up to its last chunk.
+#[test]
+fn a_killed_writer_leaves_a_file_the_usual_python_reader_reads() {
+    let dir = tempfile::tempdir().unwrap();
+    let full = synthetic(20 * 500, None);
+    let p = dir.path().join("killed.mcap");
+    let settings = WriterSettings {
+        chunk_size: 16 * 1024,
+        zstd_level: 1,
+    };
+    let mut w = RecordingWriter::create_with(&p, &RecordingInfo::of(&full), &settings).unwrap();
+    for b in 0..20 {
+        let chans: Vec<&[f32]> = full
+            .channels
+            .iter()
+            .map(|c| &c.samples[b * 500..(b + 1) * 500])
+            .collect();
+        w.write_block((b * 500) as u64, &chans, None, &[]).unwrap();
+        if b == 12 {
+            w.flush().unwrap();
+        }
+    }
+    // Killed: no finish, nothing after the last closed chunk reaches the file.
+    std::mem::forget(w);
+    let rec = mcap::read_recording(&p).unwrap();
+    assert!(rec.len() >= 13 * 500, "{}", rec.len());
+    let v = python_usual(&p);
+    assert_eq!(v["error"], serde_json::Value::Null, "{v}");
+    assert_eq!(v["summary"], false, "{v}");
+    // Every block rigmon reads whole (a chunk may end inside a block: one channel more).
+    let fewest = v["messages"]
+        .as_object()
+        .unwrap()
+        .values()
+        .map(|n| n.as_u64().unwrap())
+        .min()
+        .unwrap();
+    assert_eq!(fewest, rec.len() as u64 / 500, "{v}");
+}
+
+fn python_usual(path: &Path) -> serde_json::Value {
+    let script = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/tests/python/read_usual_mcap.py"
+    );
+    let out = std::process::Command::new("python3")
+        .arg(script)
+        .arg(path)
+        .output()
+        .expect("python3 must be installed (tests/python/requirements.txt)");
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    serde_json::from_slice(&out.stdout).unwrap()
+}
+
+/// Issue 25, finding 12: files cut by a writer that left a placeholder chunk (earlier rigmon
+/// versions, any writer killed mid-chunk) or damaged: `rigmon repair` rewrites them as
+/// finished files that the usual Python reader reads, every intact message included.
+#[test]
+fn repair_makes_cut_and_damaged_files_readable_by_the_usual_readers() {
+    let dir = tempfile::tempdir().unwrap();
+    let finished = std::fs::read(shipped("lut-healthy-588rpm.mcap")).unwrap();
+    let chunks = chunks_of(&finished);
+    // What a writer killed in the middle of its third chunk leaves: two chunks (and their
+    // indexes), then a chunk header with placeholder lengths and part of its data.
+    let mut cut = finished[..chunks[2].0].to_vec();
+    cut.push(0x06);
+    cut.extend_from_slice(&u64::MAX.to_le_bytes());
+    cut.extend_from_slice(&[0u8; 16]);
+    cut.extend_from_slice(&u64::MAX.to_le_bytes());
+    cut.extend_from_slice(&u32::MAX.to_le_bytes());
+    cut.extend_from_slice(&4u32.to_le_bytes());
+    cut.extend_from_slice(b"zstd");
+    cut.extend_from_slice(&u64::MAX.to_le_bytes());
+    cut.extend_from_slice(&finished[chunks[2].0 + 58..chunks[2].0 + 5000]);
+    let (flipped, _) = replay_with_a_flipped_byte(dir.path());
+    let cut_path = dir.path().join("cut.mcap");
+    std::fs::write(&cut_path, &cut).unwrap();
+    // /accel/axial messages in the first two chunks; in the first and the last.
+    for (input, intact_blocks) in [(cut_path, 65u64), (flipped, 48)] {
+        let before = python_usual(&input);
+        let repaired = dir.path().join("repaired.mcap");
+        let o = std::process::Command::new(env!("CARGO_BIN_EXE_rigmon"))
+            .args([
+                "repair",
+                input.to_str().unwrap(),
+                "-o",
+                repaired.to_str().unwrap(),
+            ])
+            .output()
+            .unwrap();
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        let report = String::from_utf8_lossy(&o.stdout);
+        let after = python_usual(&repaired);
+        println!(
+            "FIGURE {}: usual reader before repair {before}; after {after}; {report}",
+            input.display()
+        );
+        assert_eq!(after["error"], serde_json::Value::Null, "{after}");
+        assert_eq!(after["summary"], true, "{after}");
+        assert_eq!(after["messages"]["/accel/axial"], intact_blocks, "{after}");
+        // rigmon reads the same samples from the input and the repair.
+        let (a, b) = (
+            mcap::read_recording(&input).unwrap(),
+            mcap::read_recording(&repaired).unwrap(),
+        );
+        assert_eq!(a.len(), b.len());
+        assert_eq!(
+            a.channels[0]
+                .samples
+                .iter()
+                .filter(|x| x.is_finite())
+                .count(),
+            b.channels[0]
+                .samples
+                .iter()
+                .filter(|x| x.is_finite())
+                .count()
+        );
+        assert!(
+            report.contains("damaged") || report.contains("cut at byte"),
+            "{report}"
+        );
+    }
+    // The old writer's cut file itself is what the usual reader could not read.
+    assert_ne!(
+        python_usual(&dir.path().join("cut.mcap"))["error"],
+        serde_json::Value::Null
     );
 }

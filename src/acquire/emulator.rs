@@ -96,7 +96,7 @@ impl SerialEmulator {
             tracing::warn!("rig {} has an analog tacho channel but the recording has none; the emulator sends 0 there (and any recorded edges as edges)", rig.machine.id);
         }
         // One scale per device channel, chosen so the recording's peak fits the integer range.
-        let all = replay.block_at(0, rec.len(), 0);
+        let all = replay.block_at(0, rec.len());
         let dev = layout.join(&all.channels, all.tacho_analog.as_deref(), rec.len());
         let scales = dev
             .iter()
@@ -189,7 +189,7 @@ impl SerialEmulator {
                     break;
                 }
             }
-            let block = self.replay.block_at(start as usize, end as usize, 0);
+            let block = self.replay.block_at(start as usize, end as usize);
             let dev =
                 self.layout
                     .join(&block.channels, block.tacho_analog.as_deref(), len as usize);

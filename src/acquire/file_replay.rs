@@ -1,8 +1,12 @@
-//! File replay: any recording `importers::load` reads (rigmon MCAP, any-layout .mat, WAV, CSV)
-//! streamed as [`SampleBlock`]s of about `block_ms`, at a real-time factor or as fast as the
+//! File replay: any recording the importers read (rigmon MCAP, any-layout .mat, WAV, CSV)
+//! delivered as [`SampleBlock`]s of about `block_ms`, at a real-time factor or as fast as the
 //! consumer takes them, optionally looping. Channels come out in rig order; an analog tacho
-//! becomes `tacho_analog`, recorded tacho edges become `tacho_edges`.
+//! becomes `tacho_analog`, recorded tacho edges become `tacho_edges`. The `[source] type =
+//! "file"` section ([`FileSourceConfig`]); the daemon streams the file
+//! ([`FileSourceConfig::open`], [`StreamReplay`]); [`FileReplay`] replays a recording held in
+//! memory (the serial emulator).
 
+use super::stream_replay::StreamReplay;
 use super::{
     send_block, sleep_unless_stopped, BlockSender, SampleBlock, Source, SourceStats, StopToken,
 };
@@ -141,7 +145,24 @@ impl FileSourceConfig {
         }
     }
 
-    /// Read the recording and check it against the rig.
+    /// Open the recording as the daemon's source: streamed from disk (rigmon MCAP, WAV) with
+    /// bounded memory, checked against the rig (see [`StreamReplay`]).
+    pub fn open(&self, rig: &RigConfig) -> Result<StreamReplay> {
+        check_block_ms(self.block_ms)?;
+        let opts = ImportOptions {
+            sample_rate: self.sample_rate_hz,
+            rpm: self.rpm,
+            ..Default::default()
+        };
+        let name = self.path.display().to_string();
+        let stream = importers::open(&self.path, rig, &opts)
+            .with_context(|| format!("file source: cannot replay {name}"))?;
+        StreamReplay::new(stream, rig, self.speed, self.looping, self.block_ms, &name)
+            .with_context(|| format!("file source {name}"))
+    }
+
+    /// Read the whole recording into memory and check it against the rig (the serial
+    /// emulator needs it whole; the daemon uses [`open`](Self::open)).
     pub fn build(&self, rig: &RigConfig) -> Result<FileReplay> {
         check_block_ms(self.block_ms)?;
         let opts = ImportOptions {
@@ -280,9 +301,9 @@ impl FileReplay {
         &self.rec
     }
 
-    /// The block holding samples `[start, end)` of the recording, pass `pass` (for loops).
-    pub(crate) fn block_at(&self, start: usize, end: usize, pass: u64) -> SampleBlock {
-        let n = self.rec.len() as u64;
+    /// The block holding samples `[start, end)` of the recording (every pass of a loop
+    /// alike).
+    pub(crate) fn block_at(&self, start: usize, end: usize) -> SampleBlock {
         let fs = self.rec.sample_rate;
         let channels = self
             .order
@@ -292,19 +313,21 @@ impl FileReplay {
                 None => vec![f32::NAN; end - start],
             })
             .collect();
-        let offset_s = (pass * n) as f64 / fs;
         let (tacho_analog, tacho_edges) = match &self.rec.tacho {
             Some(Tacho::Analog { samples, .. }) => (Some(samples[start..end].to_vec()), Vec::new()),
             Some(Tacho::Edges { times_s }) => {
                 let (t0, t1) = (start as f64 / fs, end as f64 / fs);
                 let lo = times_s.partition_point(|&t| t < t0);
                 let hi = times_s.partition_point(|&t| t < t1);
-                (None, times_s[lo..hi].iter().map(|t| t + offset_s).collect())
+                (None, times_s[lo..hi].to_vec())
             }
             None => (None, Vec::new()),
         };
+        // Each pass starts the sample clock again: the seam is a clock going backwards,
+        // which restarts the windows and their speed (analysis::windows), instead of joining
+        // the end of the recording to its start as if the shaft had turned on across it.
         SampleBlock {
-            first_sample: pass * n + start as u64,
+            first_sample: start as u64,
             sample_rate: fs,
             channels,
             tacho_analog,
@@ -365,7 +388,7 @@ impl Source for FileReplay {
                     break 'outer;
                 }
                 let end = (start + self.block).min(n);
-                let block = self.block_at(start, end, pass);
+                let block = self.block_at(start, end);
                 if let ReplaySpeed::Factor(x) = self.speed {
                     // A live DAQ delivers a block once its last sample has been taken.
                     let due = t0
@@ -517,7 +540,7 @@ mod tests {
     }
 
     #[test]
-    fn edges_follow_their_block_and_loops_keep_the_clock_running() {
+    fn edges_follow_their_block_and_each_loop_restarts_the_clock() {
         let n = 1200; // 0.1 s at 12 kHz
         let edges: Vec<f64> = (0..10).map(|k| 0.005 + 0.01 * k as f64).collect();
         let rec = recording(
@@ -542,7 +565,7 @@ mod tests {
         h.join().unwrap().unwrap();
         assert_eq!(
             blocks.iter().map(|b| b.first_sample).collect::<Vec<_>>(),
-            [0, 600, 1200, 1800, 2400, 3000]
+            [0, 600, 0, 600, 0, 600]
         );
         assert!(
             blocks[0].channels[2].iter().all(|v| v.is_nan()),
@@ -561,7 +584,7 @@ mod tests {
                 b.tacho_edges
             );
         }
-        assert!((blocks[4].tacho_edges[0] - (0.2 + 0.005)).abs() < 1e-12);
+        assert!((blocks[4].tacho_edges[0] - 0.005).abs() < 1e-12);
     }
 
     #[test]

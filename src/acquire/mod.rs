@@ -16,6 +16,7 @@ pub mod layout;
 pub mod opendaq;
 pub mod serial;
 pub mod serial_protocol;
+pub mod stream_replay;
 
 use crate::config::{Acquisition, RigConfig};
 use serde::{Deserialize, Serialize};
@@ -44,6 +45,8 @@ pub struct SourceStats {
     pub reconnects: AtomicU64,
     /// Set while the device is connected and delivering.
     pub connected: AtomicBool,
+    /// What a recording being replayed could not deliver (damage, gaps, a cut tail).
+    pub losses: std::sync::Mutex<Option<crate::recording::LossReport>>,
 }
 
 impl SourceStats {
@@ -132,7 +135,7 @@ impl SourceConfig {
     /// source could not start, why, and what to do about it.
     pub fn build(&self, rig: &RigConfig) -> anyhow::Result<Box<dyn Source>> {
         match self {
-            SourceConfig::File(c) => Ok(Box::new(c.build(rig)?)),
+            SourceConfig::File(c) => Ok(Box::new(c.open(rig)?)),
             SourceConfig::Serial(c) => c.build(rig),
             SourceConfig::Can(c) => c.build(rig),
             SourceConfig::Audio(c) => c.build(rig),

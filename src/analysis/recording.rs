@@ -21,16 +21,7 @@ const BLOCK: usize = 4096;
 
 /// Features of every full window of a recording, with the speed source from the rig file.
 pub fn extract_recording(rec: &Recording, rig: &RigConfig) -> Result<Vec<FeatureWindow>> {
-    let speed = SpeedSource::with_nominal(
-        &rig.speed,
-        rec.sample_rate,
-        rec.rpm,
-        super::speed_source::nominal_rpm(rec),
-    )?;
-    speed
-        .check_recording(rec)
-        .with_context(|| format!("speed for {}", rec.provenance.source_path))?;
-    extract(rec, rig, speed)
+    extract(rec, rig, SpeedSource::for_recording(rec, rig)?)
 }
 
 /// Features of every full window of a recording along a given speed track.
@@ -46,10 +37,7 @@ pub fn extract_with_speed(
 /// flagged, windows without speed or features kept with their error), with the speed source
 /// from the rig file.
 pub fn analyse_recording(rec: &Recording, rig: &RigConfig) -> Result<Vec<WindowAnalysis>> {
-    let speed = SpeedSource::new(&rig.speed, rec.sample_rate, rec.rpm)?;
-    speed
-        .check_recording(rec)
-        .with_context(|| format!("speed for {}", rec.provenance.source_path))?;
+    let speed = SpeedSource::for_recording(rec, rig)?;
     let mut out = Vec::new();
     each_window(rec, rig, speed, false, |a| {
         out.push(a);

@@ -204,6 +204,22 @@ impl SpeedSource {
         Self::with_mode(Mode::new(speed, stored_rpm, nominal_rpm)?, sample_rate)
     }
 
+    /// The speed source for a whole recording: `[speed]` with the recording's stored and
+    /// nominal speeds, refused up front when the recording cannot give it (no tacho, too
+    /// short for the lowest speed). A simulated recording whose rig reads the speed from the
+    /// vibration gets the simulator's own speed instead (see [`simulator_speed`]).
+    pub fn for_recording(rec: &Recording, rig: &RigConfig) -> Result<Self> {
+        let mode = Mode::new(&rig.speed, rec.rpm, nominal_rpm(rec))?;
+        if let Some(track) = simulator_speed(&mode, rec) {
+            return Ok(Self::given(track?, rec.sample_rate));
+        }
+        let source = Self::with_mode(mode, rec.sample_rate)?;
+        source
+            .check_recording(rec)
+            .with_context(|| format!("speed for {}", rec.provenance.source_path))?;
+        Ok(source)
+    }
+
     /// Every window gets this track (e.g. `rigmon features --rpm`).
     pub fn given(track: SpeedTrack, sample_rate: f64) -> Self {
         Self::with_mode(Mode::Constant(track), sample_rate).expect("a constant needs no tracker")
@@ -341,6 +357,23 @@ impl SpeedSource {
     }
 }
 
+/// The simulator's own speed (the exact revolution times it writes on a rig without a tacho
+/// channel) for a simulated recording whose rig reads the speed from the vibration; None for
+/// any other recording or mode. Training data then has the speed the simulator ran at, not
+/// what the tracker reads: healthy simulations below ~1000 rpm carry no shaft line the
+/// tracker could follow, and a simulated recording need not be as long as the tracker's
+/// history. What this leaves out, the tracker's error on a real machine, is measured in
+/// `tests/dsp.rs` (features from the tracked and the true speed of the same simulated
+/// recordings: their difference against the difference between classes).
+fn simulator_speed(mode: &Mode, rec: &Recording) -> Option<Result<SpeedTrack>> {
+    match (&rec.tacho, mode.tracker_settings()) {
+        (Some(Tacho::Edges { times_s }), Some(_)) if rec.is_simulated() => {
+            Some(SpeedTrack::from_edges(times_s, 1, "simulator"))
+        }
+        _ => None,
+    }
+}
+
 /// The nominal speed stated beside a recording (a hint, checked against the vibration).
 pub fn nominal_rpm(rec: &Recording) -> Option<f64> {
     rec.nominal_rpm.as_ref().map(|n| n.rpm)
@@ -390,6 +423,9 @@ fn check_tacho(mode: &Mode, rec: &Recording) -> Result<()> {
 /// For whole-recording analyses; features use [`SpeedSource::track`] window by window.
 pub fn whole_recording(rec: &Recording, rig: &RigConfig) -> Result<SpeedTrack> {
     let mode = Mode::new(&rig.speed, rec.rpm, nominal_rpm(rec))?;
+    if let Some(track) = simulator_speed(&mode, rec) {
+        return track;
+    }
     let from_tacho = |tacho: &Tacho, ppr: u32| -> Result<SpeedTrack> {
         match tacho {
             Tacho::Edges { times_s } => SpeedTrack::from_edges(times_s, ppr, "edges"),

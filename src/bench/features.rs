@@ -3,7 +3,7 @@
 //! a baseline in the same run that builds a fresh pipeline (new FFT plans, new buffers) for
 //! every window — the same arithmetic, so the outputs are compared too.
 
-use super::{machine_line, BenchOptions};
+use super::{machine_line, thread_cpu_s, BenchOptions};
 use crate::config::RigConfig;
 use crate::dsp::synthetic::Synthetic;
 use crate::dsp::{FeaturePipeline, SpeedTrack};
@@ -25,21 +25,6 @@ struct Pass {
     wall_s: f64,
     cpu_s: f64,
     checksum: f64,
-}
-
-/// CPU time consumed by the calling thread, s (independent of other load on the machine).
-fn thread_cpu_s() -> f64 {
-    let mut ts = libc::timespec {
-        tv_sec: 0,
-        tv_nsec: 0,
-    };
-    // SAFETY: clock_gettime writes into the timespec we own.
-    let rc = unsafe { libc::clock_gettime(libc::CLOCK_THREAD_CPUTIME_ID, &mut ts) };
-    if rc == 0 {
-        ts.tv_sec as f64 + ts.tv_nsec as f64 * 1e-9
-    } else {
-        f64::NAN
-    }
 }
 
 fn load_average() -> String {

@@ -14,10 +14,12 @@ use crate::health::iso20816::Zone;
 use crate::health::message::{
     FaultBands, HealthMessage, ModelInfo, QualityReport, WindowTimes, SCHEMA, SCHEMA_VERSION,
 };
+use crate::health::Basis;
 use crate::historian::database::{self, DatabaseSettings, Target};
 use crate::historian::row::WindowRow;
 use crate::historian::status::HistorianStatus;
 use crate::historian::writer::Writer;
+use crate::model::evidence::FamilyEvidence;
 use crate::model::ALL_LABELS;
 use crate::publish::time_range::now_ns;
 use crate::publish::zenoh::ZenohSettings;
@@ -80,9 +82,13 @@ fn window(tag: &str, i: usize, seq: u64, run_ns: u64) -> HealthMessage {
         window_state: labels[0].clone(),
         unknown_reason: None,
         alarm_despite: None,
-        decision: Default::default(),
+        decision: Basis::Model,
         overruled: None,
-        evidence: None,
+        evidence: Some(FamilyEvidence {
+            outer_race: 0.4 + wobble,
+            inner_race: -0.2,
+            ball: 0.1 - wobble,
+        }),
         state: labels[0].clone(),
         state_since_s: 0.5,
         state_changed: seq == 1,

@@ -8,6 +8,7 @@ pub mod footprint;
 pub mod historian;
 pub mod load;
 pub mod simulate;
+pub mod speed;
 
 use anyhow::{Context, Result};
 use std::path::{Path, PathBuf};
@@ -86,4 +87,19 @@ pub(crate) fn percentile(sorted: &[f64], p: f64) -> f64 {
     }
     let i = ((sorted.len() - 1) as f64 * p).round() as usize;
     sorted[i]
+}
+
+/// CPU time consumed by the calling thread, s (independent of other load on the machine).
+pub(crate) fn thread_cpu_s() -> f64 {
+    let mut ts = libc::timespec {
+        tv_sec: 0,
+        tv_nsec: 0,
+    };
+    // SAFETY: clock_gettime writes into the timespec we own.
+    let rc = unsafe { libc::clock_gettime(libc::CLOCK_THREAD_CPUTIME_ID, &mut ts) };
+    if rc == 0 {
+        ts.tv_sec as f64 + ts.tv_nsec as f64 * 1e-9
+    } else {
+        f64::NAN
+    }
 }

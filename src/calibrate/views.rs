@@ -135,7 +135,15 @@ pub fn compute(rec: &Recording, rig: &RigConfig, faults: &[Fault]) -> Result<Vie
         .map(|i| {
             let mut r = rec.clone();
             super::measured::cut(&mut r, i as f64 * seg, seg);
-            compute_segment(&r, rig, faults).with_context(|| {
+            // A speed read from the vibration is not read again from a segment (it may be
+            // shorter than the tracker's history); a tacho or a stored speed is the segment's.
+            let views = if rec.tacho.is_none() && rec.rpm.is_none() {
+                segment_track(&track, i as f64 * seg, seg)
+                    .and_then(|t| compute_parts_along(&r, rig, faults, Parts::ALL, &t))
+            } else {
+                compute_segment(&r, rig, faults)
+            };
+            views.with_context(|| {
                 format!(
                     "segment {} ({:.1} s from {:.1} s)",
                     i + 1,
@@ -345,6 +353,30 @@ pub fn compute_parts(
     faults: &[Fault],
     parts: Parts,
 ) -> Result<Views> {
+    let track = crate::analysis::whole_recording(rec, rig)?;
+    compute_parts_along(rec, rig, faults, parts, &track)
+}
+
+/// The part of a whole recording's speed track from `t0` for `seconds`, on the segment's own
+/// clock (its first sample at 0): a segment of a recording read from the vibration keeps the
+/// speed the whole recording gave, rather than reading it again from a span that may be
+/// shorter than the speed tracker's history.
+fn segment_track(track: &SpeedTrack, t0: f64, seconds: f64) -> Result<SpeedTrack> {
+    const STEP_S: f64 = 0.05;
+    let n = (seconds / STEP_S).ceil() as usize + 1;
+    let t: Vec<f64> = (0..n).map(|k| k as f64 * STEP_S).collect();
+    let hz: Vec<f64> = t.iter().map(|&u| track.rpm_at(t0 + u) / 60.0).collect();
+    SpeedTrack::from_profile(&t, &hz, track.source())
+}
+
+/// [`compute_parts`] along a given speed track.
+fn compute_parts_along(
+    rec: &Recording,
+    rig: &RigConfig,
+    faults: &[Fault],
+    parts: Parts,
+    track: &SpeedTrack,
+) -> Result<Views> {
     let ch = rig
         .classifier_channel()
         .and_then(|c| rec.channel(&c.name))
@@ -359,7 +391,6 @@ pub fn compute_parts(
             ch.name
         );
     }
-    let track = crate::analysis::whole_recording(rec, rig)?;
     let dur = rec.duration_s();
     let rpm = track.mean_rpm(0.0, dur);
     let mut v = Views {
@@ -370,16 +401,16 @@ pub fn compute_parts(
         ..Views::default()
     };
     if parts.env {
-        (v.env, v.env_db, v.fault_peaks) = envelope_views(&ch.samples, fs, &track, rig, faults)?;
+        (v.env, v.env_db, v.fault_peaks) = envelope_views(&ch.samples, fs, track, rig, faults)?;
     }
     if parts.spectrum {
         spectrum_views(&ch.samples, fs, &mut v);
     }
     if parts.shaft {
-        v.shaft = shaft_orders::measure(&ch.samples, fs, &track);
+        v.shaft = shaft_orders::measure(&ch.samples, fs, track);
     }
     if parts.fractional {
-        let f = fractional_orders::measure(&ch.samples, fs, &track);
+        let f = fractional_orders::measure(&ch.samples, fs, track);
         (v.fractional, v.half_orders) = (f.levels, f.half);
     }
     if parts.impacts {

@@ -15,6 +15,10 @@ pub enum What {
     Load,
     /// Calibration of six recordings analysed whole, against the same calibration before.
     Calibrate,
+    /// Speed from the vibration: the tracker's cost per hop at 3 ch x 10 kHz and
+    /// 1 ch x 51.2 kHz against the same analysis with the true speed (--seconds of signal,
+    /// default 30).
+    Speed,
     /// Fleet historian: --points simulated points at 2 windows/s through a router into the
     /// PostgreSQL named by the PG* variables.
     Historian,
@@ -49,6 +53,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         rig: args.rig,
         seconds: args.seconds.unwrap_or(match args.what {
             What::Load | What::Historian => 60.0,
+            What::Speed => 30.0,
             _ => 10.0,
         }),
         json: args.json,
@@ -59,6 +64,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         What::Footprint => bench::footprint::run(&opts),
         What::Load => bench::load::run(&opts),
         What::Calibrate => bench::calibrate::run(&opts, args.measured, args.seconds),
+        What::Speed => bench::speed::run(&opts),
         What::Historian => bench::historian::run(args.points, opts.seconds, opts.json),
     }
 }

@@ -55,25 +55,19 @@ pub fn preflight(config: &DaemonConfig) -> Result<Checked> {
     })
 }
 
-/// Open the source and check the recipe at its sample rate (and a recording's length and
-/// stored speed) before the pipeline sizes anything by it.
+/// Open the source and check the recipe at its sample rate (and a recording's stored speed)
+/// before the pipeline sizes anything by it. A recording is streamed from disk
+/// ([`crate::acquire::stream_replay::StreamReplay`], which makes these checks itself and
+/// refuses a recording too short for one window: up front when its length is known, else at
+/// its end).
 fn open_source(config: &SourceConfig, rig: &RigConfig) -> Result<Box<dyn Source>> {
-    let SourceConfig::File(c) = config else {
-        let source = config.build(rig).context("cannot start the source")?;
-        let what = format!("source {}", source.describe());
-        rig.check_recipe_at(source.sample_rate(), source.nominal_rpm(), &what)?;
-        return Ok(source);
-    };
-    let replay = c.build(rig).context("cannot start the source")?;
-    let rec = replay.recording();
-    let what = format!("recording {}", c.path.display());
-    rig.check_recipe_at(rec.sample_rate, rec.rpm, &what)?;
-    if !c.looping {
-        rig.features
-            .check_length(rec.len(), rec.sample_rate)
-            .with_context(|| what.clone())?;
+    if let SourceConfig::File(c) = config {
+        return Ok(Box::new(c.open(rig).context("cannot start the source")?));
     }
-    Ok(Box::new(replay))
+    let source = config.build(rig).context("cannot start the source")?;
+    let what = format!("source {}", source.describe());
+    rig.check_recipe_at(source.sample_rate(), source.nominal_rpm(), &what)?;
+    Ok(source)
 }
 
 /// Why recording cannot start (its folder cannot be created or written), if it cannot.

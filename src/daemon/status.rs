@@ -59,6 +59,9 @@ pub struct SourceStatus {
     /// The source ended (end of file) or failed; `error` says why when it failed.
     pub finished: bool,
     pub error: Option<String>,
+    /// What a replayed recording could not deliver (damaged chunks, gaps, a cut tail).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub file_losses: Option<crate::recording::LossReport>,
 }
 
 impl StatusMessage {
@@ -116,6 +119,7 @@ impl SourceStatus {
             error: finished
                 .and_then(|r| r.as_ref().err())
                 .map(|e| format!("{e:#}")),
+            file_losses: stats.losses.lock().ok().and_then(|l| l.clone()),
         }
     }
 }

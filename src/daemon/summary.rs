@@ -36,6 +36,10 @@ pub struct Summary {
     pub after_end_ms_max: f64,
     pub source_error: Option<String>,
     pub wall_s: f64,
+    /// What the replayed recording could not deliver: samples and seconds lost, where and why
+    /// (gaps are also in `samples_lost`, on the sample clock).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub file_losses: Option<crate::recording::LossReport>,
 }
 
 /// Windows counted per state while the daemon runs.
@@ -89,6 +93,7 @@ impl Summary {
             after_end_ms_max: pipe.after_end_ms_max,
             source_error: src.error.clone(),
             wall_s,
+            file_losses: src.file_losses.clone(),
         }
     }
 
@@ -125,6 +130,9 @@ impl Summary {
                 "\n  reloads: {} applied, {} rejected",
                 self.reloads, self.reloads_rejected
             ));
+        }
+        if let Some(l) = &self.file_losses {
+            s.push_str(&format!("\n  file damaged or cut: {}", l.summary));
         }
         if let Some(e) = &self.source_error {
             s.push_str(&format!("\n  source error: {e}"));

@@ -12,7 +12,8 @@ use crate::health::iso20816::Zone;
 use crate::health::message::{
     FaultBands, HealthMessage, ModelInfo, QualityReport, WindowTimes, SCHEMA, SCHEMA_VERSION,
 };
-use crate::health::UnknownReason;
+use crate::health::{Basis, UnknownReason};
+use crate::model::evidence::FamilyEvidence;
 use crate::model::ALL_LABELS;
 use crate::publish::time_range::{now_ns, TimeRange, PARAMETER as TIME};
 use anyhow::{anyhow, Result};
@@ -30,7 +31,9 @@ const SELECT: &str = "SELECT p.key, t.site, w.time, w.window_s, w.run_start, w.s
     w.bpfo_1, w.bpfo_2, w.bpfo_3, w.bpfi_1, w.bpfi_2, w.bpfi_3, w.two_bsf_1, w.two_bsf_2,
     w.two_bsf_3, w.band_floor, w.quality_ok, w.quality_flags, w.clipped_samples,
     w.nan_samples, w.dropout_samples, w.missing_tacho_pulses,
-    p.band_channel, p.band_orders, p.calibration_id, p.software_version, p.iso_limits_mm_s
+    p.band_channel, p.band_orders, p.calibration_id, p.software_version, p.iso_limits_mm_s,
+    w.decision, w.overruled, w.evidence_outer_race, w.evidence_inner_race, w.evidence_ball,
+    w.speed_confidence, w.speed_rival_rpm, w.model_foreign
 FROM windows w JOIN points p USING (point_id) JOIN asset_tree t USING (point_id)
 JOIN models mo USING (model_id)";
 
@@ -40,8 +43,21 @@ struct PointKey {
     key: String,
 }
 
+fn basis(s: String) -> Basis {
+    serde_json::from_value(serde_json::Value::String(s)).unwrap_or_default()
+}
+
 fn reason(s: Option<String>) -> Option<UnknownReason> {
     s.and_then(|v| serde_json::from_value(serde_json::Value::String(v)).ok())
+}
+
+/// The fault-family evidence (columns `from`..`from + 3`), when stored.
+fn evidence(r: &Row, from: usize) -> Option<FamilyEvidence> {
+    Some(FamilyEvidence {
+        outer_race: r.get::<_, Option<f32>>(from)?,
+        inner_race: r.get::<_, Option<f32>>(from + 1)?,
+        ball: r.get::<_, Option<f32>>(from + 2)?,
+    })
 }
 
 fn bands(r: &Row, from: usize) -> Vec<f32> {
@@ -100,8 +116,8 @@ fn message_of(r: &Row) -> serde_json::Value {
         publish_time_ns: ns_of(r.get::<_, SystemTime>(6)),
         rpm: r.get(26),
         speed_source: r.get(27),
-        speed_confidence: None,
-        speed_rival_rpm: None,
+        speed_confidence: r.get::<_, Option<f32>>(56).map(f64::from),
+        speed_rival_rpm: r.get(57),
         quality: QualityReport {
             ok: r.get(40),
             flags: flags.unwrap_or_default(),
@@ -116,9 +132,9 @@ fn message_of(r: &Row) -> serde_json::Value {
         window_state: r.get(11),
         unknown_reason: reason(r.get(12)),
         alarm_despite: reason(r.get(13)),
-        decision: Default::default(),
-        overruled: None,
-        evidence: None,
+        decision: basis(r.get(51)),
+        overruled: r.get(52),
+        evidence: evidence(r, 53),
         state: r.get(7),
         state_since_s: secs(ns_of(r.get::<_, SystemTime>(8))),
         state_changed: r.get(9),
@@ -143,7 +159,7 @@ fn message_of(r: &Row) -> serde_json::Value {
             id: r.get(14),
             sha256: r.get(15),
             labels,
-            foreign: Vec::new(),
+            foreign: r.get::<_, Option<Vec<String>>>(58).unwrap_or_default(),
         },
         calibration_id: r.get(48),
         software_version: r.get::<_, Option<String>>(49).unwrap_or_default(),

@@ -7,8 +7,14 @@ use anyhow::{bail, Context, Result};
 use tokio_postgres::Client;
 
 /// (version, name, SQL), in order.
-pub const MIGRATIONS: &[(i32, &str, &str)] =
-    &[(1, "schema", include_str!("migrations/0001_schema.sql"))];
+pub const MIGRATIONS: &[(i32, &str, &str)] = &[
+    (1, "schema", include_str!("migrations/0001_schema.sql")),
+    (
+        2,
+        "decision_evidence_speed",
+        include_str!("migrations/0002_decision_evidence_speed.sql"),
+    ),
+];
 
 /// Advisory-lock key ("rigmon" in ASCII).
 const LOCK: i64 = 0x7269_676d_6f6e;

@@ -55,6 +55,14 @@ pub const COLUMNS: &[(&str, Type)] = &[
     ("nan_samples", Type::INT4),
     ("dropout_samples", Type::INT4),
     ("missing_tacho_pulses", Type::INT4),
+    ("decision", Type::TEXT),
+    ("overruled", Type::TEXT),
+    ("evidence_outer_race", Type::FLOAT4),
+    ("evidence_inner_race", Type::FLOAT4),
+    ("evidence_ball", Type::FLOAT4),
+    ("speed_confidence", Type::FLOAT4),
+    ("speed_rival_rpm", Type::FLOAT8),
+    ("model_foreign", Type::TEXT_ARRAY),
 ];
 
 /// The model a row was classified by (`models` table).
@@ -122,6 +130,15 @@ pub struct WindowRow {
     pub quality_ok: bool,
     pub quality_flags: Option<Vec<String>>,
     pub counts: [i32; 4],
+    /// What decided the class: `model`, `confirmed` or `evidence`.
+    pub decision: &'static str,
+    pub overruled: Option<String>,
+    /// Fault-family evidence: outer race, inner race, ball (all or none).
+    pub evidence: [Option<f32>; 3],
+    pub speed_confidence: Option<f32>,
+    pub speed_rival_rpm: Option<f64>,
+    /// How an allowed foreign model differs from the rig (None when it is the rig's own).
+    pub model_foreign: Option<Vec<String>>,
     /// The whole message, kept for the state-change event.
     pub message: Option<serde_json::Value>,
 }
@@ -253,6 +270,17 @@ impl WindowRow {
                 clamp_i32(q.dropout_samples),
                 clamp_i32(q.missing_tacho_pulses),
             ],
+            decision: m.decision.as_str(),
+            overruled: m.overruled,
+            evidence: m.evidence.map_or([None; 3], |e| {
+                [Some(e.outer_race), Some(e.inner_race), Some(e.ball)]
+            }),
+            speed_confidence: m
+                .speed_confidence
+                .filter(|c| c.is_finite())
+                .map(|c| c as f32),
+            speed_rival_rpm: m.speed_rival_rpm.filter(|r| r.is_finite()),
+            model_foreign: (!m.model.foreign.is_empty()).then_some(m.model.foreign),
             message,
         }
     }
@@ -304,6 +332,14 @@ impl WindowRow {
             &self.counts[1],
             &self.counts[2],
             &self.counts[3],
+            &self.decision,
+            &self.overruled,
+            &self.evidence[0],
+            &self.evidence[1],
+            &self.evidence[2],
+            &self.speed_confidence,
+            &self.speed_rival_rpm,
+            &self.model_foreign,
             &self.message,
         ]
     }
@@ -345,8 +381,12 @@ mod tests {
             "fault_bands": {"channel": "vertical", "orders": {"bpfo": 4.4}, "bpfo": [1.0, 0.5, 0.25],
                             "bpfi": [0.1, 0.1, 0.1], "two_bsf": [0.2, 0.2, 0.2], "floor": 0.05},
             "velocity_rms_mm_s": 1.9, "iso_zone": "B",
-            "model": {"id": "lut-rig", "sha256": "ab", "labels": ["healthy", "outer_race"]},
-            "calibration_id": null, "software_version": "0.1.0"
+            "model": {"id": "lut-rig", "sha256": "ab", "labels": ["healthy", "outer_race"],
+                      "foreign": ["rig_id: model cwru-de, rig file lut-rig"]},
+            "calibration_id": null, "software_version": "0.1.0",
+            "decision": "evidence", "overruled": "healthy",
+            "evidence": {"outer_race": 9.5, "inner_race": 0.25, "ball": -1.0},
+            "speed_confidence": 0.75, "speed_rival_rpm": 294.0
         });
         let r = WindowRow::parse(msg.to_string().as_bytes(), "lab").unwrap();
         assert_eq!(r.point.key(), "lut-rig/shaft/nde");
@@ -362,8 +402,38 @@ mod tests {
             Some(&["clipping".to_string()][..])
         );
         assert!(r.message.is_some(), "state changes keep the full JSON");
+        assert_eq!(
+            (r.decision, r.overruled.as_deref()),
+            ("evidence", Some("healthy"))
+        );
+        assert_eq!(r.evidence, [Some(9.5), Some(0.25), Some(-1.0)]);
+        assert_eq!(
+            (r.speed_confidence, r.speed_rival_rpm),
+            (Some(0.75), Some(294.0))
+        );
+        assert_eq!(
+            r.model_foreign.as_deref(),
+            Some(&["rig_id: model cwru-de, rig file lut-rig".to_string()][..])
+        );
         let t = r.times();
         assert_eq!(r.values(&t).len(), COLUMNS.len() + 1);
+        // a message from before these fields existed: decided by the model, the rest absent
+        let mut old = msg.clone();
+        for key in [
+            "decision",
+            "overruled",
+            "evidence",
+            "speed_confidence",
+            "speed_rival_rpm",
+        ] {
+            old.as_object_mut().unwrap().remove(key);
+        }
+        old["model"].as_object_mut().unwrap().remove("foreign");
+        let r = WindowRow::parse(old.to_string().as_bytes(), "lab").unwrap();
+        assert_eq!((r.decision, r.overruled), ("model", None));
+        assert_eq!(r.evidence, [None; 3]);
+        assert_eq!((r.speed_confidence, r.speed_rival_rpm), (None, None));
+        assert_eq!(r.model_foreign, None);
         let e = WindowRow::parse(b"{\"schema\":\"rigmon.status\"}", "lab").unwrap_err();
         assert!(e.to_string().contains("rigmon.health"), "{e}");
     }

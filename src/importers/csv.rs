@@ -16,6 +16,62 @@ use anyhow::{bail, Context, Result};
 use std::collections::BTreeMap;
 use std::path::Path;
 
+/// Bytes at the start of a CSV file checked for being text before it is read.
+const TEXT_CHECK_BYTES: usize = 64 * 1024;
+
+/// Refuse a file named `.csv` that is not text, from its first 64 KiB: a NUL byte or bytes
+/// that are not UTF-8 (so a binary file is refused at once, not after reading it all).
+pub fn check_text(path: &Path, size: u64) -> Result<()> {
+    use std::io::Read;
+    let mut head = Vec::with_capacity(TEXT_CHECK_BYTES);
+    std::fs::File::open(path)
+        .and_then(|f| f.take(TEXT_CHECK_BYTES as u64).read_to_end(&mut head))
+        .with_context(|| format!("{}: cannot read", path.display()))?;
+    let line_of = |at: usize| 1 + head[..at].iter().filter(|&&b| b == b'\n').count();
+    if let Some(at) = head.iter().position(|&b| b == 0) {
+        bail!(
+            "{}: not a text file: byte {at} (line {}) is a NUL byte; CSV recordings are text \
+             (the file is {}; is it a binary file with a .csv name?)",
+            path.display(),
+            line_of(at),
+            super::memory::size_text(size)
+        );
+    }
+    if let Err(e) = std::str::from_utf8(&head) {
+        // A character cut by the 64 KiB boundary is fine.
+        if e.error_len().is_some() || (head.len() as u64) == size {
+            let at = e.valid_up_to();
+            bail!(
+                "{}: not UTF-8 text: byte {at} (line {}) is not valid UTF-8; save the CSV as \
+                 UTF-8 (or ASCII)",
+                path.display(),
+                line_of(at)
+            );
+        }
+    }
+    Ok(())
+}
+
+/// A cell written with a decimal comma (`1,5`, `-0,25`): digits, one comma, digits.
+fn decimal_comma(cell: &str) -> bool {
+    let t = cell.strip_prefix(['-', '+']).unwrap_or(cell);
+    match t.split_once(',') {
+        Some((a, b)) => {
+            !a.is_empty()
+                && !b.is_empty()
+                && a.bytes().all(|c| c.is_ascii_digit())
+                && b.bytes().all(|c| c.is_ascii_digit())
+        }
+        None => false,
+    }
+}
+
+/// What to say about numbers written with decimal commas.
+const DECIMAL_COMMA_HINT: &str = "rigmon reads numbers with a decimal point (1.5, not 1,5): \
+     export the CSV with `.` as the decimal separator (in a spreadsheet, set the language to \
+     English for the export), or replace the decimal commas (with `;` or tab between columns: \
+     `sed 's/,/./g'`)";
+
 /// Header names accepted for the time column.
 pub const TIME_COLUMNS: [&str; 5] = ["time", "t", "time_s", "t_s", "seconds"];
 
@@ -207,6 +263,21 @@ pub fn load(path: &Path, rig: &RigConfig, opts: &ImportOptions) -> Result<Record
     while let Some(line) = next(&mut record)? {
         for (c, field) in record.iter().enumerate() {
             if c >= names.len() {
+                // `0,5,1,25` under a header `time,x`: decimal commas split every number in two.
+                let commas = delim == b','
+                    && record.len() == 2 * names.len()
+                    && record.iter().all(|f| {
+                        !f.trim().is_empty()
+                            && f.trim().bytes().all(|b| b.is_ascii_digit() || b == b'-')
+                    });
+                if commas {
+                    bail!(
+                        "{p}: line {line}: {} values but the header names {} columns: the numbers \
+                         look written with decimal commas; {DECIMAL_COMMA_HINT}",
+                        record.len(),
+                        names.len()
+                    );
+                }
                 bail!(
                     "{p}: line {line}: {} values but the header names {} columns; quote cells \
                      that contain the delimiter {:?}",
@@ -221,9 +292,12 @@ pub fn load(path: &Path, rig: &RigConfig, opts: &ImportOptions) -> Result<Record
             }
             let f = cell(field);
             let v: f64 = f.parse().map_err(|_| {
-                let what = match f.contains('\n') {
-                    true => "a quoted cell runs over several lines (a `\"` not closed?)".into(),
-                    false => format!("{f:?} is not a number"),
+                let what = if f.contains('\n') {
+                    "a quoted cell runs over several lines (a `\"` not closed?)".into()
+                } else if decimal_comma(f) {
+                    format!("{f:?} is not a number: it looks written with a decimal comma; {DECIMAL_COMMA_HINT}")
+                } else {
+                    format!("{f:?} is not a number")
                 };
                 anyhow::anyhow!(
                     "{p}: line {line}, column {} ({:?}): {what}",

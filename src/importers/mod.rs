@@ -12,11 +12,15 @@ pub mod csv;
 pub mod cwru;
 pub mod mat5;
 pub mod mat_layout;
+pub mod memory;
 pub mod mfpt;
 pub mod wav;
 
 use crate::config::{Acquisition, RigConfig};
-use crate::recording::{NominalSpeed, Recording, Tacho};
+use crate::recording::mcap::file_writer::default_block_len;
+use crate::recording::mcap::{read_recording_with_losses, RecordingReader};
+use crate::recording::stream::{BlockStream, McapStream, MemoryStream};
+use crate::recording::{Losses, NominalSpeed, Recording, Tacho};
 use anyhow::{bail, Context, Result};
 use std::path::Path;
 
@@ -88,57 +92,147 @@ pub fn detect_format(path: &Path, head: &[u8]) -> Result<Format> {
     }
 }
 
+/// The format of a file, from its first bytes and its name, with its magic checked before
+/// anything else is read (a 2 GiB file of something else is refused at once), and its size.
+pub fn sniff(path: &Path) -> Result<(Format, u64)> {
+    let p = path.display();
+    let meta = std::fs::metadata(path).with_context(|| format!("{p}: cannot open"))?;
+    if meta.is_dir() {
+        bail!("{p}: is a folder, not a recording");
+    }
+    if meta.len() == 0 {
+        bail!("{p}: the file is empty (0 bytes)");
+    }
+    let mut head = Vec::with_capacity(128);
+    {
+        use std::io::Read;
+        std::fs::File::open(path)
+            .with_context(|| format!("{p}: cannot open"))?
+            .take(128)
+            .read_to_end(&mut head)
+            .with_context(|| format!("{p}: cannot read"))?;
+    }
+    let format = detect_format(path, &head)?;
+    let named = |e: &str| format!("{p}: {e} (the file is {})", memory::size_text(meta.len()));
+    match format {
+        // A MAT v5 header: 116 bytes of text, version and endian indicator.
+        Format::Mat => {
+            if let Err(e) = mat5::parse(&head) {
+                bail!(named(&e.to_string()));
+            }
+        }
+        Format::Mcap if !head.starts_with(mcap::MAGIC) => bail!(named(
+            "not an MCAP file (no MCAP magic at the start; rigmon MCAP files begin with \\x89MCAP0)"
+        )),
+        Format::Wav
+            if !(head.starts_with(b"RIFF")
+                || head.starts_with(b"RIFX")
+                || head.starts_with(b"RF64")) =>
+        {
+            bail!(named("not a WAV file (no RIFF header at the start)"))
+        }
+        Format::Csv => csv::check_text(path, meta.len())?,
+        _ => {}
+    }
+    Ok((format, meta.len()))
+}
+
+/// Open any supported recording as a stream of blocks. rigmon MCAP and WAV files stream from
+/// disk (memory does not grow with the file); CWRU/MFPT `.mat` and CSV are read whole first
+/// ([`load`]). Non-MCAP streams carry `rig_id` and `rig_config` like [`load`]'s recordings.
+pub fn open(path: &Path, rig: &RigConfig, opts: &ImportOptions) -> Result<Box<dyn BlockStream>> {
+    check_options(opts)?;
+    let (format, _) = sniff(path)?;
+    match format {
+        Format::Mcap => {
+            let mut s = McapStream::new(RecordingReader::open(path)?)?;
+            let info = s.info_mut();
+            let mut notes = Vec::new();
+            apply_overrides(&mut info.sample_rate, &mut info.rpm, opts, &mut notes);
+            info.provenance.notes.extend(notes);
+            Ok(Box::new(s))
+        }
+        Format::Wav => {
+            let mut s = wav::open(path, rig, opts)?;
+            stamp_rig(&mut s.info_mut().metadata, rig);
+            Ok(Box::new(s))
+        }
+        Format::Mat | Format::Csv => {
+            let rec = load(path, rig, opts)?;
+            let block = default_block_len(rec.sample_rate);
+            Ok(Box::new(MemoryStream::new(rec, block)))
+        }
+    }
+}
+
+/// `--sample-rate` and `--rpm` over what an MCAP file stores, noted.
+fn apply_overrides(
+    sample_rate: &mut f64,
+    rpm: &mut Option<f64>,
+    opts: &ImportOptions,
+    notes: &mut Vec<String>,
+) {
+    if let Some(fs) = opts.sample_rate {
+        if (fs - *sample_rate).abs() > 1e-3 * *sample_rate {
+            notes.push(format!(
+                "sample rate {fs} Hz from --sample-rate overrides the file's {} Hz",
+                sample_rate
+            ));
+            *sample_rate = fs;
+        }
+    }
+    if let Some(r) = opts.rpm {
+        *rpm = Some(r);
+        notes.push(format!("rpm {r} from --rpm"));
+    }
+}
+
 /// Read any supported recording, chosen by content and extension.
 ///
 /// Non-MCAP inputs get `rig_id` and `rig_config` (the rig TOML) in their metadata, so an MCAP
 /// written from them records which rig they were read with; MCAP inputs keep what they carry.
+/// A damaged or cut MCAP file reads up to what is intact around the damage; what was lost is
+/// logged (a warning on stderr) and noted (see [`load_with_losses`]).
 pub fn load(path: &Path, rig: &RigConfig, opts: &ImportOptions) -> Result<Recording> {
+    load_with_losses(path, rig, opts).map(|(rec, _)| rec)
+}
+
+/// [`load`], and what could not be read (empty for every format but a damaged MCAP file).
+pub fn load_with_losses(
+    path: &Path,
+    rig: &RigConfig,
+    opts: &ImportOptions,
+) -> Result<(Recording, Losses)> {
     check_options(opts)?;
-    let meta =
-        std::fs::metadata(path).with_context(|| format!("{}: cannot open", path.display()))?;
-    if meta.len() == 0 {
-        bail!("{}: the file is empty (0 bytes)", path.display());
-    }
-    let mut head = [0u8; 8];
-    let n = {
-        use std::io::Read;
-        let mut f = std::fs::File::open(path)
-            .with_context(|| format!("{}: cannot open", path.display()))?;
-        f.read(&mut head)
-            .with_context(|| format!("{}: cannot read", path.display()))?
-    };
-    let format = detect_format(path, &head[..n])?;
+    let (format, size) = sniff(path)?;
+    memory::check_whole_read(path, format, size, &memory::available())?;
     let mut rec = match format {
         Format::Mat => mat_layout::load(path, rig, opts)?,
         Format::Wav => wav::load(path, rig, opts)?,
         Format::Csv => csv::load(path, rig, opts)?,
         Format::Mcap => {
-            let mut rec = crate::recording::mcap::read_recording(path)?;
-            if let Some(fs) = opts.sample_rate {
-                if (fs - rec.sample_rate).abs() > 1e-3 * rec.sample_rate {
-                    rec.provenance.notes.push(format!(
-                        "sample rate {fs} Hz from --sample-rate overrides the file's {} Hz",
-                        rec.sample_rate
-                    ));
-                    rec.sample_rate = fs;
-                }
-            }
-            if let Some(rpm) = opts.rpm {
-                rec.rpm = Some(rpm);
-                rec.provenance.notes.push(format!("rpm {rpm} from --rpm"));
-            }
+            let (mut rec, losses) = read_recording_with_losses(path)?;
+            let mut notes = Vec::new();
+            apply_overrides(&mut rec.sample_rate, &mut rec.rpm, opts, &mut notes);
+            rec.provenance.notes.extend(notes);
             // rigmon's own recordings keep what a live source delivered, NaN/Inf bursts
             // included (losing nothing); the daemon's pipeline flags and zeroes them per window.
             check_finite_tacho_edges(path, &rec)?;
             carry_nominal_rpm(&mut rec, opts);
-            let bad = count_non_finite(&rec);
+            let filled = losses.gap_samples() as usize
+                * (rec.channels.len()
+                    + usize::from(matches!(rec.tacho, Some(Tacho::Analog { .. }))));
+            let bad = count_non_finite(&rec).saturating_sub(filled);
             if bad > 0 {
                 rec.provenance.notes.push(format!(
                     "{bad} NaN/Inf samples kept as recorded (the daemon flags them per window; \
                      `rigmon features` refuses such windows)"
                 ));
             }
-            return Ok(rec);
+            if !losses.is_empty() {
+                tracing::warn!("{}: {}", path.display(), losses.line(rec.sample_rate));
+            }
+            return Ok((rec, losses));
         }
     };
     if rec.is_empty() {
@@ -155,7 +249,7 @@ pub fn load(path: &Path, rig: &RigConfig, opts: &ImportOptions) -> Result<Record
         }
     }
     stamp_rig(&mut rec.metadata, rig);
-    Ok(rec)
+    Ok((rec, Losses::default()))
 }
 
 /// Put a declared nominal speed on the recording as a hint (not as its speed) and say so.
@@ -395,13 +489,29 @@ pub(crate) fn check_classifier_channel(
 ) -> Result<()> {
     if let Some(c) = rig.classifier_channel() {
         if rec.channel(&c.name).is_none() {
+            let names: Vec<&str> = rec.channels.iter().map(|c| c.name.as_str()).collect();
+            return check_classifier_names(path, rig, &names, what_missing);
+        }
+    }
+    Ok(())
+}
+
+/// [`check_classifier_channel`] on the names of the channels a file provides.
+pub(crate) fn check_classifier_names(
+    path: &Path,
+    rig: &RigConfig,
+    names: &[&str],
+    what_missing: &str,
+) -> Result<()> {
+    if let Some(c) = rig.classifier_channel() {
+        if !names.iter().any(|n| *n == c.name) {
             bail!(
                 "{}: missing {what_missing} for rig channel {:?}, which feeds the classifier (features.classifier_axis = {:?}); \
                  the file provides {:?}",
                 path.display(),
                 c.name,
                 rig.features.classifier_axis,
-                rec.channels.iter().map(|c| c.name.as_str()).collect::<Vec<_>>()
+                names
             );
         }
     }

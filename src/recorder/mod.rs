@@ -9,10 +9,13 @@
 //!
 //! The file is created at the segment's first block (its start time is that sample's time);
 //! with `raw = false` it is a plain MCAP of the two JSON channels. Chunks are closed every
-//! `flush_s` seconds, so after a kill -9 everything up to the last flush reads back; SIGTERM
-//! finishes the file cleanly (summary, footer). Write errors (disk full: ENOSPC, EDQUOT,
-//! EFBIG) are counted, reported as `failed` in the status, and retried with a new segment
-//! later; they never stop monitoring.
+//! `flush_s` seconds (and at `chunk_kb`), and after each the file is a complete MCAP, so after
+//! a kill -9 everything up to the last flush reads back, with any MCAP reader; SIGTERM
+//! finishes the file cleanly (summary, footer). A segment is closed before it would pass
+//! `max_file_mb`. Write errors (disk full: ENOSPC, EDQUOT, EFBIG; a folder that cannot be
+//! created) are counted, reported as `failed` in the status, and retried with a new segment
+//! after `retry_s`; the failed segment is cut back to its last complete chunk, or removed when
+//! it has none. They never stop monitoring.
 
 pub mod mcap;
 
@@ -43,6 +46,9 @@ pub struct RecordConfig {
     /// Uncompressed bytes per MCAP chunk.
     #[serde(default = "default_chunk_kb")]
     pub chunk_kb: u64,
+    /// After a write error, wait this long before trying a new segment, s.
+    #[serde(default = "default_retry_s")]
+    pub retry_s: f64,
     /// What to record.
     #[serde(default = "yes")]
     pub raw: bool,
@@ -67,6 +73,9 @@ fn default_flush_s() -> f64 {
 fn default_chunk_kb() -> u64 {
     1024
 }
+fn default_retry_s() -> f64 {
+    5.0
+}
 fn yes() -> bool {
     true
 }
@@ -80,6 +89,7 @@ impl Default for RecordConfig {
             max_file_s: default_max_s(),
             flush_s: default_flush_s(),
             chunk_kb: default_chunk_kb(),
+            retry_s: default_retry_s(),
             raw: true,
             features: true,
             health: true,
@@ -93,6 +103,7 @@ impl RecordConfig {
             ("max_file_mb", self.max_file_mb),
             ("max_file_s", self.max_file_s),
             ("flush_s", self.flush_s),
+            ("retry_s", self.retry_s),
         ] {
             if !(v.is_finite() && v > 0.0) {
                 bail!("recording.{k} = {v}: must be a positive number");

@@ -3,12 +3,16 @@
 //! a stored speed if the file has one, and provenance.
 //!
 //! The MCAP layout that stores a recording on disk is in [`mcap`]; a block of samples
-//! as it streams from a source is a [`SampleBlock`] ([`block`]).
+//! as it streams from a source is a [`SampleBlock`] ([`block`]); what a reader could not
+//! deliver from a damaged or cut file is a [`Losses`] report ([`losses`]).
 
 pub mod block;
+pub mod losses;
 pub mod mcap;
+pub mod stream;
 
 pub use block::SampleBlock;
+pub use losses::{LossReport, Losses};
 
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
@@ -77,6 +81,20 @@ pub struct Recording {
 }
 
 impl Recording {
+    /// True when rigmon's simulator produced it (also after a round trip through a file:
+    /// its metadata keeps the scenario).
+    pub fn is_simulated(&self) -> bool {
+        self.provenance.format.contains("simulat")
+            || self
+                .metadata
+                .keys()
+                .any(|k| k.starts_with("sim") || k == "scenario")
+            || self
+                .metadata
+                .get("source")
+                .is_some_and(|s| s.contains("simulat"))
+    }
+
     /// Number of samples per channel.
     pub fn len(&self) -> usize {
         self.channels.first().map_or(0, |c| c.samples.len())

@@ -166,7 +166,12 @@ pub fn finish(
                 unit: tc.unit.clone(),
             })
         }
-        None => None,
+        // No tacho on the rig: the recording still carries the simulator's own speed, as the
+        // exact time of every revolution, for analyses that must not guess it (training
+        // data in estimate mode, see analysis::recording).
+        None => Some(Tacho::Edges {
+            times_s: revolution_times(&out.boundary_angles, fs),
+        }),
     };
 
     let mean_rpm = scenario.profile.mean_rpm(scenario.seconds);
@@ -248,4 +253,23 @@ pub fn finish(
         },
         metadata: md,
     })
+}
+
+/// The times (s, from the first sample) at which the shaft angle passes a whole revolution,
+/// linearly interpolated between output-sample boundaries (boundary n is at (n - 1/2) / fs).
+fn revolution_times(boundary_angles: &[f64], fs: f64) -> Vec<f64> {
+    let tau = std::f64::consts::TAU;
+    let mut times = Vec::new();
+    for (n, w) in boundary_angles.windows(2).enumerate() {
+        let (a, b) = (w[0] / tau, w[1] / tau);
+        let mut k = a.floor() + 1.0;
+        while k <= b && b > a {
+            let t = (n as f64 - 0.5 + (k - a) / (b - a)) / fs;
+            if t >= 0.0 {
+                times.push(t);
+            }
+            k += 1.0;
+        }
+    }
+    times
 }

@@ -11,19 +11,6 @@ use anyhow::{bail, Context, Result};
 use ndarray::Array2;
 use rayon::prelude::*;
 
-/// True when a recording was produced by rigmon's simulator.
-pub fn is_simulated(rec: &crate::recording::Recording) -> bool {
-    rec.provenance.format.contains("simulat")
-        || rec
-            .metadata
-            .keys()
-            .any(|k| k.starts_with("sim") || k == "scenario")
-        || rec
-            .metadata
-            .get("source")
-            .is_some_and(|s| s.contains("simulat"))
-}
-
 /// Load one recording and compute its classifier features.
 pub fn featurise(entry: &ManifestEntry, rig: &RigConfig) -> Result<RecordingFeatures> {
     let bytes = std::fs::read(&entry.path).with_context(|| {
@@ -71,7 +58,7 @@ pub fn featurise(entry: &ManifestEntry, rig: &RigConfig) -> Result<RecordingFeat
         path_text: entry.display_name(),
         label: entry.label.clone(),
         sha256,
-        simulated: is_simulated(&rec),
+        simulated: rec.is_simulated(),
         rpm: rpm / kept as f64,
         windows: Array2::from_shape_vec((kept, n), data)?,
     })

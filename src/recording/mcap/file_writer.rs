@@ -8,7 +8,7 @@ use anyhow::{bail, Context, Result};
 use std::path::Path;
 
 /// Samples per message when [`write_recording`] splits a recording into blocks: about 0.1 s.
-fn default_block_len(sample_rate: f64) -> usize {
+pub fn default_block_len(sample_rate: f64) -> usize {
     ((sample_rate * 0.1).round() as usize).clamp(64, 1 << 16)
 }
 
@@ -69,5 +69,6 @@ pub fn write_recording(path: &Path, rec: &Recording) -> Result<()> {
         w.write_block(0, &vec![&[][..]; rec.channels.len()], analog, edges)?;
     }
     w.finish()
-        .with_context(|| format!("{}: finishing MCAP", path.display()))
+        .with_context(|| format!("{}: finishing MCAP", path.display()))?;
+    Ok(())
 }

@@ -27,18 +27,30 @@
 //!
 //! Message log/publish time = start_time_ns + first_sample / sample_rate_hz in ns.
 //!
-//! Reading tolerates a file cut short (kill -9) or damaged: every complete chunk whose CRC
-//! checks is used, reading stops at the first bad one, and a provenance note says so. Gaps on the sample clock (lost blocks) are filled
-//! with zeros and noted.
+//! Writing keeps the file a complete MCAP after every chunk ([`durable_file`]): a writer killed
+//! leaves a file every standard reader reads up to its last chunk. Reading tolerates a file
+//! cut short or damaged ([`scan`], [`reader`]): a chunk whose CRC fails is skipped and reading
+//! resumes at the next intact one; gaps on the sample clock are never filled with silence
+//! (a jump of `first_sample` in the stream, NaN in a whole recording); what was lost is
+//! reported ([`crate::recording::Losses`]). [`repair`] rewrites a damaged or unfinished file
+//! as a clean, finished one.
 
+pub mod assemble;
 pub mod codec;
+pub mod durable_file;
 pub mod file_writer;
 pub mod layout;
 pub mod reader;
+pub mod repair;
+pub mod scan;
 pub mod stream_writer;
 
 pub use codec::{decode_block, decode_edges, DecodedBlock};
+pub use durable_file::{McapFile, McapFileOptions};
 pub use file_writer::write_recording;
 pub use layout::*;
-pub use reader::{read_recording, read_recording_bytes};
+pub use reader::{
+    read_recording, read_recording_bytes, read_recording_bytes_with_losses,
+    read_recording_with_losses, RecordingReader,
+};
 pub use stream_writer::{RecordingWriter, WriterSettings};

@@ -1,13 +1,15 @@
 //! The streaming writer of the rigmon MCAP layout ([`RecordingWriter`]): create with a
 //! [`RecordingInfo`], write blocks as they come, flush chunks, finish. Used by the
-//! whole-recording writer, the simulator and the daemon's recorder.
+//! whole-recording writer, the simulator and the daemon's recorder. It writes through an
+//! [`McapFile`], so the file on disk is a complete MCAP after every chunk; the definitions
+//! (metadata, schemas, channels) sit in their own small first chunk, so damage to a data
+//! chunk never takes the channel definitions with it.
 
 use super::codec::{encode_block, encode_edges};
+use super::durable_file::{McapFile, McapFileOptions};
 use super::layout::*;
 use anyhow::{bail, Context, Result};
 use std::collections::BTreeMap;
-use std::fs::File;
-use std::io::{BufWriter, Seek, Write};
 use std::path::Path;
 
 /// Settings of the streaming writer.
@@ -31,8 +33,8 @@ impl Default for WriterSettings {
 
 /// Streaming writer of the rigmon layout: create, write blocks, finish. Used by
 /// [`write_recording`](super::write_recording), the simulator and the daemon's recording sink.
-pub struct RecordingWriter<W: Write + Seek = BufWriter<File>> {
-    mcap: mcap::Writer<W>,
+pub struct RecordingWriter {
+    file: McapFile,
     sample_rate: f64,
     start_time_ns: u64,
     units: Vec<String>,
@@ -46,7 +48,7 @@ pub struct RecordingWriter<W: Write + Seek = BufWriter<File>> {
     blocks: u64,
 }
 
-impl RecordingWriter<BufWriter<File>> {
+impl RecordingWriter {
     /// Create `path` (truncating it) and write the header, schemas and metadata records.
     pub fn create(path: &Path, info: &RecordingInfo) -> Result<Self> {
         Self::create_with(path, info, &WriterSettings::default())
@@ -58,40 +60,40 @@ impl RecordingWriter<BufWriter<File>> {
         info: &RecordingInfo,
         settings: &WriterSettings,
     ) -> Result<Self> {
-        let f = File::create(path).with_context(|| format!("{}: cannot create", path.display()))?;
-        Self::new(BufWriter::with_capacity(1 << 16, f), info, settings)
-            .with_context(|| format!("{}: cannot write MCAP", path.display()))
-    }
-}
-
-impl<W: Write + Seek> RecordingWriter<W> {
-    /// Start a rigmon MCAP on any seekable writer.
-    pub fn new(w: W, info: &RecordingInfo, settings: &WriterSettings) -> Result<Self> {
         if !(info.sample_rate.is_finite() && info.sample_rate > 0.0) {
             bail!(
-                "sample rate {} Hz is not a positive number",
+                "{}: sample rate {} Hz is not a positive number",
+                path.display(),
                 info.sample_rate
             );
         }
         if info.channels.is_empty() {
-            bail!("a recording needs at least one acceleration channel");
+            bail!(
+                "{}: a recording needs at least one acceleration channel",
+                path.display()
+            );
         }
-        let mut mcap = mcap::WriteOptions::new()
-            .profile(PROFILE)
-            .library(concat!("rigmon ", env!("CARGO_PKG_VERSION")))
-            .compression(Some(mcap::Compression::Zstd))
-            .compression_level(settings.zstd_level)
-            .chunk_size(Some(settings.chunk_size))
-            .create(w)?;
-        mcap.write_metadata(&mcap::records::Metadata {
+        let file = McapFile::create(
+            path,
+            &McapFileOptions {
+                chunk_size: settings.chunk_size,
+                zstd_level: settings.zstd_level,
+                profile: PROFILE.into(),
+            },
+        )?;
+        Self::start(file, info).with_context(|| format!("{}: cannot write MCAP", path.display()))
+    }
+
+    fn start(mut file: McapFile, info: &RecordingInfo) -> Result<Self> {
+        file.write_metadata(&mcap::records::Metadata {
             name: RECORDING_METADATA.into(),
             metadata: recording_record(info)?,
         })?;
-        mcap.write_metadata(&mcap::records::Metadata {
+        file.write_metadata(&mcap::records::Metadata {
             name: LABELS_METADATA.into(),
             metadata: info.metadata.clone(),
         })?;
-        let block_schema = mcap.add_schema(
+        let block_schema = file.add_schema(
             SAMPLE_BLOCK_SCHEMA,
             ENCODING,
             SAMPLE_BLOCK_LAYOUT.as_bytes(),
@@ -105,7 +107,7 @@ impl<W: Write + Seek> RecordingWriter<W> {
                 ("unit".to_string(), c.unit.clone()),
                 ("sample_rate_hz".to_string(), rate.clone()),
             ]);
-            accel_ids.push(mcap.add_channel(
+            accel_ids.push(file.add_channel(
                 block_schema,
                 &format!("{ACCEL_TOPIC_PREFIX}{}", c.name),
                 ENCODING,
@@ -120,13 +122,13 @@ impl<W: Write + Seek> RecordingWriter<W> {
                 ]);
                 (
                     Some(unit.clone()),
-                    Some(mcap.add_channel(block_schema, TACHO_ANALOG_TOPIC, ENCODING, &meta)?),
+                    Some(file.add_channel(block_schema, TACHO_ANALOG_TOPIC, ENCODING, &meta)?),
                 )
             }
             _ => (None, None),
         };
         let mut w = RecordingWriter {
-            mcap,
+            file,
             sample_rate: info.sample_rate,
             start_time_ns: info.start_time_ns,
             units: info.channels.iter().map(|c| c.unit.clone()).collect(),
@@ -142,6 +144,8 @@ impl<W: Write + Seek> RecordingWriter<W> {
         if info.tacho == TachoInfo::Edges {
             w.edges_channel()?;
         }
+        // The definitions in a chunk of their own, closed by a provisional end.
+        w.file.flush()?;
         Ok(w)
     }
 
@@ -152,14 +156,14 @@ impl<W: Write + Seek> RecordingWriter<W> {
         let schema = match self.edges_schema {
             Some(s) => s,
             None => {
-                self.mcap
+                self.file
                     .add_schema(TACHO_EDGES_SCHEMA, ENCODING, TACHO_EDGES_LAYOUT.as_bytes())?
             }
         };
         self.edges_schema = Some(schema);
         let meta = BTreeMap::from([("sample_rate_hz".to_string(), self.sample_rate.to_string())]);
         let id = self
-            .mcap
+            .file
             .add_channel(schema, TACHO_EDGES_TOPIC, ENCODING, &meta)?;
         self.edges_id = Some(id);
         Ok(id)
@@ -218,7 +222,7 @@ impl<W: Write + Seek> RecordingWriter<W> {
                 );
                 self.units[k] = unit;
                 let h = self.header(id, first_sample);
-                self.mcap.write_to_known_channel(&h, &self.buf)?;
+                self.file.write(&h, &self.buf)?;
             }
         }
         match (tacho_analog, self.tacho_analog_id) {
@@ -231,7 +235,7 @@ impl<W: Write + Seek> RecordingWriter<W> {
                     encode_block(&mut self.buf, first_sample, self.sample_rate, &unit, t);
                     self.tacho_unit = Some(unit);
                     let h = self.header(id, first_sample);
-                    self.mcap.write_to_known_channel(&h, &self.buf)?;
+                    self.file.write(&h, &self.buf)?;
                 }
             }
             (Some(_), None) => bail!("write_block: analog tacho samples given but the recording was created without an analog tacho"),
@@ -241,23 +245,36 @@ impl<W: Write + Seek> RecordingWriter<W> {
             let id = self.edges_channel()?;
             encode_edges(&mut self.buf, first_sample, self.sample_rate, tacho_edges_s);
             let h = self.header(id, first_sample);
-            self.mcap.write_to_known_channel(&h, &self.buf)?;
+            self.file.write(&h, &self.buf)?;
         }
         self.blocks += 1;
         Ok(())
     }
 
+    /// Bytes [`write_block`](Self::write_block) can add to the finished file for a block of
+    /// `n` samples with `edges` tacho edges (see [`McapFile::size_bound`]).
+    pub fn block_cost(&self, n: usize, analog: bool, edges: usize) -> u64 {
+        let unit = self.units.iter().map(String::len).max().unwrap_or(0);
+        let unit = unit.max(self.tacho_unit.as_ref().map_or(0, String::len));
+        let per_channel = 30 + unit + 4 * n;
+        let channels = self.accel_ids.len() + usize::from(analog);
+        let mut cost = channels as u64 * McapFile::message_cost(per_channel);
+        if edges > 0 {
+            cost += McapFile::message_cost(20 + 8 * edges);
+        }
+        cost
+    }
+
     /// Close the current chunk and flush it to the file: everything written so far survives
     /// a crash.
     pub fn flush(&mut self) -> Result<()> {
-        self.mcap.flush()?;
-        Ok(())
+        self.file.flush()
     }
 
-    /// The underlying MCAP writer, to add channels of other layouts to the same file (the
+    /// The underlying MCAP file, to add channels of other layouts to the same file (the
     /// daemon's recorder adds `/features` and `/health`; readers of this layout skip them).
-    pub fn mcap_mut(&mut self) -> &mut mcap::Writer<W> {
-        &mut self.mcap
+    pub fn file_mut(&mut self) -> &mut McapFile {
+        &mut self.file
     }
 
     /// Blocks written so far.
@@ -265,9 +282,14 @@ impl<W: Write + Seek> RecordingWriter<W> {
         self.blocks
     }
 
-    /// Write the summary and close the file.
-    pub fn finish(mut self) -> Result<()> {
-        self.mcap.finish()?;
-        Ok(())
+    /// Write the summary and close the file; its size in bytes.
+    pub fn finish(self) -> Result<u64> {
+        self.file.finish()
+    }
+
+    /// After a failed write: cut the file back to its last complete chunk (see
+    /// [`McapFile::abandon`]).
+    pub fn abandon(self) -> Result<u64> {
+        self.file.abandon()
     }
 }
