@@ -796,7 +796,12 @@ fn a_looping_replay_restarts_the_speed_at_the_seam() {
             windower.advance();
             let fw = a.features.expect("every window has its speed and features");
             assert!(!a.tacho_lost, "window at {:.1} s: tacho lost", a.t_start);
-            rpms.push((a.t_start, fw.rpm, fw.quality.missing_pulses, fw.quality.extra_pulses));
+            rpms.push((
+                a.t_start,
+                fw.rpm,
+                fw.quality.missing_pulses,
+                fw.quality.extra_pulses,
+            ));
         }
         if delivered >= 3 * n {
             break;
@@ -806,7 +811,11 @@ fn a_looping_replay_restarts_the_speed_at_the_seam() {
     drop(rx);
     let _ = h.join().unwrap();
     assert_eq!(windower.stats().restarts, 2, "one restart per seam");
-    assert!(rpms.len() >= 3 * 13, "{} windows in three passes", rpms.len());
+    assert!(
+        rpms.len() >= 3 * 13,
+        "{} windows in three passes",
+        rpms.len()
+    );
     for (t, rpm, missing, extra) in rpms {
         assert!(
             (rpm / 588.0 - 1.0).abs() < 0.01 && missing == 0 && extra == 0,

@@ -358,16 +358,17 @@ impl SpeedSource {
 }
 
 /// The simulator's own speed (the exact revolution times it writes on a rig without a tacho
-/// channel) for a simulated recording whose rig reads the speed from the vibration; None for
-/// any other recording or mode. Training data then has the speed the simulator ran at, not
+/// channel) for a simulated recording whose rig reads the speed from the vibration alone
+/// (`estimate`, or `fixed` checked against the vibration); None for any other recording or
+/// mode (`recording` uses the edges as a tacho anyway). Training data then has the speed the simulator ran at, not
 /// what the tracker reads: healthy simulations below ~1000 rpm carry no shaft line the
 /// tracker could follow, and a simulated recording need not be as long as the tracker's
 /// history. What this leaves out, the tracker's error on a real machine, is measured in
 /// `tests/dsp.rs` (features from the tracked and the true speed of the same simulated
 /// recordings: their difference against the difference between classes).
 fn simulator_speed(mode: &Mode, rec: &Recording) -> Option<Result<SpeedTrack>> {
-    match (&rec.tacho, mode.tracker_settings()) {
-        (Some(Tacho::Edges { times_s }), Some(_)) if rec.is_simulated() => {
+    match (&rec.tacho, mode) {
+        (Some(Tacho::Edges { times_s }), Mode::Tracked { .. }) if rec.is_simulated() => {
             Some(SpeedTrack::from_edges(times_s, 1, "simulator"))
         }
         _ => None,

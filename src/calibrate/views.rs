@@ -139,7 +139,7 @@ pub fn compute(rec: &Recording, rig: &RigConfig, faults: &[Fault]) -> Result<Vie
             // shorter than the tracker's history); a tacho or a stored speed is the segment's.
             let views = if rec.tacho.is_none() && rec.rpm.is_none() {
                 segment_track(&track, i as f64 * seg, seg)
-                    .and_then(|t| compute_parts_along(&r, rig, faults, Parts::ALL, &t))
+                    .and_then(|t| compute_parts_along(&r, rig, faults, Parts::ALL, Some(&t)))
             } else {
                 compute_segment(&r, rig, faults)
             };
@@ -353,8 +353,7 @@ pub fn compute_parts(
     faults: &[Fault],
     parts: Parts,
 ) -> Result<Views> {
-    let track = crate::analysis::whole_recording(rec, rig)?;
-    compute_parts_along(rec, rig, faults, parts, &track)
+    compute_parts_along(rec, rig, faults, parts, None)
 }
 
 /// The part of a whole recording's speed track from `t0` for `seconds`, on the segment's own
@@ -369,13 +368,14 @@ fn segment_track(track: &SpeedTrack, t0: f64, seconds: f64) -> Result<SpeedTrack
     SpeedTrack::from_profile(&t, &hz, track.source())
 }
 
-/// [`compute_parts`] along a given speed track.
+/// [`compute_parts`] along a given speed track (None: the recording's own, read after the
+/// sample rate is checked).
 fn compute_parts_along(
     rec: &Recording,
     rig: &RigConfig,
     faults: &[Fault],
     parts: Parts,
-    track: &SpeedTrack,
+    track: Option<&SpeedTrack>,
 ) -> Result<Views> {
     let ch = rig
         .classifier_channel()
@@ -391,6 +391,14 @@ fn compute_parts_along(
             ch.name
         );
     }
+    let own;
+    let track = match track {
+        Some(t) => t,
+        None => {
+            own = crate::analysis::whole_recording(rec, rig)?;
+            &own
+        }
+    };
     let dur = rec.duration_s();
     let rpm = track.mean_rpm(0.0, dur);
     let mut v = Views {

@@ -307,9 +307,9 @@ impl SpeedTracker {
         // the trend left over after warping moves the line between the halves of the span
         if let Some(dr) = self.residual_trend(last - m, last, r0, best.hz) {
             let r1 = (r0 + TREND_GAIN * dr).clamp(-MAX_TREND, MAX_TREND);
-            // a trend that moves the line by less than a quarter bin over the span is no trend
+            // a trend that moves the line by less than a bin over the span is no trend
             let span = m as f64 / self.fs_d;
-            let resolvable = r1.abs() * best.hz * span * span >= 0.25;
+            let resolvable = r1.abs() * best.hz * span * span >= 1.0;
             let c = self.search(last - m, last, if resolvable { r1 } else { 0.0 });
             if c.followed || !best.followed {
                 if c.score >= KEEP_SHARE * best.score {

@@ -51,6 +51,16 @@ fn le<const N: usize>(b: &[u8], at: usize) -> Option<[u8; N]> {
 }
 
 /// Decode a `rigmon.SampleBlock` payload.
+/// Sample positions past 2^53 (no longer exact as f64 seconds; ~28,000 years at 10 kHz) are
+/// damage, not a recording: refused so that no position arithmetic overflows downstream.
+fn check_position(first_sample: u64, n: u64, what: &str) -> Result<()> {
+    const MAX_SAMPLE: u64 = 1 << 53;
+    match first_sample.checked_add(n) {
+        Some(end) if end <= MAX_SAMPLE => Ok(()),
+        _ => bail!("{what} at sample {first_sample} (+{n}): beyond any recording (2^53 samples); the message is damaged"),
+    }
+}
+
 pub fn decode_block(b: &[u8]) -> Result<DecodedBlock> {
     let short = || {
         anyhow::anyhow!(
@@ -67,6 +77,7 @@ pub fn decode_block(b: &[u8]) -> Result<DecodedBlock> {
     if b.len() != data + 4 * n {
         bail!("SampleBlock at sample {first_sample}: {} bytes, but n = {n} and unit_len = {unit_len} need {}", b.len(), data + 4 * n);
     }
+    check_position(first_sample, n as u64, "SampleBlock")?;
     let unit = String::from_utf8_lossy(&b[30..data]).into_owned();
     let samples = b[data..]
         .chunks_exact(4)
@@ -94,6 +105,7 @@ pub fn decode_edges(b: &[u8]) -> Result<(u64, f64, Vec<f64>)> {
             20 + 8 * n
         );
     }
+    check_position(first_sample, 0, "TachoEdges")?;
     Ok((
         first_sample,
         fs,
@@ -102,4 +114,26 @@ pub fn decode_edges(b: &[u8]) -> Result<(u64, f64, Vec<f64>)> {
             .map(|c| f64::from_le_bytes(c.try_into().unwrap()))
             .collect(),
     ))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Found by `tests/fuzz.rs` (fuzz_mcap_reader): a block at sample 2^64 - 1 overflowed the
+    /// assembler's position arithmetic. Positions past 2^53 are refused as damage.
+    #[test]
+    fn a_block_past_any_recording_is_damage_not_an_overflow() {
+        let mut buf = Vec::new();
+        encode_block(&mut buf, u64::MAX - 1, 10_000.0, "g", &[1.0, 2.0]);
+        let e = format!("{:#}", decode_block(&buf).unwrap_err());
+        assert!(
+            e.contains("beyond any recording") && e.contains("damaged"),
+            "{e}"
+        );
+        encode_block(&mut buf, 1_000_000, 10_000.0, "g", &[1.0, 2.0]);
+        assert_eq!(decode_block(&buf).unwrap().first_sample, 1_000_000);
+        encode_edges(&mut buf, u64::MAX, 10_000.0, &[0.5]);
+        assert!(decode_edges(&buf).is_err());
+    }
 }
