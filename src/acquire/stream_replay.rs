@@ -53,44 +53,8 @@ impl StreamReplay {
         if !(fs.is_finite() && fs > 0.0) {
             bail!("{name}: the recording's sample rate is {fs} Hz; give the right one with `sample_rate_hz`");
         }
-        if let Some(rig_fs) = rig.acquisition.sample_rate_hz {
-            if (rig_fs - fs).abs() > 1e-6 * rig_fs {
-                tracing::warn!(
-                    "{name} is sampled at {fs} Hz but rig {} says acquisition.sample_rate_hz = {rig_fs}; replaying at the recording's rate",
-                    rig.machine.id
-                );
-            }
-        }
-        let mut order = Vec::new();
-        let mut absent = Vec::new();
-        for ch in rig.acceleration_channels() {
-            let idx = info
-                .channels
-                .iter()
-                .position(|c| c.name == ch.name)
-                .or_else(|| {
-                    info.channels
-                        .iter()
-                        .position(|c| c.name.eq_ignore_ascii_case(&ch.name))
-                });
-            if idx.is_none() {
-                absent.push(ch.name.clone());
-            }
-            order.push(idx);
-        }
         let names: Vec<&str> = info.channels.iter().map(|c| c.name.as_str()).collect();
-        if let Some(cls) = rig.classifier_channel() {
-            if absent.contains(&cls.name) {
-                bail!(
-                    "{name}: the recording has no channel {:?} (the classifier channel of rig {}); it has {names:?}. Rename the rig channel or pick another `features.classifier_axis`",
-                    cls.name,
-                    rig.machine.id
-                );
-            }
-        }
-        if !absent.is_empty() {
-            tracing::warn!("{name}: the recording has no channel(s) {absent:?} of rig {} (it has {names:?}); they are replayed as NaN", rig.machine.id);
-        }
+        let (order, absent) = super::file_replay::rig_channel_order(rig, &names, fs, name)?;
         // The recipe at this rate (window bounds, low-pass below Nyquist, the stored speed)
         // before the window's length is used.
         rig.check_recipe_at(fs, info.rpm, &format!("recording {name}"))?;
