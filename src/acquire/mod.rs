@@ -10,6 +10,7 @@ pub mod assembler;
 pub mod audio;
 pub mod can;
 pub mod can_protocol;
+pub mod channel_order;
 pub mod emulator;
 pub mod file_replay;
 pub mod layout;

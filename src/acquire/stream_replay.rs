@@ -54,7 +54,7 @@ impl StreamReplay {
             bail!("{name}: the recording's sample rate is {fs} Hz; give the right one with `sample_rate_hz`");
         }
         let names: Vec<&str> = info.channels.iter().map(|c| c.name.as_str()).collect();
-        let (order, absent) = super::file_replay::rig_channel_order(rig, &names, fs, name)?;
+        let (order, absent) = super::channel_order::rig_channel_order(rig, &names, fs, name)?;
         // The recipe at this rate (window bounds, low-pass below Nyquist, the stored speed)
         // before the window's length is used.
         rig.check_recipe_at(fs, info.rpm, &format!("recording {name}"))?;

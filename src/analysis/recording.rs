@@ -9,11 +9,11 @@
 use super::speed_source::SpeedSource;
 use super::stage::{AnalysisStage, WindowAnalysis};
 use super::windows::Windower;
-use crate::acquire::SampleBlock;
 use crate::config::RigConfig;
 use crate::dsp::features::FeatureWindow;
 use crate::dsp::speed::SpeedTrack;
-use crate::recording::{Recording, Tacho};
+use crate::recording::stream::block_of;
+use crate::recording::Recording;
 use anyhow::{bail, Context, Result};
 
 /// Samples per block fed to the windower (the result does not depend on it).
@@ -105,7 +105,7 @@ fn each_window(
     let mut start = 0;
     while start < rec.len() {
         let end = (start + BLOCK).min(rec.len());
-        windower.push(&block(rec, start, end));
+        windower.push(&block_of(rec, start, end));
         // Every window is complete once its last sample is in: none waits for a later block.
         while let Some(view) = windower.window() {
             let a = stage.analyse(&view);
@@ -116,30 +116,4 @@ fn each_window(
         start = end;
     }
     Ok(())
-}
-
-/// Samples `[start, end)` of the recording as the block a file replay would deliver.
-fn block(rec: &Recording, start: usize, end: usize) -> SampleBlock {
-    let fs = rec.sample_rate;
-    let (tacho_analog, tacho_edges) = match &rec.tacho {
-        Some(Tacho::Analog { samples, .. }) => (Some(samples[start..end].to_vec()), Vec::new()),
-        Some(Tacho::Edges { times_s }) => {
-            let (t0, t1) = (start as f64 / fs, end as f64 / fs);
-            let lo = times_s.partition_point(|&t| t < t0);
-            let hi = times_s.partition_point(|&t| t < t1);
-            (None, times_s[lo..hi].to_vec())
-        }
-        None => (None, Vec::new()),
-    };
-    SampleBlock {
-        first_sample: start as u64,
-        sample_rate: fs,
-        channels: rec
-            .channels
-            .iter()
-            .map(|c| c.samples[start..end].to_vec())
-            .collect(),
-        tacho_analog,
-        tacho_edges,
-    }
 }
