@@ -15,9 +15,9 @@
 //!    is *confirmed* when its family's bins stand at least `evidence_z` standard deviations
 //!    above the machine's healthy level; a class the evidence does not support -- `healthy`
 //!    included -- is *overruled* by the family whose bins stand highest beyond `evidence_z`,
-//!    named even when the model lacks that class. When the window is novel or doubtful the
-//!    network is not trusted to choose among supported families: the strongest decides.
-//!    A confirmed or evidence-decided window is an alarm even when it is novel or doubtful
+//!    named even when the model lacks that class. Among supported families the evidence does
+//!    not choose (they share bins: an inner-race fault's 1x sidebands fall into the outer
+//!    race's bins), so a supported class stands, novel or not. A confirmed or evidence-decided window is an alarm even when it is novel or doubtful
 //!    (flagged `alarm_despite`): the decision follows the spectrum, not the network's guess.
 //! 3. **Doubt** (no evidence either way): a novel window (novelty above the model's or the
 //!    policy's threshold) or one whose top probability is below `min_confidence` is
@@ -177,10 +177,14 @@ pub fn judge(w: &WindowInput, policy: &HealthPolicy) -> WindowVerdict {
     if let Some(ev) = &w.evidence {
         let z = policy.evidence_z;
         let supported = ev.of(model_class).is_some_and(|v| v >= z);
-        // a doubtful (novel) network is not trusted to pick among supported families
-        let follow = match (doubt, supported) {
-            (None, true) => Some(model_class.as_str()),
-            _ => ev.strongest(z).map(|(family, _)| family),
+        // The evidence refuses a class it does not support; it does not choose among
+        // supported families: in 0.5-order bins the families share bins (an inner-race
+        // fault's 1x sidebands, BPFI -+ 1x, -+ 2x, fall into the outer race's bins on common
+        // geometries), so which family stands highest is no class of its own.
+        let follow = if supported {
+            Some(model_class.as_str())
+        } else {
+            ev.strongest(z).map(|(family, _)| family)
         };
         if let Some(family) = follow {
             return if family == model_class {
@@ -301,8 +305,18 @@ mod tests {
         let v = judge(&w, &p);
         assert_eq!((v.state(), v.basis), ("outer_race", Basis::Confirmed));
         assert_eq!(v.alarm_despite, None);
-        // the same window novel: the strongest family decides
+        // the same window novel: the supported pick still stands (an alarm despite novelty);
+        // the evidence does not choose between two supported families
         let w = WindowInput { novelty: 50.0, ..w };
+        let v = judge(&w, &p);
+        assert_eq!((v.state(), v.basis), ("outer_race", Basis::Confirmed));
+        assert_eq!(v.overruled, None);
+        assert_eq!(v.alarm_despite, Some(UnknownReason::Novelty));
+        // novel and unsupported: the strongest supported family decides
+        let w = WindowInput {
+            evidence: ev(1.0, 12.0, 0.0),
+            ..w
+        };
         let v = judge(&w, &p);
         assert_eq!((v.state(), v.basis), ("inner_race", Basis::Evidence));
         assert_eq!(v.overruled.as_deref(), Some("outer_race"));
