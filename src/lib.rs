@@ -32,3 +32,4 @@ pub mod recorder;
 pub mod recording;
 pub mod sim;
 pub mod train;
+pub mod usage;

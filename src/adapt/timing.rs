@@ -17,26 +17,7 @@ pub struct StepTime {
     pub load_1min: Option<f64>,
 }
 
-/// CPU seconds (user + system, all threads) this process has used so far.
-pub fn process_cpu_s() -> f64 {
-    // SAFETY: getrusage writes into the zeroed struct we own and reads nothing else.
-    let mut u: libc::rusage = unsafe { std::mem::zeroed() };
-    if unsafe { libc::getrusage(libc::RUSAGE_SELF, &mut u) } != 0 {
-        return f64::NAN;
-    }
-    let tv = |t: libc::timeval| t.tv_sec as f64 + 1e-6 * t.tv_usec as f64;
-    tv(u.ru_utime) + tv(u.ru_stime)
-}
-
-/// The 1-minute load average (`/proc/loadavg`).
-pub fn load_1min() -> Option<f64> {
-    std::fs::read_to_string("/proc/loadavg")
-        .ok()?
-        .split_whitespace()
-        .next()?
-        .parse()
-        .ok()
-}
+pub use crate::usage::{load_1min, process_cpu_s};
 
 /// Times consecutive steps.
 pub struct Stopwatch {

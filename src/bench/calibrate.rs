@@ -9,6 +9,7 @@
 use super::{machine_line, BenchOptions};
 use crate::calibrate::{fit, measured};
 use crate::config::RigConfig;
+use crate::usage::{load_1min, process_cpu_s};
 use anyhow::{bail, Context, Result};
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -52,37 +53,19 @@ struct Timed {
     outcome: fit::Outcome,
 }
 
-/// User + system CPU time of this process so far, s.
-fn cpu_seconds() -> f64 {
-    // SAFETY: getrusage only writes the struct it is given.
-    let mut u: libc::rusage = unsafe { std::mem::zeroed() };
-    if unsafe { libc::getrusage(libc::RUSAGE_SELF, &mut u) } != 0 {
-        return f64::NAN;
-    }
-    let t = |v: libc::timeval| v.tv_sec as f64 + v.tv_usec as f64 * 1e-6;
-    t(u.ru_utime) + t(u.ru_stime)
-}
-
-/// The 1-minute load average (NaN where /proc/loadavg is missing).
-fn load_average() -> f64 {
-    std::fs::read_to_string("/proc/loadavg")
-        .ok()
-        .and_then(|s| s.split_whitespace().next().and_then(|v| v.parse().ok()))
-        .unwrap_or(f64::NAN)
-}
-
 fn one(
     rig: &RigConfig,
     ops: &[measured::Measured],
     part: &[bool],
     options: fit::Options,
 ) -> Result<Timed> {
-    let (l0, c0, t0) = (load_average(), cpu_seconds(), Instant::now());
+    let load = || load_1min().unwrap_or(f64::NAN);
+    let (l0, c0, t0) = (load(), process_cpu_s(), Instant::now());
     let outcome = fit::calibrate_with(rig, ops, part.to_vec(), options)?;
     Ok(Timed {
         seconds: t0.elapsed().as_secs_f64(),
-        cpu_seconds: cpu_seconds() - c0,
-        load: (l0, load_average()),
+        cpu_seconds: process_cpu_s() - c0,
+        load: (l0, load()),
         outcome,
     })
 }
@@ -110,6 +93,19 @@ fn summary(o: &fit::Outcome) -> String {
     )
 }
 
+/// One timed calibration on stderr, as it finishes.
+fn progress(what: &str, t: &Timed) {
+    eprintln!(
+        "  {what:<9} {:.1} s (CPU {:.1} s, load {:.1} -> {:.1})  {}",
+        t.seconds,
+        t.cpu_seconds,
+        t.load.0,
+        t.load.1,
+        summary(&t.outcome)
+    );
+    eprintln!("            stages: {}", stages(&t.outcome));
+}
+
 pub fn run(
     opts: &BenchOptions,
     measured_path: Option<PathBuf>,
@@ -124,7 +120,8 @@ pub fn run(
         Some(p) => p,
         None => generate("speed_fluctuation")?,
     };
-    let ops = measured::load(&rig, &[labels.clone()], analysed.unwrap_or(f64::INFINITY))?;
+    let inputs = std::slice::from_ref(&labels);
+    let ops = measured::load(&rig, inputs, analysed.unwrap_or(f64::INFINITY))?;
     let part = measured::checkerboard(&ops);
     let signal: f64 = ops.iter().map(|m| m.recording.duration_s()).sum();
     eprintln!(
@@ -134,25 +131,9 @@ pub fn run(
         labels.display()
     );
     let new = one(&rig, &ops, &part, fit::Options::default())?;
-    eprintln!(
-        "  now:      {:.1} s (CPU {:.1} s, load {:.1} -> {:.1})  {}",
-        new.seconds,
-        new.cpu_seconds,
-        new.load.0,
-        new.load.1,
-        summary(&new.outcome)
-    );
-    eprintln!("            stages: {}", stages(&new.outcome));
+    progress("now:", &new);
     let old = one(&rig, &ops, &part, fit::Options::baseline())?;
-    eprintln!(
-        "  baseline: {:.1} s (CPU {:.1} s, load {:.1} -> {:.1})  {}",
-        old.seconds,
-        old.cpu_seconds,
-        old.load.0,
-        old.load.1,
-        summary(&old.outcome)
-    );
-    eprintln!("            stages: {}", stages(&old.outcome));
+    progress("baseline:", &old);
     let ratio = old.seconds / new.seconds;
     if opts.json {
         println!(

@@ -7,6 +7,7 @@ use super::{machine_line, thread_cpu_s, BenchOptions};
 use crate::config::RigConfig;
 use crate::dsp::synthetic::Synthetic;
 use crate::dsp::{FeaturePipeline, SpeedTrack};
+use crate::usage::load_averages;
 use anyhow::{bail, Context, Result};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -25,12 +26,6 @@ struct Pass {
     wall_s: f64,
     cpu_s: f64,
     checksum: f64,
-}
-
-fn load_average() -> String {
-    std::fs::read_to_string("/proc/loadavg")
-        .map(|s| s.split_whitespace().take(3).collect::<Vec<_>>().join(" "))
-        .unwrap_or_else(|_| "unknown".into())
 }
 
 pub fn run(opts: &BenchOptions) -> Result<()> {
@@ -118,7 +113,7 @@ pub fn run(opts: &BenchOptions) -> Result<()> {
     if ((check_fast - check_naive) / check_naive).abs() > 1e-5 {
         bail!("the optimised and baseline pipelines disagree (checksums {check_fast} vs {check_naive})");
     }
-    let machine = format!("{}; load average {}", machine_line(), load_average());
+    let machine = format!("{}; load average {}", machine_line(), load_averages());
     if opts.json {
         println!(
             "{}",

@@ -339,13 +339,6 @@ fn stop_daemon(child: &mut Child) -> Result<()> {
     Ok(())
 }
 
-/// The load average (1, 5, 15 min) from /proc/loadavg.
-fn load_average() -> String {
-    std::fs::read_to_string("/proc/loadavg")
-        .map(|s| s.split_whitespace().take(3).collect::<Vec<_>>().join(" "))
-        .unwrap_or_else(|_| "unknown".into())
-}
-
 /// The worst figure of every run, against its goal.
 struct Worst {
     cpu: f64,
@@ -372,7 +365,7 @@ fn report(json: bool, replay: &Path, runs: &[Measured]) {
         let j = serde_json::json!({
             "benchmark": "footprint",
             "machine": machine_line(),
-            "load_average": load_average(),
+            "load_average": crate::usage::load_averages(),
             "process": "rigmon run (child process)",
             "rate": "3 ch x 10 kHz + tacho (replay at real time)",
             "runs": runs,
@@ -387,7 +380,7 @@ fn report(json: bool, replay: &Path, runs: &[Measured]) {
         "footprint: `rigmon run` as a child process, {} replayed at real time (3 ch x 10 kHz + tacho), once per speed source; {}; load average {}",
         replay.display(),
         machine_line(),
-        load_average()
+        crate::usage::load_averages()
     );
     print_table(runs);
     println!(

@@ -62,23 +62,7 @@ pub(crate) fn abs(p: &Path) -> Result<PathBuf> {
     })
 }
 
-/// CPU seconds (user + system) of a process, from /proc/<pid>/stat.
-pub(crate) fn cpu_seconds(pid: u32) -> Result<f64> {
-    let s = std::fs::read_to_string(format!("/proc/{pid}/stat"))
-        .with_context(|| format!("reading /proc/{pid}/stat (did the daemon exit?)"))?;
-    // Fields after the command name (which is in parentheses and may hold spaces).
-    let rest = s.rsplit_once(')').map(|(_, r)| r).unwrap_or("");
-    let f: Vec<&str> = rest.split_whitespace().collect();
-    // utime, stime are fields 14 and 15 of stat(5); f[0] is field 3.
-    let ticks = |i: usize| {
-        f.get(i)
-            .and_then(|v| v.parse::<f64>().ok())
-            .unwrap_or(f64::NAN)
-    };
-    // SAFETY: sysconf has no preconditions.
-    let hz = unsafe { libc::sysconf(libc::_SC_CLK_TCK) } as f64;
-    Ok((ticks(11) + ticks(12)) / hz)
-}
+pub(crate) use crate::usage::cpu_s_of as cpu_seconds;
 
 /// The `p`-quantile of sorted values (nearest rank); NaN when empty.
 pub(crate) fn percentile(sorted: &[f64], p: f64) -> f64 {
@@ -89,17 +73,4 @@ pub(crate) fn percentile(sorted: &[f64], p: f64) -> f64 {
     sorted[i]
 }
 
-/// CPU time consumed by the calling thread, s (independent of other load on the machine).
-pub(crate) fn thread_cpu_s() -> f64 {
-    let mut ts = libc::timespec {
-        tv_sec: 0,
-        tv_nsec: 0,
-    };
-    // SAFETY: clock_gettime writes into the timespec we own.
-    let rc = unsafe { libc::clock_gettime(libc::CLOCK_THREAD_CPUTIME_ID, &mut ts) };
-    if rc == 0 {
-        ts.tv_sec as f64 + ts.tv_nsec as f64 * 1e-9
-    } else {
-        f64::NAN
-    }
-}
+pub(crate) use crate::usage::thread_cpu_s;
