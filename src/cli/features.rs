@@ -4,7 +4,7 @@
 use crate::analysis;
 use crate::config::RigConfig;
 use crate::dsp::{FeatureWindow, SpeedTrack};
-use crate::importers::{self, ImportOptions};
+use crate::importers;
 use anyhow::{Context, Result};
 use serde::Serialize;
 use std::io::Write;
@@ -18,12 +18,8 @@ pub struct Args {
     /// Rig file (channels, speed source, feature recipe).
     #[arg(long)]
     pub rig: PathBuf,
-    /// Sample rate in Hz, when the file does not say.
-    #[arg(long)]
-    pub sample_rate: Option<f64>,
-    /// Use this constant speed (rpm) instead of the rig's speed source.
-    #[arg(long)]
-    pub rpm: Option<f64>,
+    #[command(flatten)]
+    pub read: super::read_args::ReadArgs,
     /// Print one JSON object per window (JSON Lines).
     #[arg(long)]
     pub json: bool,
@@ -53,11 +49,7 @@ pub fn run(args: Args) -> Result<()> {
 
 fn features(args: Args) -> Result<()> {
     let rig = RigConfig::load(&args.rig)?;
-    let opts = ImportOptions {
-        sample_rate: args.sample_rate,
-        rpm: args.rpm,
-        ..Default::default()
-    };
+    let opts = args.read.import_options();
     let rec = importers::load(&args.recording, &rig, &opts)?;
     // The recipe at the file's rate and its length, before anything is sized by them.
     let what = format!("recording {}", args.recording.display());
@@ -65,7 +57,7 @@ fn features(args: Args) -> Result<()> {
     rig.features
         .check_length(rec.len(), rec.sample_rate)
         .with_context(|| what.clone())?;
-    let windows = match args.rpm {
+    let windows = match args.read.rpm {
         Some(rpm) => analysis::extract_with_speed(&rec, &rig, &SpeedTrack::fixed(rpm)?)?,
         None => analysis::extract_recording(&rec, &rig)?,
     }

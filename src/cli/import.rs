@@ -6,7 +6,7 @@
 //! lost is printed on stderr and reported in the summary (`losses` in the JSON).
 
 use crate::config::RigConfig;
-use crate::importers::{self, ImportOptions};
+use crate::importers;
 use crate::recording::mcap::{RecordingWriter, TachoInfo};
 use crate::recording::stream::BlockStream;
 use crate::recording::LossReport;
@@ -25,12 +25,8 @@ pub struct Args {
     /// Output MCAP file.
     #[arg(short = 'o', long = "output")]
     pub output: PathBuf,
-    /// Sample rate in Hz (overrides the file and the rig file).
-    #[arg(long)]
-    pub sample_rate: Option<f64>,
-    /// Shaft speed in rpm (overrides the file).
-    #[arg(long)]
-    pub rpm: Option<f64>,
+    #[command(flatten)]
+    pub read: super::read_args::ReadArgs,
     /// Print the summary as one JSON object instead of a line.
     #[arg(long)]
     pub json: bool,
@@ -57,11 +53,7 @@ pub struct ImportSummary {
 
 pub fn run(args: Args) -> Result<()> {
     let rig = RigConfig::load(&args.rig)?;
-    let opts = ImportOptions {
-        sample_rate: args.sample_rate,
-        rpm: args.rpm,
-        ..Default::default()
-    };
+    let opts = args.read.import_options();
     refuse_same_file(&args.file, &args.output)?;
     let mut stream = importers::open(&args.file, &rig, &opts)?;
     let summary = match write_stream(stream.as_mut(), &args.output) {

@@ -14,7 +14,7 @@ use crate::config::RigConfig;
 use crate::dsp::kurtogram::{self, level_label, KurtogramBand, KurtogramSettings};
 use crate::dsp::order_spectrum::{whole_recording_band, WholeSpectrum};
 use crate::dsp::SpeedTrack;
-use crate::importers::{self, ImportOptions};
+use crate::importers;
 use crate::model::band_ratios::{band_ratios, BandChoice};
 use crate::model::rule::{EnvelopeRule, RuleSettings};
 use crate::plots::kurtogram::{draw_kurtogram, KurtogramPlot};
@@ -37,12 +37,8 @@ pub struct Args {
     /// Channel (name or axis); default: the rig's classifier channel.
     #[arg(long)]
     pub channel: Option<String>,
-    /// Sample rate in Hz, when the file does not say.
-    #[arg(long)]
-    pub sample_rate: Option<f64>,
-    /// Use this constant speed (rpm) instead of the rig's speed source.
-    #[arg(long)]
-    pub rpm: Option<f64>,
+    #[command(flatten)]
+    pub read: super::read_args::ReadArgs,
     /// Right end of the order axis (default: a little above 3 x BPFI).
     #[arg(long)]
     pub max_order: Option<f64>,
@@ -84,11 +80,7 @@ fn inspect(args: Args) -> Result<()> {
     let stdout = std::io::stdout();
     let mut out = stdout.lock();
     let rig = RigConfig::load(&args.rig)?;
-    let opts = ImportOptions {
-        sample_rate: args.sample_rate,
-        rpm: args.rpm,
-        ..Default::default()
-    };
+    let opts = args.read.import_options();
     let rec = importers::load(&args.recording, &rig, &opts)?;
     let want = match &args.channel {
         Some(c) => c.clone(),
@@ -105,7 +97,7 @@ fn inspect(args: Args) -> Result<()> {
         )
     })?;
     let what = || format!("{}: channel {:?}", args.recording.display(), ch.name);
-    let speed = match args.rpm {
+    let speed = match args.read.rpm {
         Some(rpm) => SpeedTrack::fixed(rpm)?,
         None => crate::analysis::whole_recording(&rec, &rig)?,
     };

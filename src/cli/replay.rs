@@ -32,12 +32,8 @@ pub struct Args {
     /// Print nothing per window (only the summary).
     #[arg(long, conflicts_with = "json")]
     pub quiet: bool,
-    /// Sample rate for files that do not carry one (CSV), Hz.
-    #[arg(long)]
-    pub sample_rate: Option<f64>,
-    /// Shaft speed override, rpm.
-    #[arg(long)]
-    pub rpm: Option<f64>,
+    #[command(flatten)]
+    pub read: super::read_args::ReadArgs,
     /// Health policy as a TOML file with the keys of `[health]` (vote_n, vote_k, dwell_s, ...).
     #[arg(long)]
     pub health: Option<PathBuf>,
@@ -76,8 +72,8 @@ pub fn run(args: Args) -> Result<()> {
         .map_err(|e: String| anyhow::anyhow!("--speed: {e}"))?;
     let mut source = FileSourceConfig::new(&args.file);
     source.speed = speed;
-    source.sample_rate_hz = args.sample_rate;
-    source.rpm = args.rpm;
+    source.sample_rate_hz = args.read.sample_rate;
+    source.rpm = args.read.rpm;
     let health = match &args.health {
         Some(p) => {
             let text = std::fs::read_to_string(p)
