@@ -14,13 +14,13 @@
 //! has). So no window waits for signal past its end, and its edges, hence its speed and
 //! features, do not depend on how the samples were cut into blocks: a whole recording and a
 //! live stream give the same windows. What extrapolating costs against the speed from every
-//! edge is measured in `tests/features_identity.rs` (docs/benchmarks.md, "Latency").
+//! edge is measured in `tests/fast/features_identity.rs` (docs/benchmarks.md, "Latency").
 //!
 //! The buffers are allocated once (window + largest block) and slid with `copy_within`.
 
-use crate::acquire::SampleBlock;
 use crate::dsp::speed_config::SpeedConfig;
 use crate::dsp::tacho::EdgeDetector;
+use crate::recording::SampleBlock;
 use std::collections::VecDeque;
 
 /// Window length and hop in samples.

@@ -15,7 +15,7 @@
 
 use super::half_orders;
 use super::speed_line::SpeedLine;
-use crate::sim::config::{
+use crate::config::simulation::{
     ShaftLinesConfig, SimulationConfig, SpeedFluctuationConfig, SubharmonicsConfig,
 };
 use serde::Serialize;

@@ -19,9 +19,9 @@ use super::search;
 use super::speed_line;
 use super::timing::{Stage, StageTime, Timings};
 use super::views::{self, Parts, Views};
+use crate::config::simulation::SimulationConfig;
 use crate::config::{RigConfig, SpeedConfig};
 use crate::dsp::speed::SpeedTrack;
-use crate::sim::config::SimulationConfig;
 use crate::sim::{
     dominant_resonance_hz, rig_simulation, run_engine, sensor, unit_scale, EngineRun, Scenario,
     SpeedProfile,

@@ -1,8 +1,11 @@
 //! Rig configuration (TOML): machine identity, bearing geometry, acquisition, channels, speed
 //! source and feature settings. Unknown keys are rejected with their name and line.
 //!
-//! The simulator's section type is the simulator's own ([`crate::sim::config`]); the daemon's
+//! The `[simulation]` section is [`simulation`] (the simulator reads it, `config` owns it, so
+//! the rig file's types import nothing from the simulator); the daemon's
 //! own file (`rigmon.toml`) belongs to the daemon (`daemon/config.rs`).
+
+pub mod simulation;
 
 use crate::bearing::BearingGeometry;
 // The `[speed]` and `[features]` sections belong to the DSP layer; re-exported here so the
@@ -30,7 +33,7 @@ pub struct RigConfig {
     pub features: FeatureSettings,
     /// Simulator description of this rig (optional; `rigmon simulate` needs it).
     #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub simulation: Option<crate::sim::config::SimulationConfig>,
+    pub simulation: Option<crate::config::simulation::SimulationConfig>,
     /// Set by `rigmon calibrate`: which calibration produced this file.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub calibration: Option<CalibrationStamp>,

@@ -10,7 +10,7 @@
 
 use super::defects::{DefectSet, Slot};
 use crate::bearing::BearingGeometry;
-use crate::sim::config::{BallBearingConfig, DefectConfig};
+use crate::config::simulation::{BallBearingConfig, DefectConfig};
 use rand::Rng;
 use rand_distr::StandardNormal;
 use std::f64::consts::TAU;

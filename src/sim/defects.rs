@@ -8,7 +8,7 @@
 //! across the race drops the ball proportionally less. The profile along the slot follows
 //! [`DefectShape`] (thesis Fig. 11 / eq. 9-10 for `Linear`).
 
-use crate::sim::config::{DefectConfig, DefectShape};
+use crate::config::simulation::{DefectConfig, DefectShape};
 
 /// Which defects a scenario contains.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]

@@ -18,7 +18,7 @@ use std::f64::consts::TAU;
 /// Output of the integrator, before noise, units and tacho shaping.
 #[derive(Debug, Clone)]
 pub struct EngineOutput {
-    /// One vector per requested signal (index into `sim::config::SIGNALS`).
+    /// One vector per requested signal (index into `config::simulation::SIGNALS`).
     pub signals: Vec<Vec<f64>>,
     /// Shaft angle (rad) at the boundaries between output samples: entry n is at
     /// t = (n - 1/2) / fs, so sample n spans entries n..n+1. Length = samples + 1.

@@ -9,10 +9,9 @@
 //! (speed), [`integrate`] (the stepper), [`decimate`] (anti-aliasing), [`sensor`] (noise,
 //! electrical and shaft-order lines, units, tacho: the stage after the mechanics, see
 //! [`run_engine`]), [`scenario`], [`plan`] (datasets) and [`output`] (MCAP/WAV); its
-//! `[simulation]` rig-file section is [`config`].
+//! `[simulation]` rig-file section is [`crate::config::simulation`].
 
 pub mod bearing_contact;
-pub mod config;
 pub mod dataset;
 pub mod decimate;
 pub mod defects;
@@ -30,8 +29,8 @@ pub mod structure;
 pub use profile::SpeedProfile;
 pub use scenario::{label_of, Fault, Overrides, Scenario};
 
-use self::config::{SimulationConfig, SIGNALS};
 use crate::bearing::{BearingGeometry, FaultOrders};
+use crate::config::simulation::{SimulationConfig, SIGNALS};
 use crate::config::{Acquisition, ChannelConfig, ChannelKind, RigConfig};
 use crate::recording::Recording;
 use anyhow::{bail, Context, Result};
@@ -110,12 +109,12 @@ pub fn unit_scale(unit: &str, channel: &str) -> Result<f64> {
     }
 }
 
+/// The first bending-mode frequencies (vertical, horizontal), Hz, and the mode tables by name.
+pub type BendingModes = ([f64; 2], BTreeMap<&'static str, Vec<f64>>);
+
 /// Linearised modal check: the first bending-mode frequencies (vertical, horizontal) of the
 /// rig with the test bearing linearised at its static equilibrium, Hz.
-pub fn bending_modes(
-    rig: &RigConfig,
-    sim: &SimulationConfig,
-) -> Result<([f64; 2], BTreeMap<&'static str, Vec<f64>>)> {
+pub fn bending_modes(rig: &RigConfig, sim: &SimulationConfig) -> Result<BendingModes> {
     let rotor = RotorModel::build(sim)?;
     let bearing = BallBearing::new(
         &rig.bearing,

@@ -9,7 +9,7 @@
 //! DOF order per plane: DE journal, discs..., NDE journal, DE housing, NDE housing.
 
 use super::linalg::{generalized_eigen, Mat};
-use crate::sim::config::SimulationConfig;
+use crate::config::simulation::SimulationConfig;
 use anyhow::{bail, Context, Result};
 
 /// Mass, stiffness and damping of one plane (reduced DOFs), plus handy products.

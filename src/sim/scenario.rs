@@ -4,7 +4,7 @@
 
 use super::defects::DefectSet;
 use super::profile::SpeedProfile;
-use crate::sim::config::{DefectShape, SimulationConfig};
+use crate::config::simulation::{DefectShape, SimulationConfig};
 use anyhow::{bail, Result};
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;

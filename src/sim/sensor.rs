@@ -4,9 +4,9 @@
 //! analog tacho and the metadata (labels, the simulation section used).
 
 use super::{channel_signals, high_fraction, model_fault_orders, EngineRun, Fault, Scenario};
+use crate::config::simulation::{SimulationConfig, SIGNALS};
 use crate::config::{ChannelKind, RigConfig};
 use crate::recording::{Channel, Provenance, Recording, Tacho};
-use crate::sim::config::{SimulationConfig, SIGNALS};
 use anyhow::Result;
 use rand::Rng;
 use rand_distr::StandardNormal;
@@ -175,7 +175,7 @@ pub fn finish(
     };
 
     let mean_rpm = scenario.profile.mean_rpm(scenario.seconds);
-    let orders = model_fault_orders(rig, &sim);
+    let orders = model_fault_orders(rig, sim);
     let mut md = BTreeMap::new();
     md.insert("label".to_string(), scenario.label().to_string());
     let faults: Vec<&str> = scenario.faults.iter().map(Fault::label).collect();

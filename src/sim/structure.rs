@@ -5,7 +5,7 @@
 //! internal step (semi-implicit Euler, frequency pre-warped so the discrete mode rings at
 //! exactly the configured frequency).
 
-use crate::sim::config::ResonanceConfig;
+use crate::config::simulation::ResonanceConfig;
 
 #[derive(Debug, Clone)]
 struct Mode {

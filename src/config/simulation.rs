@@ -1,8 +1,8 @@
 //! The `[simulation]` section of a rig file: what the simulator needs to build this rig
 //! (rotor, supports, the nonlinear test bearing, defects, structural path, tacho, channels).
 //! Every key has a default that reproduces the thesis rig (Paper A, section 4), so
-//! `[simulation]` alone is a valid section. The simulator owns it; [`crate::config::RigConfig`]
-//! holds it as its `simulation` field.
+//! `[simulation]` alone is a valid section. [`crate::config::RigConfig`] holds it as its
+//! `simulation` field; the simulator ([`crate::sim`]) reads it.
 //!
 //! Units are in the key names (`_mm`, `_n_per_m`, ...). Switchable effects (for calibration)
 //! are plain parameters: set them to zero to switch them off.
