@@ -364,7 +364,7 @@ impl SpeedSource {
 /// what the tracker reads: healthy simulations below ~1000 rpm carry no shaft line the
 /// tracker could follow, and a simulated recording need not be as long as the tracker's
 /// history. What this leaves out, the tracker's error on a real machine, is measured in
-/// `tests/dsp.rs` (features from the tracked and the true speed of the same simulated
+/// `tests/fast/dsp.rs` (features from the tracked and the true speed of the same simulated
 /// recordings: their difference against the difference between classes).
 fn simulator_speed(mode: &Mode, rec: &Recording) -> Option<Result<SpeedTrack>> {
     match (&rec.tacho, mode) {

@@ -44,9 +44,11 @@ pub struct Measured {
 /// Each is cut to at most `max_seconds` (`f64::INFINITY`: whole), its mean speed taken at
 /// the recorded rate, and then brought to the simulator's output rate
 /// ([`rate::to_analysis_rate`]).
+/// One recording to load: path, label, import options, the manifest row's start_s/end_s.
+type ToLoad = (PathBuf, Option<String>, ImportOptions, Option<(f64, f64)>);
+
 pub fn load(rig: &RigConfig, inputs: &[PathBuf], max_seconds: f64) -> Result<Vec<Measured>> {
-    // (path, label, import options, the manifest row's start_s/end_s)
-    let mut files: Vec<(PathBuf, Option<String>, ImportOptions, Option<(f64, f64)>)> = Vec::new();
+    let mut files: Vec<ToLoad> = Vec::new();
     for p in inputs {
         let is_manifest = p.is_dir() || p.extension().is_some_and(|e| e == "csv") && is_manifest(p);
         if is_manifest {
@@ -74,7 +76,7 @@ pub fn load(rig: &RigConfig, inputs: &[PathBuf], max_seconds: f64) -> Result<Vec
         // analysed, and at most `max_seconds` of it.
         let (start_s, end_s) = span.unwrap_or((0.0, f64::INFINITY));
         cut(&mut rec, start_s, (end_s - start_s).min(max_seconds));
-        if rec.len() == 0 {
+        if rec.is_empty() {
             bail!(
                 "{}: nothing left between start_s {start_s} and end_s {end_s}; the recording is shorter, widen the span in the manifest",
                 path.display()

@@ -91,7 +91,7 @@ pub fn candidates(u: &Unexplained, faults: &FaultOrders) -> Vec<String> {
             (k >= 1.0 && (hz - k * m).abs() <= MAINS_TOL_HZ).then_some(k)
         });
         match mains {
-            Some(k) if k == 2.0 => {
+            Some(2.0) => {
                 out.push("electrical: twice the mains frequency (magnetostriction, a motor electrical fault)")
             }
             Some(_) => out.push("electrical pick-up at the mains frequency or a harmonic (grounding, cabling)"),

@@ -107,7 +107,7 @@ pub fn auto_threshold(samples: &[f32]) -> Option<(f64, f64)> {
     v.sort_unstable_by(|a, b| a.total_cmp(b));
     let lo = v[v.len() / 100] as f64;
     let hi = v[v.len() - 1 - v.len() / 100] as f64;
-    (hi > lo).then(|| (0.5 * (lo + hi), 0.1 * (hi - lo)))
+    (hi > lo).then_some((0.5 * (lo + hi), 0.1 * (hi - lo)))
 }
 
 #[cfg(test)]

@@ -82,7 +82,7 @@ fn draw_panel(
         .fold(0.0, f64::max)
         .max(1e-12)
         * 1.15;
-    let mut chart = ChartBuilder::on(&root)
+    let mut chart = ChartBuilder::on(root)
         .caption(plot.title, ("sans-serif", 24))
         .margin(15)
         .x_label_area_size(45)

@@ -862,8 +862,7 @@ mod tests {
         // A real zenoh error (192.0.2.1 is a documentation address, not this machine's).
         let e = bad("tcp/192.0.2.1:17448")
             .open()
-            .err()
-            .expect("cannot listen there");
+            .expect_err("cannot listen there");
         let text = format!("{e:#}");
         assert!(text.contains("192.0.2.1"), "{text}");
         assert!(!text.contains(".rs:") && !text.contains(".cargo"), "{text}");

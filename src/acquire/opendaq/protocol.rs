@@ -1,5 +1,5 @@
 //! The openDAQ LT streaming protocol decoder: a pure function over the bytes of the
-//! WebSocket binary messages a server sends (no I/O, fuzzed by `tests/fuzz.rs`).
+//! WebSocket binary messages a server sends (no I/O, fuzzed by `tests/heavy/fuzz.rs`).
 //!
 //! Wire format, from the openDAQ Stream Protocol Specification 1.3.0
 //! (openDAQ/streaming-protocol-lt `docs/openDAQ-streaming.md`, transport layer grammar in
@@ -505,7 +505,7 @@ mod tests {
     #[test]
     fn decodes_a_reference_stream_whole_and_split_anywhere() {
         let s = reference_stream();
-        let whole = run(&mut StreamDecoder::new(), &[s.clone()]);
+        let whole = run(&mut StreamDecoder::new(), std::slice::from_ref(&s));
         assert_eq!(whole[0], Ev::Other);
         assert_eq!(whole[1], Ev::Init("s1".into(), Some(7438)));
         assert_eq!(whole[2], Ev::Sub(2, "AI0Time".into()));

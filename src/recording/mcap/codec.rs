@@ -120,7 +120,7 @@ pub fn decode_edges(b: &[u8]) -> Result<(u64, f64, Vec<f64>)> {
 mod tests {
     use super::*;
 
-    /// Found by `tests/fuzz.rs` (fuzz_mcap_reader): a block at sample 2^64 - 1 overflowed the
+    /// Found by `tests/heavy/fuzz.rs` (fuzz_mcap_reader): a block at sample 2^64 - 1 overflowed the
     /// assembler's position arithmetic. Positions past 2^53 are refused as damage.
     #[test]
     fn a_block_past_any_recording_is_damage_not_an_overflow() {
