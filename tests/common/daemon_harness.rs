@@ -1,4 +1,4 @@
-//! Helpers to run the real `rigmon` binary in tests (copied from tests/daemon.rs so both test
+//! Helpers to run the real `rigmon` binary in tests (copied from tests/fast/daemon.rs so both test
 //! files stay independent): the repository paths, a child guard, line readers for its pipes,
 //! waiting for exit, signals, and a daemon config replaying a file with recording on.
 #![allow(dead_code)]

@@ -652,7 +652,7 @@ fn searching_on_own_views_gives_the_same_objective() {
     truth.structure.noise_rms_m_s2 = 0.1;
     truth.bearing.slip = 0.01;
     // half-order lines in the "measured" side, so `half_orders` compares something
-    truth.subharmonics = Some(rigmon::sim::config::SubharmonicsConfig {
+    truth.subharmonics = Some(rigmon::config::simulation::SubharmonicsConfig {
         ref_rpm: 1200.0,
         exponent: 2.0,
         half_order_m_s2: 0.2,

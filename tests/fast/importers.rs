@@ -13,8 +13,7 @@ use std::path::{Path, PathBuf};
 
 // ---------------------------------------------------------------- helpers
 
-mod common;
-use common::shared_data as data_dir;
+use crate::common::shared_data as data_dir;
 
 fn cwru(rel: &str) -> PathBuf {
     data_dir().join("cwru").join(rel)
@@ -2618,7 +2617,7 @@ fn lut_wav(path: &Path, bytes: usize) {
 }
 
 /// Writes the big WAV that docs/reliability.md measures `import` and `replay` on (by hand:
-/// `RIGMON_BIG_WAV=/tmp/big.wav cargo test --all-features --test importers write_a_big_wav --
+/// `RIGMON_BIG_WAV=/tmp/big.wav cargo test --all-features --test fast write_a_big_wav --
 /// --ignored`; `RIGMON_BIG_MIB` sets its data size, 2048 MiB unless given).
 #[test]
 #[ignore = "writes a 2 GiB file named by RIGMON_BIG_WAV; run by hand"]

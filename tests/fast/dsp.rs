@@ -11,8 +11,7 @@ use rigmon::importers::{self, ImportOptions};
 use rigmon::recording::{Channel, Provenance, Recording, Tacho};
 use std::collections::BTreeMap;
 
-mod common;
-use common::{rig, shared_data};
+use crate::common::{rig, shared_data};
 
 /// A lut-rig recording: the synthetic signal on "vertical", noise on the other axes.
 fn lut_recording(syn: &Synthetic, tacho_as_edges: bool) -> (Recording, Vec<f64>) {
@@ -472,7 +471,7 @@ fn accelerometer_only_lut_rig() -> RigConfig {
         check_within_percent: 10.0,
     };
     let sim = r.simulation.as_mut().unwrap();
-    sim.shaft_lines = Some(rigmon::sim::config::ShaftLinesConfig {
+    sim.shaft_lines = Some(rigmon::config::simulation::ShaftLinesConfig {
         ref_rpm: 1000.0,
         exponent: 1.0,
         amplitudes_m_s2: vec![0.2, 0.1, 0.067, 0.05, 0.04],

@@ -17,8 +17,7 @@ use std::sync::mpsc::Receiver;
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
-mod common;
-use common::{rig, shared_data};
+use crate::common::{rig, shared_data};
 
 /// A lut-rig recording: three acceleration channels with awkward values and a 0/5 V tacho.
 fn lut_recording(seconds: f64) -> Recording {
@@ -564,7 +563,7 @@ fn audio_source_reads_a_file_backed_alsa_device() {
         .args([
             "--ignored",
             "--exact",
-            "audio_child",
+            "acquire::audio_child",
             "--nocapture",
             "--test-threads=1",
         ])

@@ -12,7 +12,7 @@
 //! runs (a counting `#[global_allocator]`) fails the target, prints the input as hex and saves
 //! it under `target/fuzz-crashes/`. Inputs a target accepts join its in-memory pool (a crude
 //! feedback in place of coverage). Regenerate the corpus with
-//! `cargo test --test fuzz -- --ignored regenerate_corpus`.
+//! `cargo test --test heavy -- --ignored regenerate_corpus`.
 
 use rigmon::acquire::can_protocol::{CanDecoder, CanEncoder};
 use rigmon::acquire::opendaq::protocol::{self as odp, Event as OdEvent, StreamDecoder};
@@ -432,7 +432,7 @@ fn load_corpus(name: &str) -> Vec<(String, Vec<u8>)> {
         .unwrap_or_else(|e| {
             panic!(
                 "seed corpus {} missing ({e}); regenerate it with \
-                 `cargo test --test fuzz -- --ignored regenerate_corpus`",
+                 `cargo test --test heavy -- --ignored regenerate_corpus`",
                 dir.display()
             )
         })
@@ -1423,7 +1423,7 @@ fn fuzz_rig_config() {
 }
 
 /// Re-run one saved input with full panic output:
-/// `RIGMON_FUZZ_REPLAY=<target>:<file> cargo test --test fuzz -- --ignored replay --nocapture`.
+/// `RIGMON_FUZZ_REPLAY=<target>:<file> cargo test --test heavy -- --ignored replay --nocapture`.
 #[test]
 #[ignore = "replays one input named by RIGMON_FUZZ_REPLAY"]
 fn replay() {
@@ -1896,7 +1896,7 @@ fn mcap_damage_seeds() {
 }
 
 /// Regenerate only the damage targets' seeds:
-/// `cargo test --test fuzz -- --ignored regenerate_mcap_damage_corpus`.
+/// `cargo test --test heavy -- --ignored regenerate_mcap_damage_corpus`.
 #[test]
 #[ignore]
 fn regenerate_mcap_damage_corpus() {
@@ -2190,7 +2190,7 @@ fn regenerate_corpus() {
 }
 
 /// Regenerate only the openDAQ seeds:
-/// `cargo test --test fuzz -- --ignored regenerate_opendaq_corpus`.
+/// `cargo test --test heavy -- --ignored regenerate_opendaq_corpus`.
 #[test]
 #[ignore]
 fn regenerate_opendaq_corpus() {

@@ -11,8 +11,7 @@ use serde_json::Value;
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
-mod common;
-use common::shared_data;
+use crate::common::shared_data;
 
 fn rigmon(args: &[&str]) -> String {
     let out = Command::new(env!("CARGO_BIN_EXE_rigmon"))

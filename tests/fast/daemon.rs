@@ -3,7 +3,7 @@
 //! Python eclipse-zenoh client, a NOTIFY_SOCKET datagram socket, Unix signals, MCAP files read
 //! back, and `systemd-analyze verify`.
 
-#[path = "common/wrong_shape.rs"]
+#[path = "../common/wrong_shape.rs"]
 mod wrong_shape;
 
 use rigmon::health::message::HealthMessage;

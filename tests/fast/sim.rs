@@ -437,7 +437,7 @@ fn the_split_simulator_reproduces_the_shipped_replay() {
 #[test]
 fn shaft_lines_have_their_configured_amplitudes() {
     use rigmon::calibrate::shaft_orders;
-    use rigmon::sim::config::ShaftLinesConfig;
+    use rigmon::config::simulation::ShaftLinesConfig;
     let mut rig = rig("lut-rig.toml");
     let section = rig.simulation.as_mut().unwrap();
     section.shaft_lines = Some(ShaftLinesConfig {
@@ -488,7 +488,7 @@ fn shaft_lines_have_their_configured_amplitudes() {
 #[test]
 fn subharmonics_have_their_configured_amplitudes_and_reach_the_dataset() {
     use rigmon::calibrate::{fractional_orders, half_orders};
-    use rigmon::sim::config::SubharmonicsConfig;
+    use rigmon::config::simulation::SubharmonicsConfig;
     use rigmon::sim::dataset::{generate, CalibratedDraws};
     let mut rig = rig("lut-rig.toml");
     rig.simulation.as_mut().unwrap().subharmonics = Some(SubharmonicsConfig {

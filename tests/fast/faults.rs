@@ -4,11 +4,11 @@
 //! rigmon and by the Python `mcap` package (tests/python/read_cut_mcap.py).
 //!
 //! Each test prints its figure (`FIGURE ...`) for the README's reliability table; run with
-//! `cargo test --all-features --test faults -- --nocapture --test-threads=1`.
+//! `cargo test --all-features --test fast faults:: -- --nocapture --test-threads=1`.
 
-#[path = "common/daemon_harness.rs"]
+#[path = "../common/daemon_harness.rs"]
 mod harness;
-#[path = "common/wrong_shape.rs"]
+#[path = "../common/wrong_shape.rs"]
 mod wrong_shape;
 
 use harness::*;

@@ -1,0 +1,22 @@
+//! The fast tier of rigmon's integration tests: everything a developer runs before each
+//! commit, in a few minutes (`cargo test --all-features --lib --test fast`). One binary, so the
+//! crate and its dependencies are linked once. Each module is one area (its own module doc says
+//! what it checks); the heavy tier (`tests/heavy`) holds fuzzing, long calibrations, adapt end
+//! to end and the PostgreSQL historian.
+
+#[path = "../common/mod.rs"]
+mod common;
+
+mod access;
+mod acquire;
+mod daemon;
+mod dsp;
+mod faults;
+mod features_identity;
+mod house;
+mod importers;
+mod model;
+mod novel_faults;
+mod opendaq;
+mod real_files;
+mod sim;

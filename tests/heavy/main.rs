@@ -1,0 +1,9 @@
+//! The heavy tier of rigmon's integration tests: fuzzing the decoders, 20 s calibrations of
+//! every generator case, adapt end to end and the historian with a real PostgreSQL. CI runs it
+//! with the fast tier (`cargo test --all-features`); alone: `cargo test --all-features --test
+//! heavy`. One binary, so the crate and its dependencies are linked once.
+
+mod adapt;
+mod calibrate;
+mod fuzz;
+mod historian;
