@@ -15,6 +15,7 @@
 //! | narrowband, frequency-locked, no mains multiple | a source not locked to this shaft (another machine, a fan, a pump, the foundation) |
 //! | order at the cage rate (FTF +-3 %) | cage defect or cage-rate modulation |
 //! | order 0.38-0.48 | fluid-film (oil) whirl or another sub-synchronous instability |
+//! | order near k + 1/2 (+-0.03), below 10x, in an envelope view (`env`, `impacts`) | impacting once every two revolutions (a loose part lifting and landing, a rub), which `subharmonics` (half-order lines of the raw signal) does not model |
 //! | order near k + 1/2 (+-0.03), below 4x | mechanical looseness or rub (half-order sub-harmonics) that the catalog's `subharmonics` did not explain: a line off the exact half order, levels unlike its power law, or not confirmed on the held-out part |
 //! | order near k + 1/2 (+-0.03), 4x-10x | mechanical looseness or rub (half-order sub-harmonics above 3.5x, which `subharmonics` does not compare) |
 //! | order near k + 1/3 or k + 2/3 (+-0.03), below 5x | looseness or rub (third-order sub-harmonics) |
@@ -107,13 +108,16 @@ pub fn candidates(u: &Unexplained, faults: &FaultOrders) -> Vec<String> {
     if !frequency_locked {
         let o = u.order;
         if o > 0.0 {
-            order_candidates(o, faults, &mut out);
+            let envelope = matches!(u.view.as_str(), "env" | "impacts");
+            order_candidates(o, envelope, faults, &mut out);
         }
     }
     own(out)
 }
 
-fn order_candidates(o: f64, f: &FaultOrders, out: &mut Vec<&str>) {
+/// Candidates of a residual at shaft order `o`; `envelope`: seen in an envelope view (`env`,
+/// `impacts`), where a half order is the repetition rate of impacts, not a line.
+fn order_candidates(o: f64, envelope: bool, f: &FaultOrders, out: &mut Vec<&str>) {
     if (o - f.ftf).abs() <= NEAR * f.ftf {
         out.push("cage defect or cage-rate modulation (FTF)");
     }
@@ -121,7 +125,14 @@ fn order_candidates(o: f64, f: &FaultOrders, out: &mut Vec<&str>) {
         out.push("fluid-film (oil) whirl or another sub-synchronous instability");
     }
     let integer = (o - o.round()).abs() <= FRACTION_TOL;
-    if !integer && o < HALF_ORDERS_UP_TO && near_fraction(o, 2.0, &[1.0]) {
+    let half = !integer && o < HALF_ORDERS_UP_TO && near_fraction(o, 2.0, &[1.0]);
+    if half && envelope {
+        out.push(
+            "impacting once every two revolutions (a loose part lifting and landing, a rub): \
+             a half-order comb of the envelope, which `subharmonics` (half-order lines of the \
+             raw signal) does not model",
+        );
+    } else if half {
         out.push(if o < FITTED_HALF_ORDERS_BELOW {
             "mechanical looseness or rub (half-order sub-harmonics) that the catalog's \
              `subharmonics` did not explain: a line off the exact half order, levels unlike its \
@@ -251,6 +262,17 @@ mod tests {
         assert!(has(
             &u(4.59, "order", "speed", "env", 4.59),
             "bearing fault order"
+        ));
+        // a half order of the envelope is impacting every other revolution, not a line
+        let landing = u(0.5, "order", "speed", "env", 0.5);
+        assert!(has(&landing, "once every two revolutions") && !has(&landing, "did not explain"));
+        assert!(has(
+            &u(10.0, "Hz", "speed", "impacts", 0.5),
+            "once every two revolutions"
+        ));
+        assert!(!has(
+            &u(1.5, "order", "speed", "fractional", 1.5),
+            "once every two revolutions"
         ));
         assert!(has(&u(17.3, "order", "speed", "lines", 17.3), "gear mesh"));
         assert!(has(&u(4.0, "order", "speed", "lines", 4.0), "looseness"));

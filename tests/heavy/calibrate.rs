@@ -9,6 +9,8 @@
 //! case (an order-locked line at order 17.3, which no catalog effect explains) must come
 //! back `unexplained` at the right place with no effect accepted, and so must `whirl` (a
 //! 0.46x line, beside the half order `subharmonics` fits); `baseline` must accept nothing.
+//! `looseness_impacts` (a 0.5x line and impacts every other revolution) must name
+//! `subharmonics` first and locate the impacts.
 //! The calibrated rig file written by `-o` must parse back with the effects and an id.
 
 use serde_json::Value;
@@ -409,6 +411,59 @@ fn subharmonics_are_found() {
     eprintln!(
         "subharmonics: fitted {} (truth {}, 0.5x-3.5x ratios {})",
         first["params"], run.truth["params"]["half_order_m_s2"], run.truth["params"]["line_ratios"]
+    );
+}
+
+/// Looseness with impacts (issue 26): a 0.5x line plus an impact once every two revolutions
+/// ringing down at 900 Hz (a resonance of the loose joint below the generator's structural
+/// ones), generator seed 7. `subharmonics` is named first with the 0.5x line of the total
+/// vertical signal within 20 %; the impacts, which no catalog effect models, are located in
+/// the envelope at the half order, locked to speed, with impacting once every two revolutions
+/// among the candidates. (The error does not halve: the ring-down is left unexplained.)
+#[test]
+fn looseness_with_impacts_is_found() {
+    let dir = tempfile::tempdir().unwrap();
+    let data = dir.path().join("data");
+    let truth = generate_seed(&data, "looseness_impacts", "7");
+    let r = run_calibrate(
+        "looseness_impacts",
+        &repo().join("config/lut-rig.toml"),
+        &data.join("labels.csv"),
+        dir.path(),
+    );
+    check_shape(&r);
+    let effects = r["effects"].as_array().unwrap();
+    assert!(
+        !effects.is_empty() && effects[0]["name"] == "subharmonics",
+        "looseness_impacts: effects {}; trials {}",
+        r["effects"],
+        r["rounds"]
+    );
+    let fitted = num(&effects[0]["params"]["half_order_m_s2"], "half_order_m_s2");
+    let want = num(&truth["params"]["half_order_m_s2"], "truth half_order_m_s2");
+    assert!(
+        (fitted - want).abs() <= 0.2 * want,
+        "looseness_impacts: 0.5x fitted {fitted} m/s^2, truth {want} (more than 20 % off)"
+    );
+    let landing = r["unexplained"].as_array().unwrap().iter().any(|u| {
+        u["view"] == "env"
+            && u["unit"] == "order"
+            && u["locked_to"] == "speed"
+            && (num(&u["location"], "location") - 0.5).abs() <= 0.02
+            && u["candidates"].as_array().unwrap().iter().any(|c| {
+                c.as_str()
+                    .unwrap_or("")
+                    .contains("once every two revolutions")
+            })
+    });
+    assert!(
+        landing,
+        "looseness_impacts: the impacts' half-order envelope comb is not located: {}",
+        r["unexplained"]
+    );
+    eprintln!(
+        "looseness_impacts: effects {}; 0.5x fitted {fitted}, truth {want} (line {}, impacts' own 0.5x {})",
+        r["effects"], truth["params"]["line_m_s2"], truth["params"]["impact_half_order_m_s2"]
     );
 }
 

@@ -15,7 +15,9 @@ effect in rigmon's catalog explains (an order-locked narrowband line at a non-in
 fluid-film whirl is). `slow_speed_fluctuation` is a speed fluctuation slower than the default
 2 s of signal could show (period 4 s: generate 10 s or more).
 `looseness` adds shaft harmonics 3x..Nx, `subharmonics` half orders 0.5x, 1.5x, 2.5x, ...
-(a housing rocking between two stops every other revolution), `noise` changes the sensor noise.
+(a housing rocking between two stops every other revolution), `looseness_impacts` a 0.5x line
+plus an impact once every two revolutions ringing down at 900 Hz (a loose housing that lifts
+and lands every other revolution, issue 26), `noise` changes the sensor noise.
 
     python3 measured_like.py --out DIR --case CASE [--seed N] [--seconds S]
 
@@ -76,6 +78,27 @@ SUB_STROKE_M_S2 = 0.48
 SUB_STOP_FRACTION = 0.3
 SUB_LINES = clipped_half_orders(SUB_STOP_FRACTION)
 
+# Looseness with impacts (issue 26): a loose housing lifts and lands once every two
+# revolutions. Its rocking is a plain 0.5x line (`line_m_s2` at `at_rpm`, speed^2, vertical;
+# 0.7 of it 90 degrees on in the horizontal channel); each landing is an impact, half a
+# rocking period after the line's crest (at the bottom of the stroke), that rings down through
+# a resonance of the loose joint at `ring_hz` (BELOW the rig's 2900/3700 Hz structural modes)
+# with its own damping, strength `impact_m_s2` at `at_rpm` growing with speed^2 too, +-10 %
+# from landing to landing and 1 % of the two-revolution spacing of random slip.
+# The truth scored is the 0.5x line of the **total** looseness signal in the vertical channel
+# (the classifier channel of config/lut-rig.toml), as its spectrum shows it at `at_rpm`: the
+# line plus the impact train's own 0.5x Fourier component, computed by `half_order_truth`
+# (the ring-down is velocity-like, zero-mean, so that component is tiny: it is written out
+# as `impact_half_order_m_s2`).
+LOOSE = {
+    "line_m_s2": 0.3,
+    "impact_m_s2": 12.0,
+    "ring_hz": 900.0,
+    "damping": 0.04,
+    "participation": (0.2, 1.0, 0.6),  # axial, vertical, horizontal
+    "at_rpm": 1200.0,
+}
+
 # Hidden parameters per case (a test must not pass them to calibrate).
 CASES = {
     "baseline": (None, {}),
@@ -98,6 +121,8 @@ CASES = {
             "line_ratios": [round(r / SUB_LINES[0], 4) for r in SUB_LINES],
         },
     ),
+    # params completed by `half_order_truth` in main (it needs the ring-down below)
+    "looseness_impacts": ("subharmonics", {}),
     "outside": (None, {}),
     "whirl": (None, {}),
     "slow_speed_fluctuation": ("speed_fluctuation", {"fraction": 0.04, "period_s": 4.0}),
@@ -173,6 +198,50 @@ def fault_impacts(label, revs, rpm, rng, slip, contact_deg):
     return times[keep], amps[keep]
 
 
+def looseness_landings(revs, rpm, rng):
+    """Times of the loose housing's landings, once every two revolutions at the bottom of the
+    0.5x rocking (revolutions 1, 3, 5, ...), with random slip (none with `rng` None)."""
+    times = crossing_times(0.5 * (revs + 1.0))
+    if rng is not None:
+        spacing = 2.0 * 60.0 / rpm
+        times = times + JITTER * spacing * rng.standard_normal(len(times))
+    return times[times > 0]
+
+
+def looseness_impacts(n, revs, rpm, axis, p, rng):
+    """One channel's looseness with impacts: the 0.5x line (radial channels) and the
+    landings' ring-down (no randomness with `rng` None)."""
+    gain = (rpm / p["at_rpm"]) ** 2
+    a = p["line_m_s2"] * gain
+    line = (0.0, a * np.cos(np.pi * revs), 0.7 * a * np.sin(np.pi * revs))[axis]
+    times = looseness_landings(revs, rpm, rng)
+    amps = p["impact_m_s2"] * gain * np.ones(len(times))
+    if rng is not None:
+        amps = amps * (1.0 + 0.1 * rng.standard_normal(len(times)))
+    joint = [(p["ring_hz"], p["damping"], p["participation"])]
+    return line + ring(n, times, amps, joint, axis, rng)
+
+
+def half_order_truth(p):
+    """The 0.5x amplitude of the total looseness signal in the vertical channel at `at_rpm`
+    (line and impacts, no randomness), and the impact train's share of it alone: a DFT at
+    0.5x over 20 two-revolution periods after one period of settling."""
+    rpm = p["at_rpm"]
+    periods = 20
+    n = int(round((periods + 1) * 2.0 * 60.0 / rpm * FS))
+    revs = np.arange(n) * rpm / 60.0 / FS
+    total = looseness_impacts(n, revs, rpm, 1, p, None)
+    line_free = dict(p, line_m_s2=0.0)
+    impacts = looseness_impacts(n, revs, rpm, 1, line_free, None)
+    start = int(round(2.0 * 60.0 / rpm * FS))
+    ph = np.exp(-1j * np.pi * revs[start:])
+
+    def amp(y):
+        return float(2.0 * np.abs(np.mean(y[start:] * ph)))
+
+    return amp(total), amp(impacts)
+
+
 def record(label, rpm, case, params, seconds, rng):
     n = int(round(seconds * FS))
     t = np.arange(n) / FS
@@ -214,6 +283,9 @@ def record(label, rpm, case, params, seconds, rng):
         ph = rng.uniform(0, 2 * np.pi)
         chans[1] += a * np.clip(np.cos(np.pi * revs + ph), -stop, stop) / stop
         chans[2] += 0.7 * a * np.clip(np.sin(np.pi * revs + ph), -stop, stop) / stop
+    if case == "looseness_impacts":
+        for axis in range(3):
+            chans[axis] += looseness_impacts(n, revs, rpm, axis, params, rng)
     if case == "line_interference":
         ph = rng.uniform(0, 2 * np.pi)
         for c, g in zip(chans, (0.5, 1.0, 0.8)):
@@ -243,6 +315,11 @@ def main():
     os.makedirs(a.out, exist_ok=True)
     rng = np.random.default_rng(a.seed)
     effect, params = CASES[a.case]
+    if a.case == "looseness_impacts":
+        total, impacts = half_order_truth(LOOSE)
+        params = dict(LOOSE, participation=list(LOOSE["participation"]))
+        params["half_order_m_s2"] = round(total, 4)
+        params["impact_half_order_m_s2"] = round(impacts, 6)
     rows = ["path,label"]
     for rpm in SPEEDS_RPM:
         for label in LABELS:
