@@ -33,7 +33,8 @@ fn model() -> PathBuf {
     m
 }
 
-/// The shipped replays (`replay/*.mcap`) with the label stored in each file's metadata.
+/// The shipped simulated replays of the LUT rig (`replay/lut-*.mcap`) with the label stored in
+/// each file's metadata (the measured CWRU replay belongs to another rig).
 fn replays() -> Vec<(PathBuf, String)> {
     let dir = repo().join("replay");
     let rig = rig();
@@ -46,6 +47,10 @@ fn replays() -> Vec<(PathBuf, String)> {
         })
         .filter_map(|e| e.ok().map(|e| e.path()))
         .filter(|p| p.extension().is_some_and(|x| x == "mcap"))
+        .filter(|p| {
+            p.file_name()
+                .is_some_and(|n| n.to_string_lossy().starts_with("lut-"))
+        })
         .map(|p| {
             let rec = rigmon::importers::load(&p, &rig, &Default::default()).unwrap();
             let label = rec

@@ -6,11 +6,14 @@
 
 #[path = "../common/mod.rs"]
 mod common;
+#[path = "../common/estimate_rig.rs"]
+mod estimate_rig;
 
 mod access;
 mod acquire;
 mod daemon;
 mod dsp;
+mod estimate_mode;
 mod faults;
 mod features_identity;
 mod house;

@@ -62,7 +62,12 @@ fn isolated(test: &str) -> bool {
     let out = Command::new("unshare")
         .args(["-n", "sh", "-c", "ip link set lo up && exec \"$0\" \"$@\""])
         .arg(&exe)
-        .args([test, "--exact", "--nocapture", "--test-threads=1"])
+        .args([
+            format!("{}::{test}", module_path!().trim_start_matches("fast::")).as_str(),
+            "--exact",
+            "--nocapture",
+            "--test-threads=1",
+        ])
         .env("RIGMON_IN_NETNS", "1")
         .output()
         .unwrap();

@@ -3,7 +3,11 @@
 //! with the fast tier (`cargo test --all-features`); alone: `cargo test --all-features --test
 //! heavy`. One binary, so the crate and its dependencies are linked once.
 
+#[path = "../common/estimate_rig.rs"]
+mod estimate_rig;
+
 mod adapt;
 mod calibrate;
+mod estimate_mode;
 mod fuzz;
 mod historian;
