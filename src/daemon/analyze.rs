@@ -71,7 +71,7 @@ impl Analyzer {
         health.set_hop_fraction(rig.features.hop_s / rig.features.window_s);
         let chans: Vec<(String, String)> = rig
             .acceleration_channels()
-            .map(|c| (c.name.clone(), c.unit.clone()))
+            .map(|c| (c.name.clone(), c.unit.to_string()))
             .collect();
         let names: Vec<String> = chans.iter().map(|(n, _)| n.clone()).collect();
         let cls = rig

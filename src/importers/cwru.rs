@@ -287,7 +287,7 @@ pub fn from_mat(
         channels.push(Channel {
             name: cfg.name.clone(),
             axis: cfg.axis.clone(),
-            unit: cfg.unit.clone(),
+            unit: cfg.unit.to_string(),
             samples: samples.iter().map(|&x| (x * k) as f32).collect(),
         });
     }

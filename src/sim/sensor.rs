@@ -139,7 +139,7 @@ pub fn finish(
         channels.push(Channel {
             name: c.name.clone(),
             axis: c.axis.clone(),
-            unit: c.unit.clone(),
+            unit: c.unit.to_string(),
             samples,
         });
     }
@@ -163,7 +163,7 @@ pub fn finish(
                 .collect();
             Some(Tacho::Analog {
                 samples,
-                unit: tc.unit.clone(),
+                unit: tc.unit.to_string(),
             })
         }
         // No tacho on the rig: the recording still carries the simulator's own speed, as the
