@@ -7,6 +7,7 @@ use super::{channel_signals, high_fraction, model_fault_orders, EngineRun, Fault
 use crate::config::{ChannelKind, RigConfig};
 use crate::recording::{Channel, Provenance, Recording, Tacho};
 use crate::sim::config::{SimulationConfig, SIGNALS};
+use crate::vocabulary::Condition;
 use anyhow::Result;
 use rand::Rng;
 use rand_distr::StandardNormal;
@@ -182,7 +183,7 @@ pub fn finish(
     md.insert(
         "faults".into(),
         if faults.is_empty() {
-            "healthy".into()
+            Condition::Healthy.as_str().into()
         } else {
             faults.join(",")
         },
