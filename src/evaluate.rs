@@ -10,6 +10,7 @@
 //! vote names its fault, so `evaluate` and `rigmon run` cannot disagree.
 
 use crate::health::UNKNOWN;
+use crate::vocabulary::Condition;
 use serde::Serialize;
 
 /// Per-window outcomes of one labelled recording.
@@ -182,7 +183,7 @@ pub fn majority(predicted: &[usize], n_classes: usize) -> (usize, Vec<usize>) {
 /// (missed, false) alarms from a confusion matrix: faulty called healthy, healthy called
 /// faulty. Both 0 when there is no `healthy` class.
 pub fn alarms(cm: &Confusion) -> (usize, usize) {
-    let Some(h) = cm.labels.iter().position(|l| l == "healthy") else {
+    let Some(h) = Condition::Healthy.index_in(&cm.labels) else {
         return (0, 0);
     };
     let missed = (0..cm.labels.len())
@@ -205,7 +206,7 @@ fn record_alarms(
     pred: Option<usize>,
     daemon: Option<&DaemonOutcome>,
 ) -> (bool, bool) {
-    let Some(h) = labels.iter().position(|l| l == "healthy") else {
+    let Some(h) = Condition::Healthy.index_in(labels) else {
         return (false, false);
     };
     let state = daemon.map(|d| d.state.as_str());

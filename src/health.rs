@@ -386,6 +386,7 @@ impl HealthStateMachine {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::vocabulary::QualityFlag;
 
     fn labels() -> Vec<String> {
         ["healthy", "outer_race", "inner_race", "ball"]
@@ -420,7 +421,7 @@ mod tests {
                         probs: &p,
                         novelty: if *s == "novel" { 5.0 } else { 0.1 },
                         model_novelty_threshold: 1.0,
-                        quality: (*s == "nan").then_some("nan"),
+                        quality: (*s == "nan").then_some(QualityFlag::Nan),
                         beyond_baseline: None,
                         evidence: None,
                     },

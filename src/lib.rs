@@ -7,6 +7,8 @@
 //! recordings (residual views, effect catalog, held-out acceptance, calibrated rig file);
 //! [`adapt`] chains calibration, simulation and training for one measured machine.
 //! [`historian`] keeps a fleet's health in PostgreSQL, fed over the Zenoh mesh.
+//! [`vocabulary`] is the lowest floor: the typed names (condition labels, quality flags,
+//! acceleration units, Zenoh mode) every other module shares.
 //! Lower modules never import higher ones.
 
 pub mod acquire;
@@ -33,3 +35,4 @@ pub mod recording;
 pub mod sim;
 pub mod train;
 pub mod usage;
+pub mod vocabulary;

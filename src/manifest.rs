@@ -5,7 +5,7 @@
 //! recording's nominal speed (a hint the speed stage checks against the vibration).
 
 use crate::importers::ImportOptions;
-use crate::model::ALL_LABELS;
+use crate::vocabulary::Condition;
 use anyhow::{bail, Context, Result};
 use std::path::{Path, PathBuf};
 
@@ -130,13 +130,13 @@ pub fn parse_manifest(text: &str, csv: &Path) -> Result<Vec<ManifestEntry>> {
             );
         }
         let (p, label) = (fields[ip].trim_matches('"'), fields[il].trim_matches('"'));
-        if !ALL_LABELS.contains(&label) {
+        if !Condition::NAMES.contains(&label) {
             bail!(
                 "{}:{}: label {:?} is not one of {}",
                 csv.display(),
                 i + 1,
                 label,
-                ALL_LABELS.join(", ")
+                Condition::NAMES.join(", ")
             );
         }
         let sample_rate = match ir.map(|k| fields[k].trim_matches('"')) {

@@ -8,6 +8,7 @@
 //! `--accept-regression` is given; either way the report and stderr say so.
 
 use super::SetScores;
+use crate::vocabulary::Condition;
 use serde::Serialize;
 
 /// Where a model that failed the self-check is written instead of `model.onnx`.
@@ -87,7 +88,7 @@ pub fn regressions(set: &str, s: &SetScores) -> (Vec<Regression>, usize, usize) 
     let mut out = Vec::new();
     let mut faulty = 0;
     for a in &s.after.records {
-        if a.label == "healthy" {
+        if Condition::is_healthy(&a.label) {
             continue;
         }
         faulty += 1;

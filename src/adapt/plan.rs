@@ -19,6 +19,7 @@
 use crate::config::RigConfig;
 use crate::dsp::speed_config::SpeedConfig;
 use crate::sim::plan::{Plan, PlanCase, RandomRanges};
+use crate::vocabulary::Condition;
 use anyhow::{bail, Result};
 use serde::Serialize;
 
@@ -238,12 +239,10 @@ pub fn derive(
         speed_fluctuation_period_s: Some([0.5, 3.0]),
         ..RandomRanges::default()
     };
-    let mut classes = vec!["healthy", "outer_race", "inner_race"];
-    if range.labels.iter().any(|l| l == "ball") {
-        classes.push("ball");
-    }
+    let ball = range.labels.iter().any(|l| *l == Condition::Ball);
+    let classes = &Condition::NAMES[..if ball { 4 } else { 3 }];
     let cases = classes
-        .into_iter()
+        .iter()
         .map(|c| PlanCase {
             name: None,
             faults: c.to_string(),
@@ -252,7 +251,7 @@ pub fn derive(
             recordings,
             seconds: None,
             overrides: Default::default(),
-            random: if c == "outer_race" {
+            random: if *c == Condition::OuterRace {
                 // all around the race: load zone (0) to opposite (+-180)
                 RandomRanges {
                     outer_race_position_deg: Some([-180.0, 180.0]),

@@ -17,6 +17,7 @@ use crate::sim::plan::Plan;
 use crate::train::dataset::RecordingFeatures;
 use crate::train::featurise::featurise_all;
 use crate::train::score::{analyse_all, ScoredRecording};
+use crate::vocabulary::Condition;
 use anyhow::{bail, Context, Result};
 use indicatif::ProgressBar;
 use std::path::Path;
@@ -161,7 +162,8 @@ fn dry_run(plan: &Plan, rig: &RigConfig) -> Result<()> {
 /// two race faults, and ball when a measured recording is labelled `ball`): training would
 /// stop on it after the whole dataset is simulated.
 fn check_classes(plan: &Plan, range: &MeasuredRange) -> Result<()> {
-    let labels = crate::train::fit::class_labels(range.labels.iter().any(|l| l == "ball"));
+    let labels =
+        crate::train::fit::class_labels(range.labels.iter().any(|l| *l == Condition::Ball));
     let runs = plan.expand()?;
     let missing: Vec<&String> = labels
         .iter()
@@ -192,7 +194,7 @@ pub fn check(o: &AdaptOptions) -> Result<Checked> {
     let healthy_rows: Vec<ManifestEntry> = measured
         .entries
         .iter()
-        .filter(|e| e.label == "healthy")
+        .filter(|e| Condition::is_healthy(&e.label))
         .cloned()
         .collect();
     let healthy = featurise_all(&healthy_rows, &rig, &ProgressBar::hidden())

@@ -19,6 +19,7 @@ use crate::model::rule::RuleSettings;
 use crate::recording::Recording;
 use crate::sim::plan::{Plan, PlanCase, RandomRanges};
 use crate::sim::{Fault, Scenario};
+use crate::vocabulary::Condition;
 use anyhow::{Context, Result};
 use rayon::prelude::*;
 use serde::Serialize;
@@ -62,9 +63,9 @@ pub fn family_ratio(rec: &Recording, rig: &RigConfig, label: &str) -> Result<f64
     let mut v: Vec<f64> = windows
         .iter()
         .filter_map(|w| w.fault_bands.as_ref())
-        .map(|b| match label {
-            "inner_race" => b.inner_race(),
-            "ball" => b.ball(),
+        .map(|b| match Condition::parse(label) {
+            Some(Condition::InnerRace) => b.inner_race(),
+            Some(Condition::Ball) => b.ball(),
             _ => b.outer_race(),
         })
         .collect();
@@ -142,8 +143,10 @@ pub fn shape(
     rig: &RigConfig,
     faults: &[(String, String, f64, &Recording)],
 ) -> Result<(Plan, Vec<ShapedFault>)> {
-    let labelled: Vec<&(String, String, f64, &Recording)> =
-        faults.iter().filter(|f| f.1 != "healthy").collect();
+    let labelled: Vec<&(String, String, f64, &Recording)> = faults
+        .iter()
+        .filter(|f| !Condition::is_healthy(&f.1))
+        .collect();
     let mut out = plan.clone();
     if labelled.is_empty() {
         return Ok((out, Vec::new()));
@@ -183,7 +186,7 @@ pub fn shape(
         let random = RandomRanges {
             rpm: Some(speeds),
             defect_width_mm: fitted.map(|(w, ..)| [w / step, w * step]),
-            outer_race_position_deg: (fitted.is_some() && label == "outer_race")
+            outer_race_position_deg: (fitted.is_some() && *label == Condition::OuterRace)
                 .then_some(LOAD_ZONE_DEG),
             ..RandomRanges::default()
         };

@@ -12,6 +12,7 @@ use super::windows::WindowView;
 use crate::config::RigConfig;
 use crate::dsp::fault_band_ratios::{FaultBandMeter, FaultBandRatios};
 use crate::dsp::features::{FeaturePipeline, FeatureWindow};
+use crate::vocabulary::AccelUnit;
 use anyhow::Result;
 
 /// Why a window has no features.
@@ -77,7 +78,8 @@ pub struct AnalysisStage {
     speed: SpeedSource,
     velocity: VelocityRms,
     names: Vec<String>,
-    units: Vec<String>,
+    /// Each channel's acceleration unit (None: not an acceleration, no velocity).
+    units: Vec<Option<AccelUnit>>,
     /// Channels the source cannot deliver (NaN in every block): skipped.
     absent: Vec<bool>,
     /// Index of the classifier channel in `names` (None when the source lacks it).
@@ -116,7 +118,7 @@ impl AnalysisStage {
             velocity: VelocityRms::new(len, sample_rate),
             absent: names.iter().map(|n| absent.contains(n)).collect(),
             scratch: names.iter().map(|_| vec![0.0; len]).collect(),
-            units: channels.iter().map(|(_, u)| u.clone()).collect(),
+            units: channels.iter().map(|(_, u)| AccelUnit::parse(u)).collect(),
             names,
             classifier,
             strict: false,
@@ -216,7 +218,8 @@ impl AnalysisStage {
         };
         let velocity_mm_s = self
             .classifier
-            .and_then(|k| self.velocity.mm_per_s(view.channels[k], &self.units[k]));
+            .and_then(|k| Some((k, self.units[k]?)))
+            .and_then(|(k, unit)| self.velocity.mm_per_s(view.channels[k], unit));
         WindowAnalysis {
             t_start: view.t_start,
             t_end: view.t_end,

@@ -2,6 +2,7 @@
 //! real FFT, divide by j*2*pi*f, sum the band (Parseval, corrected for the window's power).
 //! The FFT plan and buffers are made once per window length and reused.
 
+use crate::vocabulary::AccelUnit;
 use realfft::{RealFftPlanner, RealToComplex};
 use rustfft::num_complex::Complex32;
 use std::sync::Arc;
@@ -41,10 +42,10 @@ impl VelocityRms {
         }
     }
 
-    /// Velocity RMS in mm/s of `accel` given in `unit` (m/s^2, m/s2, g, mm/s^2). None for an
-    /// unknown unit, a wrong length or non-finite samples.
-    pub fn mm_per_s(&mut self, accel: &[f32], unit: &str) -> Option<f64> {
-        let to_m_s2 = unit_to_m_s2(unit)?;
+    /// Velocity RMS in mm/s of `accel` given in `unit`. None for a wrong length or
+    /// non-finite samples.
+    pub fn mm_per_s(&mut self, accel: &[f32], unit: AccelUnit) -> Option<f64> {
+        let to_m_s2 = unit.factor_to_m_s2();
         let n = self.window.len();
         if accel.len() != n || accel.iter().any(|x| !x.is_finite()) {
             return None;
@@ -75,21 +76,6 @@ impl VelocityRms {
     }
 }
 
-/// Factor from a channel's acceleration unit to m/s^2.
-pub fn unit_to_m_s2(unit: &str) -> Option<f64> {
-    match unit
-        .trim()
-        .to_ascii_lowercase()
-        .replace(['²', ' '], "2")
-        .as_str()
-    {
-        "m/s^2" | "m/s2" | "m*s^-2" | "ms^-2" => Some(1.0),
-        "mm/s^2" | "mm/s2" => Some(1e-3),
-        "g" | "g0" | "gn" => Some(9.80665),
-        _ => None,
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -104,11 +90,11 @@ mod tests {
             .map(|i| (a * (2.0 * std::f64::consts::PI * f * i as f64 / fs).sin()) as f32)
             .collect();
         let mut v = VelocityRms::new(n, fs);
-        let got = v.mm_per_s(&x, "m/s^2").unwrap();
+        let got = v.mm_per_s(&x, AccelUnit::MetrePerSecondSquared).unwrap();
         let want = a / (2.0 * std::f64::consts::PI * f) / 2f64.sqrt() * 1000.0;
         assert!((got / want - 1.0).abs() < 0.01, "got {got}, want {want}");
         // In g the same numbers mean 9.81 times more.
-        let got_g = v.mm_per_s(&x, "g").unwrap();
+        let got_g = v.mm_per_s(&x, AccelUnit::StandardGravity).unwrap();
         assert!((got_g / got - 9.80665).abs() < 1e-6);
         // Outside the band (5 Hz and 2 kHz) contributes almost nothing.
         let y: Vec<f32> = (0..n)
@@ -118,10 +104,10 @@ mod tests {
                     + a * (2.0 * std::f64::consts::PI * 2000.0 * t).sin()) as f32
             })
             .collect();
-        assert!(v.mm_per_s(&y, "m/s^2").unwrap() < 0.02 * want);
-        assert!(v.mm_per_s(&x, "furlongs").is_none());
+        let m_s2 = AccelUnit::MetrePerSecondSquared;
+        assert!(v.mm_per_s(&y, m_s2).unwrap() < 0.02 * want);
         let mut bad = x.clone();
         bad[3] = f32::NAN;
-        assert!(v.mm_per_s(&bad, "g").is_none());
+        assert!(v.mm_per_s(&bad, AccelUnit::StandardGravity).is_none());
     }
 }

@@ -20,9 +20,10 @@ use crate::historian::row::WindowRow;
 use crate::historian::status::HistorianStatus;
 use crate::historian::writer::Writer;
 use crate::model::evidence::FamilyEvidence;
-use crate::model::ALL_LABELS;
 use crate::publish::time_range::now_ns;
 use crate::publish::zenoh::ZenohSettings;
+use crate::vocabulary::Condition;
+use crate::vocabulary::ZenohMode;
 use anyhow::{anyhow, bail, Context, Result};
 use std::io::Read;
 use std::process::{Child, Command, Stdio};
@@ -46,7 +47,7 @@ impl Drop for ChildGuard {
 
 /// One simulated window of point `i`, window number `seq` of a run starting at `run_ns`.
 fn window(tag: &str, i: usize, seq: u64, run_ns: u64) -> HealthMessage {
-    let labels: Vec<String> = ALL_LABELS.iter().map(|s| s.to_string()).collect();
+    let labels: Vec<String> = Condition::NAMES.iter().map(|s| s.to_string()).collect();
     let end_s = seq as f64 / RATE + 0.5;
     let wobble = ((seq as f64 * 0.37 + i as f64).sin() * 0.1) as f32;
     let probs = [
@@ -249,7 +250,7 @@ pub fn run(points: usize, seconds: f64, json: bool) -> Result<()> {
     let port = free_port()?;
     let endpoint = format!("tcp/127.0.0.1:{port}");
     let router = ZenohSettings {
-        mode: "router".into(),
+        mode: ZenohMode::Router,
         listen: vec![endpoint.clone()],
         history_windows: 0,
         ..Default::default()
@@ -272,7 +273,7 @@ pub fn run(points: usize, seconds: f64, json: bool) -> Result<()> {
     let pid = child.id();
     let mut guard = ChildGuard(Some(child));
     let publisher = ZenohSettings {
-        mode: "client".into(),
+        mode: ZenohMode::Client,
         connect: vec![endpoint.clone()],
         history_windows: 0,
         ..Default::default()

@@ -88,7 +88,7 @@ fn synthetic(m: &Machine, rig: &RigConfig, seconds: f64) -> Result<(Recording, S
             Channel {
                 name: c.name.clone(),
                 axis: c.axis.clone(),
-                unit: c.unit.clone(),
+                unit: c.unit.to_string(),
                 samples,
             }
         })

@@ -18,6 +18,7 @@ use super::speed_line::SpeedLine;
 use crate::config::simulation::{
     ShaftLinesConfig, SimulationConfig, SpeedFluctuationConfig, SubharmonicsConfig,
 };
+use crate::vocabulary::ErrorComponent;
 use serde::Serialize;
 
 /// Effects the calibrator can add.
@@ -137,16 +138,17 @@ impl Effect {
     /// The error components this effect acts on: its parameters are searched, and it is
     /// accepted, on these alone, so an effect cannot win by absorbing a mismatch it does not
     /// model physically (e.g. a contact angle reshaping the resonance bands).
-    pub fn components(&self) -> &'static [&'static str] {
+    pub fn components(&self) -> &'static [ErrorComponent] {
+        use ErrorComponent as C;
         match self {
-            Effect::Slip | Effect::ContactAngle => &["env", "peaks"],
-            Effect::Resonance => &["bands", "modes"],
-            Effect::Unbalance => &["orders"],
-            Effect::LineInterference => &["lines"],
-            Effect::SpeedFluctuation => &["speed", "lines"],
-            Effect::Looseness => &["harmonics"],
-            Effect::Subharmonics => &["half_orders"],
-            Effect::Noise => &["floor"],
+            Effect::Slip | Effect::ContactAngle => &[C::Env, C::Peaks],
+            Effect::Resonance => &[C::Bands, C::Modes],
+            Effect::Unbalance => &[C::Orders],
+            Effect::LineInterference => &[C::Lines],
+            Effect::SpeedFluctuation => &[C::Speed, C::Lines],
+            Effect::Looseness => &[C::Harmonics],
+            Effect::Subharmonics => &[C::HalfOrders],
+            Effect::Noise => &[C::Floor],
         }
     }
 

@@ -46,43 +46,27 @@ use super::fractional_orders;
 use super::half_orders;
 use super::shaft_orders::levels_db;
 use super::views::{Views, BAND_HZ};
-use serde::Serialize;
+pub use crate::vocabulary::ErrorComponent;
+use serde::ser::{Serialize, SerializeMap, Serializer};
 
-/// Error components; `total` is their sum.
-#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize)]
+/// Error components, indexed by [`ErrorComponent`]; `total` is their sum. Serializes as
+/// `{"env": .., ..., "impacts": .., "total": ..}` (NaN as null).
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
 pub struct ErrorParts {
-    pub env: f64,
-    pub peaks: f64,
-    pub ratios: f64,
-    pub lines: f64,
-    pub orders: f64,
-    pub harmonics: f64,
-    pub bands: f64,
-    pub modes: f64,
-    pub floor: f64,
-    pub speed: f64,
-    pub fractional: f64,
-    pub half_orders: f64,
-    pub impacts: f64,
+    parts: [f64; 13],
     pub total: f64,
 }
 
-/// Component names, in report order.
-pub const NAMES: [&str; 13] = [
-    "env",
-    "peaks",
-    "ratios",
-    "lines",
-    "orders",
-    "harmonics",
-    "bands",
-    "modes",
-    "floor",
-    "speed",
-    "fractional",
-    "half_orders",
-    "impacts",
-];
+impl Serialize for ErrorParts {
+    fn serialize<S: Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        let mut m = s.serialize_map(Some(ErrorComponent::ALL.len() + 1))?;
+        for c in ErrorComponent::ALL {
+            m.serialize_entry(c.name(), &self.get(c))?;
+        }
+        m.serialize_entry("total", &self.total)?;
+        m.end()
+    }
+}
 
 /// `modes` when the measured resonance stands out and the simulated one does not (its
 /// location is then only noise), in bands.
@@ -101,14 +85,15 @@ fn summed_abs(a: &[f64], b: &[f64]) -> f64 {
 
 /// The smallest cut of each component that counts as a change (acceptance, see
 /// [`super::fit::accepts`]), in the component's unit.
-pub fn min_cut(name: &str) -> f64 {
-    match name {
-        "peaks" => 2.0,
-        "orders" => 0.5,
-        "modes" => 1.0,
-        "floor" => 0.5,
-        "harmonics" | "half_orders" => 0.5,
-        _ => 0.05,
+pub fn min_cut(c: ErrorComponent) -> f64 {
+    use ErrorComponent as C;
+    match c {
+        C::Peaks => 2.0,
+        C::Orders => 0.5,
+        C::Modes => 1.0,
+        C::Floor => 0.5,
+        C::Harmonics | C::HalfOrders => 0.5,
+        C::Env | C::Ratios | C::Lines | C::Bands | C::Speed | C::Fractional | C::Impacts => 0.05,
     }
 }
 
@@ -144,39 +129,43 @@ fn fault_parts(m: &Views, s: &Views) -> (f64, f64) {
     (peaks / n, ratios / n)
 }
 
-/// Whether the named component applies to a measured recording (see the module doc): a
-/// pair where it does not has it `NaN`.
-pub fn applies(name: &str, m: &Views) -> bool {
-    match name {
-        "lines" | "floor" | "impacts" => m.healthy,
-        "peaks" | "ratios" => !m.fault_peaks.is_empty(),
-        "modes" => m.mode.prominent,
-        _ => true,
+/// Whether a component applies to a measured recording (see the module doc): a pair where
+/// it does not has it `NaN`.
+pub fn applies(c: ErrorComponent, m: &Views) -> bool {
+    use ErrorComponent as C;
+    match c {
+        C::Lines | C::Floor | C::Impacts => m.healthy,
+        C::Peaks | C::Ratios => !m.fault_peaks.is_empty(),
+        C::Modes => m.mode.prominent,
+        C::Env | C::Orders | C::Harmonics | C::Bands | C::Speed | C::Fractional | C::HalfOrders => {
+            true
+        }
     }
 }
 
 /// Error of one measured/simulated pair.
 pub fn pair(m: &Views, s: &Views) -> ErrorParts {
-    pair_only(m, s, &NAMES)
+    pair_only(m, s, &ErrorComponent::ALL)
 }
 
-/// [`pair`] for the named components only (the others `NaN`, `total` their sum): the
+/// [`pair`] for the given components only (the others `NaN`, `total` their sum): the
 /// simulated views need hold only what these read ([`super::views::Parts::for_components`]).
 /// Each computed component is the same as [`pair`]'s.
-pub fn pair_only(m: &Views, s: &Views, names: &[&str]) -> ErrorParts {
-    let want = |c: &str| names.contains(&c);
+pub fn pair_only(m: &Views, s: &Views, components: &[ErrorComponent]) -> ErrorParts {
+    use ErrorComponent as C;
+    let want = |c: ErrorComponent| components.contains(&c);
     let nan = f64::NAN;
-    let env = if want("env") {
+    let env = if want(C::Env) {
         mean_abs(&m.env, &s.env)
     } else {
         nan
     };
-    let (peaks, ratios) = if want("peaks") || want("ratios") {
+    let (peaks, ratios) = if want(C::Peaks) || want(C::Ratios) {
         fault_parts(m, s)
     } else {
         (nan, nan)
     };
-    let lines = if m.healthy && want("lines") {
+    let lines = if m.healthy && want(C::Lines) {
         m.lines
             .iter()
             .zip(&s.lines)
@@ -186,7 +175,7 @@ pub fn pair_only(m: &Views, s: &Views, names: &[&str]) -> ErrorParts {
     } else {
         nan
     };
-    let (orders, harmonics) = if want("orders") || want("harmonics") {
+    let (orders, harmonics) = if want(C::Orders) || want(C::Harmonics) {
         let (lm, ls) = levels_db(&m.shaft, &s.shaft);
         let orders = mean_abs(&lm[..2], &ls[..2]);
         let harmonics = lm[2..]
@@ -199,22 +188,22 @@ pub fn pair_only(m: &Views, s: &Views, names: &[&str]) -> ErrorParts {
     } else {
         (nan, nan)
     };
-    let bands = if want("bands") {
+    let bands = if want(C::Bands) {
         mean_abs(&m.bands, &s.bands)
     } else {
         nan
     };
-    let modes = match (want("modes"), m.mode.prominent, s.mode.prominent) {
+    let modes = match (want(C::Modes), m.mode.prominent, s.mode.prominent) {
         (false, _, _) | (true, false, _) => nan,
         (true, true, true) => (m.mode.hz - s.mode.hz).abs() / BAND_HZ,
         (true, true, false) => MODE_MISSING_BANDS,
     };
-    let floor = if m.healthy && want("floor") {
+    let floor = if m.healthy && want(C::Floor) {
         (m.floor_db - s.floor_db).abs()
     } else {
         nan
     };
-    let speed = if want("speed") {
+    let speed = if want(C::Speed) {
         let n = m.speed.len().min(s.speed.len());
         0.5 * m.speed[..n]
             .iter()
@@ -224,12 +213,12 @@ pub fn pair_only(m: &Views, s: &Views, names: &[&str]) -> ErrorParts {
     } else {
         nan
     };
-    let fractional = if want("fractional") {
+    let fractional = if want(C::Fractional) {
         summed_abs(&m.fractional, &s.fractional) / FRACTIONAL_PER
     } else {
         nan
     };
-    let half = if want("half_orders") {
+    let half = if want(C::HalfOrders) {
         let grid = fractional_orders::orders();
         let (lm, ls) = half_orders::levels_db(
             &grid,
@@ -242,84 +231,56 @@ pub fn pair_only(m: &Views, s: &Views, names: &[&str]) -> ErrorParts {
     } else {
         nan
     };
-    let impacts = if m.healthy && want("impacts") {
+    let impacts = if m.healthy && want(C::Impacts) {
         summed_abs(&m.impacts, &s.impacts) / IMPACTS_PER
     } else {
         nan
     };
     // the pairs computed together keep only the wanted one
-    let only = |c: &str, v: f64| if want(c) { v } else { nan };
-    ErrorParts {
-        env,
-        peaks: only("peaks", peaks),
-        ratios: only("ratios", ratios),
-        lines,
-        orders: only("orders", orders),
-        harmonics: only("harmonics", harmonics),
-        bands,
-        modes,
-        floor,
-        speed,
-        fractional,
-        half_orders: half,
-        impacts,
-        total: 0.0,
+    let only = |c: ErrorComponent, v: f64| if want(c) { v } else { nan };
+    let mut parts = ErrorParts::default();
+    for (c, v) in [
+        (C::Env, env),
+        (C::Peaks, only(C::Peaks, peaks)),
+        (C::Ratios, only(C::Ratios, ratios)),
+        (C::Lines, lines),
+        (C::Orders, only(C::Orders, orders)),
+        (C::Harmonics, only(C::Harmonics, harmonics)),
+        (C::Bands, bands),
+        (C::Modes, modes),
+        (C::Floor, floor),
+        (C::Speed, speed),
+        (C::Fractional, fractional),
+        (C::HalfOrders, half),
+        (C::Impacts, impacts),
+    ] {
+        *parts.get_mut(c) = v;
     }
-    .summed()
+    parts.summed()
 }
 
 impl ErrorParts {
-    /// The value of one named component (`total` for an unknown name).
-    pub fn get(&self, name: &str) -> f64 {
-        match name {
-            "env" => self.env,
-            "peaks" => self.peaks,
-            "ratios" => self.ratios,
-            "lines" => self.lines,
-            "orders" => self.orders,
-            "harmonics" => self.harmonics,
-            "bands" => self.bands,
-            "modes" => self.modes,
-            "floor" => self.floor,
-            "speed" => self.speed,
-            "fractional" => self.fractional,
-            "half_orders" => self.half_orders,
-            "impacts" => self.impacts,
-            _ => self.total,
-        }
+    /// The value of one component.
+    pub fn get(&self, c: ErrorComponent) -> f64 {
+        self.parts[c as usize]
     }
 
-    fn get_mut(&mut self, name: &str) -> &mut f64 {
-        match name {
-            "env" => &mut self.env,
-            "peaks" => &mut self.peaks,
-            "ratios" => &mut self.ratios,
-            "lines" => &mut self.lines,
-            "orders" => &mut self.orders,
-            "harmonics" => &mut self.harmonics,
-            "bands" => &mut self.bands,
-            "modes" => &mut self.modes,
-            "floor" => &mut self.floor,
-            "speed" => &mut self.speed,
-            "fractional" => &mut self.fractional,
-            "half_orders" => &mut self.half_orders,
-            "impacts" => &mut self.impacts,
-            _ => &mut self.total,
-        }
+    fn get_mut(&mut self, c: ErrorComponent) -> &mut f64 {
+        &mut self.parts[c as usize]
     }
 
-    /// Sum of the named components (those that apply).
-    pub fn of(&self, names: &[&str]) -> f64 {
-        names
+    /// Sum of the given components (those that apply).
+    pub fn of(&self, components: &[ErrorComponent]) -> f64 {
+        components
             .iter()
-            .map(|n| self.get(n))
+            .map(|&c| self.get(c))
             .filter(|v| v.is_finite())
             .sum()
     }
 
     /// With `total` set to the sum of the components.
     fn summed(mut self) -> Self {
-        self.total = self.of(&NAMES);
+        self.total = self.of(&ErrorComponent::ALL);
         self
     }
 }
@@ -327,13 +288,38 @@ impl ErrorParts {
 /// Mean over pairs, each component over the pairs it applies to (0 when none).
 pub fn mean(parts: &[ErrorParts]) -> ErrorParts {
     let mut e = ErrorParts::default();
-    for name in NAMES {
+    for c in ErrorComponent::ALL {
         let v: Vec<f64> = parts
             .iter()
-            .map(|p| p.get(name))
+            .map(|p| p.get(c))
             .filter(|v| v.is_finite())
             .collect();
-        *e.get_mut(name) = v.iter().fold(0.0, |a, b| a + b) / v.len().max(1) as f64;
+        *e.get_mut(c) = v.iter().fold(0.0, |a, b| a + b) / v.len().max(1) as f64;
     }
     e.summed()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn components_index_their_own_slot_and_keep_their_names() {
+        let mut e = ErrorParts::default();
+        for (k, c) in ErrorComponent::ALL.into_iter().enumerate() {
+            assert_eq!(c as usize, k);
+            *e.get_mut(c) = k as f64;
+        }
+        e.parts[ErrorComponent::Modes as usize] = f64::NAN;
+        let e = e.summed();
+        assert_eq!(e.total, (0..13).sum::<usize>() as f64 - 7.0);
+        // JSON: every component by name in report order, NaN as null, then the total.
+        let json = serde_json::to_string(&e).unwrap();
+        assert!(
+            json.starts_with(r#"{"env":0.0,"peaks":1.0,"ratios":2.0,"#)
+                && json.contains(r#""modes":null,"#)
+                && json.ends_with(r#""half_orders":11.0,"impacts":12.0,"total":71.0}"#),
+            "{json}"
+        );
+    }
 }

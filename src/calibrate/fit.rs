@@ -11,7 +11,7 @@
 //! length ([`views::compute`]).
 
 use super::catalog::{self, Effect, ALL};
-use super::error::{self, min_cut, ErrorParts};
+use super::error::{self, min_cut, ErrorComponent, ErrorParts};
 use super::locate::{locate, Unexplained};
 use super::measured::{several_speeds, Measured};
 use super::modes::Mode;
@@ -44,13 +44,13 @@ pub const HELD_CUT: (f64, f64) = (0.10, 0.6);
 /// after) drops on both parts: an effect that mends its own view but breaks others is not
 /// taken.
 pub fn accepts(
-    own: &[&str],
+    own: &[ErrorComponent],
     fit: (f64, f64),
     held: (f64, f64),
     fit_total: (f64, f64),
     held_total: (f64, f64),
 ) -> bool {
-    let floor: f64 = own.iter().map(|c| min_cut(c)).sum();
+    let floor: f64 = own.iter().map(|&c| min_cut(c)).sum();
     let cut = |(b, a): (f64, f64), (rel, abs): (f64, f64)| b - a >= rel * b && b - a >= abs * floor;
     cut(fit, FIT_CUT)
         && cut(held, HELD_CUT)
@@ -418,7 +418,12 @@ impl<'a> Twin<'a> {
     /// (`error(sim, idx)?.of(own)`), computing only what they read: the view groups they
     /// need ([`Parts::for_components`]), on the recordings they apply to. The same number
     /// as the full [`Twin::error`] gives; in the baseline, that is what it runs.
-    pub fn error_of(&self, sim: &SimulationConfig, idx: &[usize], own: &[&str]) -> Result<f64> {
+    pub fn error_of(
+        &self,
+        sim: &SimulationConfig,
+        idx: &[usize],
+        own: &[ErrorComponent],
+    ) -> Result<f64> {
         if !self.options.own_views {
             return Ok(self.error(sim, idx)?.of(own));
         }
@@ -427,7 +432,7 @@ impl<'a> Twin<'a> {
         let applying: Vec<usize> = idx
             .iter()
             .copied()
-            .filter(|&i| own.iter().any(|c| error::applies(c, &self.measured[i])))
+            .filter(|&i| own.iter().any(|&c| error::applies(c, &self.measured[i])))
             .collect();
         let pairs = applying
             .par_iter()
@@ -650,7 +655,7 @@ pub fn calibrate_with(
                 let moved = ae
                     .components()
                     .iter()
-                    .any(|c| cand_fit_parts.get(c) > cur_fit_parts.get(c) + min_cut(c));
+                    .any(|&c| cand_fit_parts.get(c) > cur_fit_parts.get(c) + min_cut(c));
                 if moved {
                     // from its accepted values, so the re-fit only moves what it must
                     let (v, _, n) = search_effect(&twin, ae, &cand, Some(&a.values), &fit, &cx)?;

@@ -10,6 +10,7 @@ use crate::importers::{self, ImportOptions};
 use crate::manifest::{manifest_path, read_manifest};
 use crate::recording::Recording;
 use crate::sim::Fault;
+use crate::vocabulary::Condition;
 use anyhow::{bail, Context, Result};
 use std::path::{Path, PathBuf};
 
@@ -69,7 +70,7 @@ pub fn load(rig: &RigConfig, inputs: &[PathBuf], max_seconds: f64) -> Result<Vec
             .with_context(|| format!("loading measured recording {}", path.display()))?;
         let label = label
             .or_else(|| rec.metadata.get("label").cloned())
-            .unwrap_or_else(|| "healthy".into());
+            .unwrap_or_else(|| Condition::Healthy.as_str().into());
         let faults =
             Fault::parse_list(&label).with_context(|| format!("label of {}", path.display()))?;
         // A manifest row may name part of its file (`start_s`/`end_s`): only that part is

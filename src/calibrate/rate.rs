@@ -92,7 +92,7 @@ mod tests {
                 .map(|c| Channel {
                     name: c.name.clone(),
                     axis: c.axis.clone(),
-                    unit: c.unit.clone(),
+                    unit: c.unit.to_string(),
                     samples: x.clone(),
                 })
                 .collect(),

@@ -3,7 +3,7 @@
 //! file (the rig's TOML with the calibrated `[simulation]` section and a `[calibration]` stamp
 //! `{id, effects}`), and the calibration id (hash of the calibrated section and the inputs).
 
-use super::error::{min_cut, ErrorParts, NAMES};
+use super::error::{min_cut, ErrorComponent, ErrorParts};
 use super::fit::{Outcome, FIT_CUT, HELD_CUT};
 use super::measured::Measured;
 use crate::config::RigConfig;
@@ -46,41 +46,34 @@ fn r3(v: f64) -> f64 {
 
 fn parts(e: &ErrorParts) -> Value {
     let mut m = serde_json::Map::new();
-    for n in NAMES {
-        m.insert(n.into(), json!(r3(e.get(n))));
+    for c in ErrorComponent::ALL {
+        m.insert(c.name().into(), json!(r3(e.get(c))));
     }
     m.insert("total".into(), json!(r3(e.total)));
     Value::Object(m)
 }
 
 /// What each component compares, for the Markdown table.
-const DESCRIPTIONS: [(&str, &str); 13] = [
-    ("env", "envelope order spectrum, mean dB"),
-    ("peaks", "fault-order locations, per mille"),
-    ("ratios", "harmonic and sideband ratios, summed dB / 10"),
-    (
-        "lines",
-        "raw-spectrum lines of healthy recordings, summed dB / 10",
-    ),
-    ("orders", "1x and 2x lines, mean dB"),
-    ("harmonics", "shaft orders 3x-30x, summed dB / 10"),
-    ("bands", "100 Hz band energies, mean dB"),
-    ("modes", "dominant resonance location, 100 Hz bands"),
-    ("floor", "absolute broadband floor, dB"),
-    ("speed", "speed-deviation spectrum"),
-    (
-        "fractional",
-        "sub-synchronous and fractional shaft orders, summed dB / 100",
-    ),
-    (
-        "half_orders",
-        "half-order lines 0.5x-3.5x (looseness, rub), summed dB / 10",
-    ),
-    (
-        "impacts",
-        "envelope spectrum of the band energy in Hz (healthy recordings), summed dB / 20",
-    ),
-];
+fn description(c: ErrorComponent) -> &'static str {
+    use ErrorComponent as C;
+    match c {
+        C::Env => "envelope order spectrum, mean dB",
+        C::Peaks => "fault-order locations, per mille",
+        C::Ratios => "harmonic and sideband ratios, summed dB / 10",
+        C::Lines => "raw-spectrum lines of healthy recordings, summed dB / 10",
+        C::Orders => "1x and 2x lines, mean dB",
+        C::Harmonics => "shaft orders 3x-30x, summed dB / 10",
+        C::Bands => "100 Hz band energies, mean dB",
+        C::Modes => "dominant resonance location, 100 Hz bands",
+        C::Floor => "absolute broadband floor, dB",
+        C::Speed => "speed-deviation spectrum",
+        C::Fractional => "sub-synchronous and fractional shaft orders, summed dB / 100",
+        C::HalfOrders => "half-order lines 0.5x-3.5x (looseness, rub), summed dB / 10",
+        C::Impacts => {
+            "envelope spectrum of the band energy in Hz (healthy recordings), summed dB / 20"
+        }
+    }
+}
 
 /// The report object printed by `--json`.
 pub fn json(rig: &RigConfig, o: &Outcome, ops: &[Measured], id: &str) -> Value {
@@ -127,7 +120,7 @@ pub fn json(rig: &RigConfig, o: &Outcome, ops: &[Measured], id: &str) -> Value {
         "split": split,
         "acceptance": {"fit_cut_relative": FIT_CUT.0, "fit_cut_min_cuts": FIT_CUT.1,
                         "held_cut_relative": HELD_CUT.0, "held_cut_min_cuts": HELD_CUT.1,
-                        "min_cut": NAMES.iter().map(|n| (n.to_string(), min_cut(n))).collect::<std::collections::BTreeMap<_, _>>()},
+                        "min_cut": ErrorComponent::ALL.iter().map(|&c| (c.name(), min_cut(c))).collect::<std::collections::BTreeMap<_, _>>()},
     })
 }
 
@@ -143,12 +136,13 @@ pub fn markdown(rig: &RigConfig, o: &Outcome, ops: &[Measured], id: &str) -> Str
         o.after.total
     );
     let _ = writeln!(s, "| component | before | after |\n|---|---|---|");
-    for (n, what) in DESCRIPTIONS {
+    for c in ErrorComponent::ALL {
         let _ = writeln!(
             s,
-            "| {n} ({what}) | {:.3} | {:.3} |",
-            o.before.get(n),
-            o.after.get(n)
+            "| {c} ({}) | {:.3} | {:.3} |",
+            description(c),
+            o.before.get(c),
+            o.after.get(c)
         );
     }
     s.push_str(&split_table(o, ops));

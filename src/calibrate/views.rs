@@ -38,6 +38,7 @@ use crate::dsp::order_spectrum::whole_recording;
 use crate::dsp::speed::SpeedTrack;
 use crate::recording::Recording;
 use crate::sim::Fault;
+use crate::vocabulary::ErrorComponent;
 use anyhow::{bail, Context, Result};
 use rayon::prelude::*;
 use realfft::RealFftPlanner;
@@ -317,17 +318,18 @@ impl Parts {
     /// ([`super::error`]). `speed` reads none (a twin's comes from its speed profile), nor
     /// does `modes` (the model's dominant mode) unless `mode_from_spectrum` (a model
     /// without structural modes: the twin's own dominant band).
-    pub fn for_components(names: &[&str], mode_from_spectrum: bool) -> Parts {
+    pub fn for_components(components: &[ErrorComponent], mode_from_spectrum: bool) -> Parts {
+        use ErrorComponent as C;
         let mut p = Parts::NONE;
-        for n in names {
-            match *n {
-                "env" | "peaks" | "ratios" => p.env = true,
-                "lines" | "bands" | "floor" => p.spectrum = true,
-                "modes" => p.spectrum |= mode_from_spectrum,
-                "orders" | "harmonics" => p.shaft = true,
-                "fractional" | "half_orders" => p.fractional = true,
-                "impacts" => p.impacts = true,
-                _ => {}
+        for c in components {
+            match c {
+                C::Env | C::Peaks | C::Ratios => p.env = true,
+                C::Lines | C::Bands | C::Floor => p.spectrum = true,
+                C::Modes => p.spectrum |= mode_from_spectrum,
+                C::Orders | C::Harmonics => p.shaft = true,
+                C::Fractional | C::HalfOrders => p.fractional = true,
+                C::Impacts => p.impacts = true,
+                C::Speed => {}
             }
         }
         p

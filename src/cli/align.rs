@@ -6,6 +6,7 @@ use crate::adapt::align_to_recordings;
 use crate::config::RigConfig;
 use crate::manifest::{manifest_path, read_manifest};
 use crate::model::{export, OnnxClassifier};
+use crate::vocabulary::Condition;
 use anyhow::{bail, Result};
 use indicatif::ProgressBar;
 use std::path::PathBuf;
@@ -39,7 +40,7 @@ pub fn run(args: Args) -> Result<()> {
     let csv = manifest_path(&args.healthy);
     let entries: Vec<_> = read_manifest(&csv)?
         .into_iter()
-        .filter(|e| e.label == "healthy")
+        .filter(|e| Condition::is_healthy(&e.label))
         .collect();
     if entries.is_empty() {
         bail!(

@@ -8,6 +8,7 @@ use crate::health::message::HealthMessage;
 use crate::historian::trend_png;
 use crate::publish::time_range::{now_ns, parse_duration, TimeRange, PARAMETER};
 use crate::publish::zenoh::{ZenohArgs, ZenohSettings};
+use crate::vocabulary::ZenohMode;
 use anyhow::{anyhow, bail, Result};
 use serde::Deserialize;
 use std::collections::BTreeMap;
@@ -88,7 +89,7 @@ pub fn run(args: Args) -> Result<()> {
     zenoh::key_expr::KeyExpr::try_from(key.clone())
         .map_err(|e| anyhow!("{key:?} is not a key expression: {e}"))?;
     let local = ZenohSettings {
-        mode: "client".into(),
+        mode: ZenohMode::Client,
         connect: vec!["tcp/127.0.0.1:7447".into()],
         history_windows: 0,
         ..Default::default()

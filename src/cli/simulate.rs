@@ -13,7 +13,7 @@ pub struct Args {
     #[arg(long)]
     pub rig: PathBuf,
     /// healthy | outer_race | inner_race | ball, comma-separated for compound faults.
-    #[arg(long, default_value = "healthy")]
+    #[arg(long, default_value = crate::vocabulary::Condition::Healthy.as_str())]
     pub fault: String,
     /// Shaft speed, rpm (start speed of a ramp).
     #[arg(long)]

@@ -8,6 +8,7 @@
 pub mod simulation;
 
 use crate::bearing::BearingGeometry;
+use crate::vocabulary::{AccelUnit, ChannelUnit};
 // The `[speed]` and `[features]` sections belong to the DSP layer; re-exported here so the
 // rig file reads as one type.
 pub use crate::dsp::feature_settings::{
@@ -93,8 +94,9 @@ pub struct ChannelConfig {
     /// Measurement axis (axial, vertical, horizontal, radial, ...); free text.
     #[serde(default)]
     pub axis: String,
-    /// Engineering unit after scaling (m/s^2, g, V).
-    pub unit: String,
+    /// Engineering unit after scaling (m/s^2, g, V): an acceleration channel's must be one
+    /// of [`AccelUnit`]'s spellings, parsed when the file is read.
+    pub unit: ChannelUnit,
     /// Raw value x sensitivity = value in `unit`.
     #[serde(default = "one")]
     pub sensitivity: f64,
@@ -129,15 +131,44 @@ impl RigConfig {
         Self::parse(&text).with_context(|| format!("in rig file {}", path.display()))
     }
 
-    /// Parse and validate rig TOML text.
+    /// Parse and validate rig TOML text. A unit that is not an acceleration unit on an
+    /// acceleration channel is refused naming its line.
     pub fn parse(text: &str) -> Result<RigConfig> {
         let rig: RigConfig = toml::from_str(text).map_err(|e| anyhow::anyhow!("{e}"))?;
+        if let Some((index, problem)) = rig.unit_problem() {
+            match unit_line(text, index) {
+                Some(line) => bail!("line {line}: {problem}"),
+                None => bail!("{problem}"),
+            }
+        }
         rig.validate()?;
         Ok(rig)
     }
 
+    /// The first acceleration channel whose unit is not an acceleration unit: its index in
+    /// `channels` and what is wrong.
+    fn unit_problem(&self) -> Option<(usize, String)> {
+        let (index, c) = self
+            .channels
+            .iter()
+            .enumerate()
+            .find(|(_, c)| c.kind == ChannelKind::Acceleration && c.unit.accel().is_none())?;
+        Some((
+            index,
+            format!(
+                "channels {:?}: unit = {:?} is not an acceleration unit; an acceleration channel takes one of {}",
+                c.name,
+                c.unit.as_str(),
+                AccelUnit::accepted()
+            ),
+        ))
+    }
+
     /// Consistency checks that serde cannot express.
     pub fn validate(&self) -> Result<()> {
+        if let Some((_, problem)) = self.unit_problem() {
+            bail!("{problem}");
+        }
         if let Some(key) = toml::Value::try_from(self)
             .ok()
             .as_ref()
@@ -366,6 +397,21 @@ fn first_non_finite(v: &toml::Value, path: &str) -> Option<String> {
     }
 }
 
+/// The line (from 1) where channel `index`'s `unit` is written in rig TOML `text`.
+fn unit_line(text: &str, index: usize) -> Option<usize> {
+    #[derive(Deserialize)]
+    struct Units {
+        channels: Vec<UnitAt>,
+    }
+    #[derive(Deserialize)]
+    struct UnitAt {
+        unit: toml::Spanned<String>,
+    }
+    let units: Units = toml::from_str(text).ok()?;
+    let start = units.channels.get(index)?.unit.span().start;
+    Some(text.get(..start)?.matches('\n').count() + 1)
+}
+
 /// A MAT variable path: a variable name, or struct fields joined by dots (`bearing.gs`).
 fn check_mat_path(key: &str, path: &str) -> Result<()> {
     if path
@@ -418,6 +464,62 @@ mod tests {
         assert_eq!(rig.bearing.balls, 9);
         assert_eq!(rig.acquisition.sample_rate_hz, None);
         assert_eq!(rig.classifier_channel().unwrap().name, "DE");
+    }
+
+    /// Issue 28: every spelling the daemon's velocity accepted is an acceleration unit of the
+    /// rig file, parsed once; the tacho's `V` stays text; a wrong unit on an acceleration
+    /// channel is refused when the file is read, naming the channel, the line and the
+    /// accepted spellings.
+    #[test]
+    fn acceleration_units_are_parsed_once_and_a_wrong_one_is_refused_with_its_line() {
+        let text = std::fs::read_to_string(
+            Path::new(env!("CARGO_MANIFEST_DIR")).join("config/lut-rig.toml"),
+        )
+        .unwrap();
+        for (spelling, unit) in [
+            ("G", AccelUnit::StandardGravity),
+            ("g", AccelUnit::StandardGravity),
+            ("gn", AccelUnit::StandardGravity),
+            ("m/s2", AccelUnit::MetrePerSecondSquared),
+            ("M/S^2", AccelUnit::MetrePerSecondSquared),
+            ("m/s²", AccelUnit::MetrePerSecondSquared),
+            ("ms^-2", AccelUnit::MetrePerSecondSquared),
+            ("mm/s^2", AccelUnit::MillimetrePerSecondSquared),
+            ("mm/s2", AccelUnit::MillimetrePerSecondSquared),
+        ] {
+            let t = text.replacen("unit = \"m/s^2\"", &format!("unit = {spelling:?}"), 2);
+            let rig = RigConfig::parse(&t).unwrap_or_else(|e| panic!("{spelling}: {e:#}"));
+            assert_eq!(rig.channels[1].unit.accel(), Some(unit), "{spelling}");
+            assert_eq!(rig.channels[1].unit.as_str(), spelling);
+            assert_eq!(rig.channels[3].unit.as_str(), "V");
+            assert_eq!(rig.channels[3].unit.accel(), None);
+            // The file keeps its spelling when written back.
+            let back = toml::to_string(&rig).unwrap();
+            assert!(back.contains(&format!("unit = {spelling:?}")), "{back}");
+            assert_eq!(RigConfig::parse(&back).unwrap(), rig);
+        }
+        // Line 31 holds the vertical channel's unit.
+        let lines: Vec<&str> = text.lines().collect();
+        assert_eq!(lines[30], "unit = \"m/s^2\"");
+        let bad = text.replacen("unit = \"m/s^2\"", "unit = \"furlong\"", 2);
+        let bad = bad.replacen("unit = \"furlong\"", "unit = \"m/s^2\"", 1);
+        let err = format!("{:#}", RigConfig::parse(&bad).unwrap_err());
+        assert!(
+            err.starts_with("line 31: channels \"vertical\": unit = \"furlong\""),
+            "{err}"
+        );
+        assert!(
+            err.contains("m/s^2") && err.contains("mm/s^2") && err.contains("gn"),
+            "{err}"
+        );
+        // A rig built in code is checked by validate (no text, so no line).
+        let mut rig = RigConfig::parse(&text).unwrap();
+        rig.channels[0].unit = "furlong".into();
+        let err = format!("{:#}", rig.validate().unwrap_err());
+        assert!(
+            err.starts_with("channels \"axial\": unit = \"furlong\""),
+            "{err}"
+        );
     }
 
     #[test]

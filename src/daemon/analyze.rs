@@ -16,6 +16,7 @@ use crate::health::verdict::{novelty_threshold, quality_problem};
 use crate::health::{HealthPolicy, HealthStateMachine, Smoothed, UnknownReason, WindowInput};
 use crate::model::evidence::{BaselineSpread, FamilyBins, FamilyEvidence};
 use crate::model::onnx::OnnxClassifier;
+use crate::vocabulary::QualityFlag;
 use anyhow::{Context, Result};
 use std::collections::BTreeMap;
 
@@ -71,7 +72,7 @@ impl Analyzer {
         health.set_hop_fraction(rig.features.hop_s / rig.features.window_s);
         let chans: Vec<(String, String)> = rig
             .acceleration_channels()
-            .map(|c| (c.name.clone(), c.unit.clone()))
+            .map(|c| (c.name.clone(), c.unit.to_string()))
             .collect();
         let names: Vec<String> = chans.iter().map(|(n, _)| n.clone()).collect();
         let cls = rig
@@ -183,7 +184,7 @@ impl Analyzer {
         };
         match analysis.features {
             Err(WindowError::NoSpeed(e)) => {
-                c.quality.flag("no_speed");
+                c.quality.flag(QualityFlag::NoSpeed);
                 tracing::debug!(
                     "window {:.1}-{:.1} s: no speed: {e:#}",
                     view.t_start,
@@ -192,10 +193,10 @@ impl Analyzer {
             }
             Err(WindowError::Features(e)) => {
                 if analysis.tacho_lost {
-                    c.quality.flag("tacho_lost");
+                    c.quality.flag(QualityFlag::TachoLost);
                 }
                 self.errors += 1;
-                c.quality.flag("features_failed");
+                c.quality.flag(QualityFlag::FeaturesFailed);
                 tracing::warn!(
                     "window {:.1}-{:.1} s: features failed: {e:#}",
                     view.t_start,
@@ -204,7 +205,7 @@ impl Analyzer {
             }
             Ok(fw) => {
                 if analysis.tacho_lost {
-                    c.quality.flag("tacho_lost");
+                    c.quality.flag(QualityFlag::TachoLost);
                 }
                 c.rpm = Some(fw.rpm).filter(|r| r.is_finite());
                 c.speed_source = fw.speed_source.clone();
@@ -222,10 +223,10 @@ impl Analyzer {
     /// [`quality_problem`]'s to say).
     fn dsp_quality(q: &Quality, quality: &mut QualityReport) {
         for (flag, list) in [
-            ("clipping", &q.clipped),
-            ("flat", &q.flat),
-            ("dropout", &q.dropout),
-            ("nan", &q.non_finite),
+            (QualityFlag::Clipping, &q.clipped),
+            (QualityFlag::Flat, &q.flat),
+            (QualityFlag::Dropout, &q.dropout),
+            (QualityFlag::Nan, &q.non_finite),
         ] {
             if !list.is_empty() {
                 quality.flag(flag);
@@ -233,23 +234,23 @@ impl Analyzer {
         }
         if !q.dc_offset.is_empty() {
             // Advisory: the envelope features ignore DC.
-            quality.flag("dc_offset");
+            quality.flag(QualityFlag::DcOffset);
         }
         quality.flat_channels = q.flat.clone();
         quality.clipped_samples = q.clipped.len() as u32;
         quality.missing_tacho_pulses = q.missing_pulses;
         if q.missing_pulses > 0 {
-            quality.flag("missing_tacho_pulses");
+            quality.flag(QualityFlag::MissingTachoPulses);
         }
         if q.speed_out_of_range {
-            quality.flag("speed_out_of_range");
+            quality.flag(QualityFlag::SpeedOutOfRange);
         }
         if q.speed_uncertain {
-            quality.flag("speed_uncertain");
+            quality.flag(QualityFlag::SpeedUncertain);
         }
         if q.speed_ambiguous {
             // advisory: classified, the rival speed is in the message
-            quality.flag("speed_ambiguous");
+            quality.flag(QualityFlag::SpeedAmbiguous);
         }
         quality.dsp = serde_json::to_value(q).unwrap_or_default();
     }
@@ -274,7 +275,7 @@ impl Analyzer {
                     view.t_start,
                     view.t_end
                 );
-                c.problem = Some("inference_failed");
+                c.problem = Some(QualityFlag::InferenceFailed);
             }
         }
     }
@@ -418,7 +419,7 @@ struct Classified {
     features: Option<FeatureWindow>,
     quality: QualityReport,
     /// Why the classifier channel's data cannot be trusted (None: it can).
-    problem: Option<&'static str>,
+    problem: Option<QualityFlag>,
     probs: Vec<f32>,
     /// NaN when the classifier did not run.
     novelty: f32,
@@ -444,11 +445,11 @@ fn stream_quality(analysis: &WindowAnalysis) -> QualityReport {
     };
     if analysis.lost_samples > 0 {
         quality.dropout_samples = analysis.lost_samples;
-        quality.flag("dropout");
+        quality.flag(QualityFlag::Dropout);
     }
     if analysis.nan_samples > 0 {
         quality.nan_samples += analysis.nan_samples;
-        quality.flag("nan");
+        quality.flag(QualityFlag::Nan);
     }
     quality
 }

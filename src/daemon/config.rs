@@ -182,7 +182,7 @@ mod tests {
         assert!(c.rig.ends_with("lut-rig.toml"));
         c.load_rig().unwrap();
         assert!(c.model.path.ends_with("models/lut-rig.onnx"));
-        assert_eq!(c.zenoh.mode, "peer");
+        assert_eq!(c.zenoh.mode, crate::vocabulary::ZenohMode::Peer);
         assert!(!c.zenoh.multicast_scouting);
         assert!(!c.zenoh.listen.is_empty());
         for e in c.zenoh.listen.iter().chain(&c.zenoh.connect) {

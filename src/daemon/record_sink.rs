@@ -159,7 +159,7 @@ fn recording_info(rig: &RigConfig, source: &SourceInfo, start_ns: u64) -> Record
             .map(|c| ChannelInfo {
                 name: c.name.clone(),
                 axis: c.axis.clone(),
-                unit: c.unit.clone(),
+                unit: c.unit.to_string(),
             })
             .collect(),
         tacho,
@@ -182,7 +182,7 @@ fn tacho_unit(speed: &SpeedConfig, channels: &[ChannelConfig]) -> String {
     };
     named
         .or_else(|| channels.iter().find(|c| c.kind == ChannelKind::Tacho))
-        .map(|c| c.unit.clone())
+        .map(|c| c.unit.to_string())
         .unwrap_or_else(|| "V".into())
 }
 

@@ -62,7 +62,7 @@ impl SinkConfig for ZenohSettings {
         tracing::info!(
             "publishing on {base_key}/{{health,spectrum,status}} (zenoh {} {:?} listen {:?} connect {:?})",
             publisher.session().zid(),
-            self.mode,
+            self.mode.as_str(),
             self.listen,
             self.connect
         );

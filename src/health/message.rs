@@ -6,6 +6,7 @@
 use super::iso20816::Zone;
 use super::{Basis, UnknownReason};
 use crate::model::evidence::FamilyEvidence;
+use crate::vocabulary::QualityFlag;
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 use std::fmt::Write as _;
@@ -130,7 +131,8 @@ pub struct QualityReport {
 
 impl QualityReport {
     /// Set a flag once (and `ok = false`).
-    pub fn flag(&mut self, name: &str) {
+    pub fn flag(&mut self, flag: QualityFlag) {
+        let name = flag.as_str();
         if !self.flags.iter().any(|f| f == name) {
             self.flags.push(name.to_string());
         }
@@ -318,8 +320,8 @@ mod tests {
             ok: true,
             ..Default::default()
         };
-        q.flag("nan");
-        q.flag("nan");
+        q.flag(QualityFlag::Nan);
+        q.flag(QualityFlag::Nan);
         assert_eq!(q.flags, ["nan"]);
         assert!(!q.ok);
         assert!(line.contains("alarm despite novelty"), "{line}");

@@ -28,39 +28,45 @@
 use super::{HealthPolicy, UnknownReason, UNKNOWN};
 use crate::analysis::{WindowAnalysis, WindowError};
 use crate::model::evidence::FamilyEvidence;
+use crate::vocabulary::Condition;
+use crate::vocabulary::QualityFlag;
 use serde::{Deserialize, Serialize};
 
 /// Why the classifier channel's window cannot be trusted, as the quality flag that says so
 /// (`nan`, `dropout`, `no_speed`, `features_failed`, `tacho_lost`, `clipping`, `flat`,
 /// `speed_out_of_range`); None when it can.
-pub fn quality_problem(a: &WindowAnalysis, classifier: &str) -> Option<&'static str> {
+pub fn quality_problem(a: &WindowAnalysis, classifier: &str) -> Option<QualityFlag> {
     if a.classifier_nan {
-        return Some(if a.lost_samples > 0 { "dropout" } else { "nan" });
+        return Some(if a.lost_samples > 0 {
+            QualityFlag::Dropout
+        } else {
+            QualityFlag::Nan
+        });
     }
     let fw = match &a.features {
-        Err(WindowError::NoSpeed(_)) => return Some("no_speed"),
-        Err(WindowError::Features(_)) => return Some("features_failed"),
+        Err(WindowError::NoSpeed(_)) => return Some(QualityFlag::NoSpeed),
+        Err(WindowError::Features(_)) => return Some(QualityFlag::FeaturesFailed),
         Ok(fw) => fw,
     };
     if a.tacho_lost {
-        return Some("tacho_lost");
+        return Some(QualityFlag::TachoLost);
     }
     let q = &fw.quality;
     let on_classifier = |list: &[String]| list.iter().any(|c| c == classifier);
     for (flag, list) in [
-        ("clipping", &q.clipped),
-        ("flat", &q.flat),
-        ("dropout", &q.dropout),
-        ("nan", &q.non_finite),
+        (QualityFlag::Clipping, &q.clipped),
+        (QualityFlag::Flat, &q.flat),
+        (QualityFlag::Dropout, &q.dropout),
+        (QualityFlag::Nan, &q.non_finite),
     ] {
         if on_classifier(list) {
             return Some(flag);
         }
     }
     if q.speed_out_of_range {
-        return Some("speed_out_of_range");
+        return Some(QualityFlag::SpeedOutOfRange);
     }
-    q.speed_uncertain.then_some("speed_uncertain")
+    q.speed_uncertain.then_some(QualityFlag::SpeedUncertain)
 }
 
 /// What one window says, before the verdict.
@@ -73,7 +79,7 @@ pub struct WindowInput<'a> {
     pub novelty: f32,
     pub model_novelty_threshold: f32,
     /// Why the data forbids a verdict ([`quality_problem`], or `inference_failed`).
-    pub quality: Option<&'static str>,
+    pub quality: Option<QualityFlag>,
     /// The window stands beyond the machine's healthy baseline (None: not aligned).
     pub beyond_baseline: Option<bool>,
     /// Fault-family evidence against the machine's healthy baseline (None: not available).
@@ -199,7 +205,7 @@ pub fn judge(w: &WindowInput, policy: &HealthPolicy) -> WindowVerdict {
     };
     // Beyond the healthy baseline the gate has already zeroed `healthy`: every class left is
     // a fault, so the window is an alarm whatever the network's doubt.
-    let clearly_faulty = model_class != "healthy"
+    let clearly_faulty = !Condition::is_healthy(model_class)
         && (w.beyond_baseline == Some(true) || top_p >= policy.novel_alarm_confidence);
     if clearly_faulty {
         decided(model_class, Basis::Model, None)
@@ -249,7 +255,7 @@ mod tests {
     fn bad_quality_wins_over_everything() {
         let l = labels();
         let w = WindowInput {
-            quality: Some("clipping"),
+            quality: Some(QualityFlag::Clipping),
             evidence: ev(0.0, 50.0, 0.0),
             ..input(&l, &[0.0, 0.0, 1.0])
         };

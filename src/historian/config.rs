@@ -7,6 +7,7 @@
 use super::database::DatabaseSettings;
 use crate::config::resolve_relative;
 use crate::publish::zenoh::ZenohSettings;
+use crate::vocabulary::ZenohMode;
 use anyhow::{bail, Context, Result};
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
@@ -108,7 +109,7 @@ fn default_site() -> String {
 }
 fn client_zenoh() -> ZenohSettings {
     ZenohSettings {
-        mode: "client".into(),
+        mode: ZenohMode::Client,
         connect: vec!["tcp/127.0.0.1:7447".into()],
         history_windows: 0,
         ..Default::default()
@@ -308,7 +309,7 @@ mod tests {
         let p = Path::new(env!("CARGO_MANIFEST_DIR")).join("config/historian.toml");
         let text = std::fs::read_to_string(&p).unwrap();
         let c = HistorianConfig::parse(&text, &p).unwrap();
-        assert_eq!(c.zenoh.mode, "client");
+        assert_eq!(c.zenoh.mode, ZenohMode::Client);
         assert!(!c.zenoh.multicast_scouting);
         assert!(c
             .zenoh

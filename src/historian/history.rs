@@ -14,8 +14,8 @@ use crate::health::message::{
 };
 use crate::health::{Basis, UnknownReason};
 use crate::model::evidence::FamilyEvidence;
-use crate::model::ALL_LABELS;
 use crate::publish::time_range::{now_ns, TimeRange, PARAMETER as TIME};
+use crate::vocabulary::Condition;
 use anyhow::{anyhow, Result};
 use std::collections::BTreeMap;
 use std::sync::Arc;
@@ -83,7 +83,7 @@ fn message_of(r: &Row) -> serde_json::Value {
     let secs = |ns: u64| ns.saturating_sub(run) as f64 / 1e9;
     let labels: Vec<String> = r.get(16);
     let mut probabilities = BTreeMap::new();
-    for (i, l) in ALL_LABELS.iter().enumerate() {
+    for (i, l) in Condition::NAMES.iter().enumerate() {
         if let Some(p) = r.get::<_, Option<f32>>(17 + i) {
             probabilities.insert(l.to_string(), p);
         }

@@ -3,8 +3,8 @@
 //! that produced it and, on a state change, the full JSON for the event.
 
 use crate::health::message::HealthMessage;
-use crate::model::ALL_LABELS;
 use crate::publish::recent::run_start_ns;
+use crate::vocabulary::Condition;
 use anyhow::{bail, Result};
 use std::time::{Duration, SystemTime, UNIX_EPOCH};
 use tokio_postgres::types::{ToSql, Type};
@@ -192,7 +192,7 @@ impl WindowRow {
         let others: serde_json::Map<String, serde_json::Value> = m
             .probabilities
             .iter()
-            .filter(|(l, _)| !ALL_LABELS.contains(&l.as_str()))
+            .filter(|(l, _)| !Condition::NAMES.contains(&l.as_str()))
             .map(|(l, p)| (l.clone(), serde_json::json!(p)))
             .collect();
         let fb = &m.fault_bands;
@@ -230,10 +230,10 @@ impl WindowRow {
             unknown_reason: label(m.unknown_reason),
             alarm_despite: label(m.alarm_despite),
             p: [
-                prob(ALL_LABELS[0]),
-                prob(ALL_LABELS[1]),
-                prob(ALL_LABELS[2]),
-                prob(ALL_LABELS[3]),
+                prob(Condition::NAMES[0]),
+                prob(Condition::NAMES[1]),
+                prob(Condition::NAMES[2]),
+                prob(Condition::NAMES[3]),
             ],
             p_other: (!others.is_empty()).then_some(serde_json::Value::Object(others)),
             novelty: m.novelty,

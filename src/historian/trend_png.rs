@@ -5,13 +5,13 @@
 
 use crate::health::message::HealthMessage;
 use crate::health::UNKNOWN;
-use crate::model::ALL_LABELS;
 use crate::plots::ensure_font;
+use crate::vocabulary::Condition;
 use anyhow::{anyhow, bail, Result};
 use plotters::prelude::*;
 use std::path::Path;
 
-/// Colours of the states in [`ALL_LABELS`] order (healthy, outer race, inner race, ball).
+/// Colours of the states in [`Condition::NAMES`] order (healthy, outer race, inner race, ball).
 const LABEL_COLOURS: [RGBColor; 4] = [
     RGBColor(60, 170, 80),
     RGBColor(220, 60, 50),
@@ -24,7 +24,7 @@ fn state_colour(state: &str) -> RGBColor {
     if state == UNKNOWN {
         return RGBColor(170, 170, 170);
     }
-    ALL_LABELS
+    Condition::NAMES
         .iter()
         .position(|l| *l == state)
         .map_or(RGBColor(60, 90, 200), |i| LABEL_COLOURS[i])

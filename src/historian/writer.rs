@@ -11,7 +11,7 @@ use super::partitions::Partitions;
 use super::row::{ns_of, time_of, ModelKey, PointInfo, WindowRow, COLUMNS};
 use crate::daemon::status::StatusMessage;
 use crate::health::UNKNOWN;
-use crate::model::ALL_LABELS;
+use crate::vocabulary::Condition;
 use anyhow::{Context, Result};
 use std::collections::HashMap;
 use std::time::SystemTime;
@@ -346,7 +346,7 @@ impl Writer {
                     .context("COPY row")?;
             }
             copy.as_mut().finish().await.context("COPY finish")?;
-            let healthy = ALL_LABELS[0];
+            let healthy = Condition::Healthy.as_str();
             let inserted: i64 = tx
                 .query_one(&self.insert_sql, &[&UNKNOWN, &healthy])
                 .await

@@ -365,13 +365,13 @@ pub fn load(path: &Path, rig: &RigConfig, opts: &ImportOptions) -> Result<Record
             ChannelKind::Acceleration => channels.push(Channel {
                 name: cfg.name.clone(),
                 axis: cfg.axis.clone(),
-                unit: cfg.unit.clone(),
+                unit: cfg.unit.to_string(),
                 samples,
             }),
             ChannelKind::Tacho => {
                 tacho = Some(Tacho::Analog {
                     samples,
-                    unit: cfg.unit.clone(),
+                    unit: cfg.unit.to_string(),
                 })
             }
         }

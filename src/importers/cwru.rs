@@ -12,6 +12,7 @@ use super::mat5::{MatDirectory, MatFile, MatValue};
 use super::{check_classifier_channel, resolve_sample_rate, ImportOptions, WARNING};
 use crate::config::RigConfig;
 use crate::recording::{Channel, Provenance, Recording};
+use crate::vocabulary::Condition;
 use anyhow::{bail, Result};
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::Path;
@@ -76,9 +77,9 @@ const K12: f64 = 12_000.0;
 const K48: f64 = 48_000.0;
 const DE: Option<&str> = Some("DE");
 const FE: Option<&str> = Some("FE");
-const IR: &str = "inner_race";
-const B: &str = "ball";
-const OR: &str = "outer_race";
+const IR: &str = Condition::InnerRace.as_str();
+const B: &str = Condition::Ball.as_str();
+const OR: &str = Condition::OuterRace.as_str();
 
 /// The CWRU Bearing Data Center's tables (pages "Normal Baseline Data", "12k Drive End Bearing
 /// Fault Data", "48k Drive End Bearing Fault Data", "12k Fan End Bearing Fault Data"), by record
@@ -92,7 +93,14 @@ const OR: &str = "outer_race";
 /// page says.
 const TABLE: &[Row] = &[
     // Normal baselines (both bearings healthy), 48 kHz.
-    row(K48, None, "healthy", 0, 0, [97, 98, 99, 100]),
+    row(
+        K48,
+        None,
+        Condition::Healthy.as_str(),
+        0,
+        0,
+        [97, 98, 99, 100],
+    ),
     // 12 kHz, fault on the drive-end bearing.
     row(K12, DE, IR, 7, 0, [105, 106, 107, 108]),
     row(K12, DE, IR, 14, 0, [169, 170, 171, 172]),
@@ -287,7 +295,7 @@ pub fn from_mat(
         channels.push(Channel {
             name: cfg.name.clone(),
             axis: cfg.axis.clone(),
-            unit: cfg.unit.clone(),
+            unit: cfg.unit.to_string(),
             samples: samples.iter().map(|&x| (x * k) as f32).collect(),
         });
     }
@@ -402,7 +410,7 @@ pub fn from_mat(
                      watches {m}, whose bearing is healthy: labelled healthy",
                     e.label
                 ));
-                "healthy"
+                Condition::Healthy.as_str()
             }
             _ => e.label,
         };

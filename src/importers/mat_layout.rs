@@ -163,13 +163,13 @@ fn read_channels(
             ChannelKind::Acceleration => channels.push(Channel {
                 name: cfg.name.clone(),
                 axis: cfg.axis.clone(),
-                unit: cfg.unit.clone(),
+                unit: cfg.unit.to_string(),
                 samples,
             }),
             ChannelKind::Tacho if tacho.is_none() => {
                 tacho = Some(Tacho::Analog {
                     samples,
-                    unit: cfg.unit.clone(),
+                    unit: cfg.unit.to_string(),
                 })
             }
             ChannelKind::Tacho => bail!(

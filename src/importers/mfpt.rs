@@ -157,7 +157,7 @@ pub fn from_mat(
         channels: vec![Channel {
             name: cfg.name.clone(),
             axis: cfg.axis.clone(),
-            unit: cfg.unit.clone(),
+            unit: cfg.unit.to_string(),
             samples: signal.iter().map(|&x| (x * k) as f32).collect(),
         }],
         tacho: None,

@@ -104,7 +104,7 @@ pub fn open(path: &Path, rig: &RigConfig, opts: &ImportOptions) -> Result<WavStr
                 channels.push(ChannelInfo {
                     name: cfg.name.clone(),
                     axis: cfg.axis.clone(),
-                    unit: cfg.unit.clone(),
+                    unit: cfg.unit.to_string(),
                 });
             }
             ChannelKind::Tacho => {
@@ -113,7 +113,7 @@ pub fn open(path: &Path, rig: &RigConfig, opts: &ImportOptions) -> Result<WavStr
                 }
                 targets.push(Target::Tacho);
                 tacho = TachoInfo::Analog {
-                    unit: cfg.unit.clone(),
+                    unit: cfg.unit.to_string(),
                 };
             }
         }

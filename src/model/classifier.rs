@@ -7,6 +7,7 @@ use super::meta::ModelMeta;
 use super::mlp::{softmax, Mlp};
 use super::novelty::Mahalanobis;
 use super::preprocess::Preprocess;
+use crate::vocabulary::Condition;
 use ndarray::{Array1, Array2, ArrayView2};
 
 #[derive(Debug, Clone, PartialEq)]
@@ -38,7 +39,7 @@ impl TrainedModel {
         let mut probs = softmax(logits.view());
         if let (Some(b), Some(h)) = (
             &self.baseline,
-            self.meta.labels.iter().position(|l| l == "healthy"),
+            Condition::Healthy.index_in(&self.meta.labels),
         ) {
             let d = b.distances(x, self.pre.floor);
             b.gate(&mut probs, &d, h);

@@ -28,6 +28,7 @@
 use super::meta::ModelMeta;
 use crate::bearing::FaultOrders;
 use crate::config::RigConfig;
+use crate::vocabulary::Condition;
 use serde::{Deserialize, Serialize};
 use std::collections::VecDeque;
 
@@ -36,7 +37,7 @@ use std::collections::VecDeque;
 pub const SLIP: f64 = 0.02;
 
 /// Fault families with their class labels, in the order [`FamilyEvidence`] keeps them.
-pub const FAMILY_LABELS: [&str; 3] = ["outer_race", "inner_race", "ball"];
+pub const FAMILY_LABELS: [&str; 3] = Condition::FAULT_NAMES;
 
 /// Mean and standard deviation of the largest of k independent standard normal values,
 /// k = 1..=6 (order statistics; numerical integration).
@@ -61,11 +62,11 @@ pub struct FamilyEvidence {
 impl FamilyEvidence {
     /// The evidence for a class label (None for labels that are no fault family).
     pub fn of(&self, label: &str) -> Option<f32> {
-        match label {
-            "outer_race" => Some(self.outer_race),
-            "inner_race" => Some(self.inner_race),
-            "ball" => Some(self.ball),
-            _ => None,
+        match Condition::parse(label)? {
+            Condition::OuterRace => Some(self.outer_race),
+            Condition::InnerRace => Some(self.inner_race),
+            Condition::Ball => Some(self.ball),
+            Condition::Healthy => None,
         }
     }
 

@@ -16,6 +16,7 @@ use super::mlp::{Dense, Mlp};
 use super::novelty::Mahalanobis;
 use super::preprocess::{Preprocess, TINY};
 use crate::config::RigConfig;
+use crate::vocabulary::Condition;
 use anyhow::{bail, Context, Result};
 use ndarray::{Array1, Array2};
 use prost::Message;
@@ -267,7 +268,7 @@ pub fn to_proto(m: &TrainedModel) -> pb::ModelProto {
         value_info(OUT_NOVELTY, &[Dim::Batch]),
     ];
     if let Some(b) = &m.baseline {
-        let healthy = m.meta.labels.iter().position(|l| l == "healthy");
+        let healthy = Condition::Healthy.index_in(&m.meta.labels);
         baseline_gate(b, healthy, n_in, n_cls, &mut init, &mut nodes);
         outputs.push(value_info(OUT_BASELINE, &[Dim::Batch]));
         outputs.push(value_info(OUT_DEVIATION, &[Dim::Batch, Dim::Fixed(n_in)]));

@@ -26,4 +26,4 @@ pub use meta::ModelMeta;
 pub use onnx::{OnnxClassifier, Prediction};
 
 /// The class labels a rigmon classifier may use, in canonical output order.
-pub const ALL_LABELS: [&str; 4] = ["healthy", "outer_race", "inner_race", "ball"];
+pub const ALL_LABELS: [&str; 4] = crate::vocabulary::Condition::NAMES;

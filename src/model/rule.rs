@@ -17,11 +17,16 @@ use crate::bearing::FaultOrders;
 use crate::config::RigConfig;
 use crate::dsp::fault_band_ratios::{FaultBandMeter, FaultBandRatios, BAND_WIDTH_ORDER};
 use crate::recording::Recording;
+use crate::vocabulary::Condition;
 use anyhow::{bail, Context, Result};
 use serde::Serialize;
 
 /// Classes the rule can name, in this order.
-pub const RULE_LABELS: [&str; 3] = ["healthy", "outer_race", "inner_race"];
+pub const RULE_LABELS: [&str; 3] = [
+    Condition::Healthy.as_str(),
+    Condition::OuterRace.as_str(),
+    Condition::InnerRace.as_str(),
+];
 
 /// The rule's two numbers.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]

@@ -1,6 +1,7 @@
 //! Embedding scatter (PNG): one point per feature window, colour = class, marker = domain
 //! (circle = simulated, triangle = measured), as in the thesis' Fig. 4.5.
 
+use crate::vocabulary::Condition;
 use anyhow::{anyhow, Result};
 use plotters::prelude::*;
 use std::path::Path;
@@ -15,12 +16,12 @@ pub struct Point {
 }
 
 fn class_color(label: &str) -> RGBColor {
-    match label {
-        "healthy" => RGBColor(0, 150, 60),
-        "outer_race" => RGBColor(220, 60, 30),
-        "inner_race" => RGBColor(30, 90, 220),
-        "ball" => RGBColor(150, 50, 180),
-        _ => RGBColor(90, 90, 90),
+    match Condition::parse(label) {
+        Some(Condition::Healthy) => RGBColor(0, 150, 60),
+        Some(Condition::OuterRace) => RGBColor(220, 60, 30),
+        Some(Condition::InnerRace) => RGBColor(30, 90, 220),
+        Some(Condition::Ball) => RGBColor(150, 50, 180),
+        None => RGBColor(90, 90, 90),
     }
 }
 

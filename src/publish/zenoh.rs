@@ -13,6 +13,7 @@
 //! Endpoints are checked before a session opens (ports in range, listen ports free), and
 //! zenoh's errors reach the user without the source paths of the machine that built zenoh.
 
+use crate::vocabulary::ZenohMode;
 use anyhow::{anyhow, bail, Context, Result};
 use serde::{Deserialize, Serialize};
 use std::path::PathBuf;
@@ -33,9 +34,9 @@ pub struct ZenohSettings {
     /// Publish at all (false = health only goes to stdout/recording).
     #[serde(default = "yes")]
     pub enabled: bool,
-    /// `peer`, `client` or `router`.
-    #[serde(default = "default_mode")]
-    pub mode: String,
+    /// `peer` (default), `client` or `router`.
+    #[serde(default)]
+    pub mode: ZenohMode,
     /// Endpoints to listen on, e.g. `tcp/127.0.0.1:7448`.
     #[serde(default)]
     pub listen: Vec<String>,
@@ -74,9 +75,6 @@ fn default_history_windows() -> usize {
 fn yes() -> bool {
     true
 }
-fn default_mode() -> String {
-    "peer".into()
-}
 fn default_prefix() -> String {
     "rigmon".into()
 }
@@ -85,7 +83,7 @@ impl Default for ZenohSettings {
     fn default() -> Self {
         ZenohSettings {
             enabled: true,
-            mode: default_mode(),
+            mode: ZenohMode::default(),
             listen: Vec::new(),
             connect: Vec::new(),
             multicast_scouting: false,
@@ -103,8 +101,8 @@ impl Default for ZenohSettings {
 #[derive(clap::Args, Debug, Clone, Default)]
 pub struct ZenohArgs {
     /// Zenoh session mode: peer, client or router.
-    #[arg(long, value_parser = ["peer", "client", "router"])]
-    pub mode: Option<String>,
+    #[arg(long, value_enum)]
+    pub mode: Option<ZenohMode>,
     /// Endpoint to connect to (repeatable), e.g. tcp/127.0.0.1:7448.
     #[arg(short = 'e', long = "connect", value_name = "ENDPOINT")]
     pub connect: Vec<String>,
@@ -134,8 +132,8 @@ impl ZenohArgs {
 
     /// Apply the flags over `base` (flags win; given endpoint lists replace the base's).
     pub fn apply(&self, mut base: ZenohSettings) -> ZenohSettings {
-        if let Some(m) = &self.mode {
-            base.mode = m.clone();
+        if let Some(m) = self.mode {
+            base.mode = m;
         }
         if !self.connect.is_empty() {
             base.connect = self.connect.clone();
@@ -160,13 +158,7 @@ impl ZenohArgs {
 impl ZenohSettings {
     /// Check what can be checked without opening a session.
     pub fn validate(&self) -> Result<()> {
-        if !["peer", "client", "router"].contains(&self.mode.as_str()) {
-            bail!(
-                "zenoh.mode = {:?}: use \"peer\", \"client\" or \"router\"",
-                self.mode
-            );
-        }
-        if self.mode == "client" && self.connect.is_empty() && self.config_file.is_none() {
+        if self.mode == ZenohMode::Client && self.connect.is_empty() && self.config_file.is_none() {
             bail!("zenoh.mode = \"client\" needs at least one zenoh.connect endpoint (a router), e.g. tcp/127.0.0.1:7447");
         }
         if self.key_prefix.is_empty()
@@ -811,7 +803,7 @@ mod tests {
             .to_string()
             .contains("tcp/127.0.0.1:7448"));
         let client = ZenohSettings {
-            mode: "client".into(),
+            mode: ZenohMode::Client,
             ..Default::default()
         };
         assert!(client

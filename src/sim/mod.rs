@@ -33,6 +33,7 @@ use crate::bearing::{BearingGeometry, FaultOrders};
 use crate::config::simulation::{SimulationConfig, SIGNALS};
 use crate::config::{Acquisition, ChannelConfig, ChannelKind, RigConfig};
 use crate::recording::Recording;
+use crate::vocabulary::{AccelUnit, ChannelUnit};
 use anyhow::{bail, Context, Result};
 use bearing_contact::BallBearing;
 use integrate::Engine;
@@ -41,9 +42,6 @@ use rand::SeedableRng;
 use rotor::RotorModel;
 use std::collections::BTreeMap;
 use structure::Structure;
-
-/// Standard gravity, for channels in g.
-pub const G0: f64 = 9.80665;
 
 /// The rig's simulation section (or an error saying how to add one).
 pub fn rig_simulation(rig: &RigConfig) -> Result<&SimulationConfig> {
@@ -97,15 +95,15 @@ pub fn dominant_resonance(rig: &RigConfig, sim: &SimulationConfig) -> Option<usi
     structure::dominant_mode(&sim.structure.resonances, signal)
 }
 
-/// Factor from m/s^2 to a channel's unit (m/s^2, mm/s^2 or g).
-pub fn unit_scale(unit: &str, channel: &str) -> Result<f64> {
-    match unit.trim() {
-        "m/s^2" | "m/s2" | "m/s²" => Ok(1.0),
-        "g" => Ok(1.0 / G0),
-        "mm/s^2" => Ok(1000.0),
-        other => {
-            bail!("channel {channel:?} has unit {other:?}; the simulator writes m/s^2, mm/s^2 or g")
-        }
+/// Factor from m/s^2 to a channel's unit (any spelling [`AccelUnit`] accepts).
+pub fn unit_scale(unit: &ChannelUnit, channel: &str) -> Result<f64> {
+    match unit.accel() {
+        Some(u) => Ok(1.0 / u.factor_to_m_s2()),
+        None => bail!(
+            "channel {channel:?} has unit {:?}; the simulator writes acceleration in one of {}",
+            unit.as_str(),
+            AccelUnit::accepted()
+        ),
     }
 }
 

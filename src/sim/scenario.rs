@@ -5,6 +5,7 @@
 use super::defects::DefectSet;
 use super::profile::SpeedProfile;
 use crate::config::simulation::{DefectShape, SimulationConfig};
+use crate::vocabulary::Condition;
 use anyhow::{bail, Result};
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
@@ -19,12 +20,17 @@ pub enum Fault {
 }
 
 impl Fault {
-    pub fn label(&self) -> &'static str {
+    /// The condition this fault is.
+    pub fn condition(&self) -> Condition {
         match self {
-            Fault::OuterRace => "outer_race",
-            Fault::InnerRace => "inner_race",
-            Fault::Ball => "ball",
+            Fault::OuterRace => Condition::OuterRace,
+            Fault::InnerRace => Condition::InnerRace,
+            Fault::Ball => Condition::Ball,
         }
+    }
+
+    pub fn label(&self) -> &'static str {
+        self.condition().as_str()
     }
 
     /// Parse `healthy|outer_race|inner_race|ball[,..]` (also `or`, `ir`, `b`, `orf`, `irf`).
@@ -53,7 +59,9 @@ impl Fault {
 /// The label of a fault list: `healthy`, or the dominant (first listed) fault. Compound
 /// faults keep the full list in the `faults` metadata key.
 pub fn label_of(faults: &[Fault]) -> &'static str {
-    faults.first().map_or("healthy", Fault::label)
+    faults
+        .first()
+        .map_or(Condition::Healthy.as_str(), Fault::label)
 }
 
 /// Optional per-scenario changes to the rig's `[simulation]` section.

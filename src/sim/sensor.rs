@@ -7,6 +7,7 @@ use super::{channel_signals, high_fraction, model_fault_orders, EngineRun, Fault
 use crate::config::simulation::{SimulationConfig, SIGNALS};
 use crate::config::{ChannelKind, RigConfig};
 use crate::recording::{Channel, Provenance, Recording, Tacho};
+use crate::vocabulary::Condition;
 use anyhow::Result;
 use rand::Rng;
 use rand_distr::StandardNormal;
@@ -139,7 +140,7 @@ pub fn finish(
         channels.push(Channel {
             name: c.name.clone(),
             axis: c.axis.clone(),
-            unit: c.unit.clone(),
+            unit: c.unit.to_string(),
             samples,
         });
     }
@@ -163,7 +164,7 @@ pub fn finish(
                 .collect();
             Some(Tacho::Analog {
                 samples,
-                unit: tc.unit.clone(),
+                unit: tc.unit.to_string(),
             })
         }
         // No tacho on the rig: the recording still carries the simulator's own speed, as the
@@ -182,7 +183,7 @@ pub fn finish(
     md.insert(
         "faults".into(),
         if faults.is_empty() {
-            "healthy".into()
+            Condition::Healthy.as_str().into()
         } else {
             faults.join(",")
         },

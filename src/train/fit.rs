@@ -11,6 +11,7 @@ use crate::model::classifier::TrainedModel;
 use crate::model::meta::ModelMeta;
 use crate::model::novelty::Mahalanobis;
 use crate::model::preprocess::NORMALIZATION_NAME;
+use crate::vocabulary::Condition;
 use anyhow::{bail, Result};
 use ndarray::{concatenate, Array2, Axis};
 use serde::Serialize;
@@ -24,7 +25,7 @@ pub const NOVELTY_SHRINKAGE: f64 = 0.1;
 /// The classes a model learns: healthy, outer_race, inner_race (+ ball).
 pub fn class_labels(ball: bool) -> Vec<String> {
     let n = if ball { 4 } else { 3 };
-    crate::model::ALL_LABELS[..n]
+    Condition::NAMES[..n]
         .iter()
         .map(|s| s.to_string())
         .collect()
@@ -55,7 +56,7 @@ pub fn to_windows(recs: &[RecordingFeatures], idx: &[usize], labels: &[String]) 
 
 /// Mean log ratio of the healthy training windows (empty when the model has no healthy class).
 fn healthy_reference(tr: &Windows, labels: &[String], floor: f32) -> Vec<f32> {
-    let Some(h) = labels.iter().position(|l| l == "healthy") else {
+    let Some(h) = Condition::Healthy.index_in(labels) else {
         return Vec::new();
     };
     let rows: Vec<usize> = (0..tr.y.len()).filter(|&i| tr.y[i] == h).collect();

@@ -22,6 +22,7 @@ use crate::manifest::ManifestEntry;
 use crate::model::evidence::{BaselineSpread, FamilyBins};
 use crate::model::rule::{EnvelopeRule, RULE_LABELS};
 use crate::model::{OnnxClassifier, ALL_LABELS};
+use crate::vocabulary::QualityFlag;
 use anyhow::{bail, Context, Result};
 use rayon::prelude::*;
 
@@ -37,7 +38,7 @@ pub struct ScoredWindow {
     pub features: Vec<f32>,
     /// Why the daemon would call the window `unknown` for its data quality (None: it would
     /// not); [`quality_problem`].
-    pub quality: Option<&'static str>,
+    pub quality: Option<QualityFlag>,
     /// The classifier channel's band ratios at the fault orders (what the rule judges).
     pub fault_bands: Option<FaultBandRatios>,
 }

@@ -775,7 +775,7 @@ fn a_looping_replay_restarts_the_speed_at_the_seam() {
     let (fs, n) = (rec.sample_rate, rec.len() as u64);
     let channels: Vec<(String, String)> = rig
         .acceleration_channels()
-        .map(|c| (c.name.clone(), c.unit.clone()))
+        .map(|c| (c.name.clone(), c.unit.to_string()))
         .collect();
     let src = FileReplay::from_recording(rec, &rig, ReplaySpeed::Max, true, 100.0).unwrap();
     let (tx, rx) = std::sync::mpsc::sync_channel(8);

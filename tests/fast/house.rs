@@ -627,3 +627,36 @@ fn no_function_is_longer_than_the_house_allows() {
         String::from_utf8_lossy(&out.stderr)
     );
 }
+
+/// The vocabulary is the lowest floor: every module may import it, and it imports nothing
+/// from the crate (its types name concepts; they know no room that uses them).
+#[test]
+fn vocabulary_imports_nothing_from_the_crate() {
+    let tree = read_tree();
+    let found: Vec<String> = tree
+        .edges
+        .iter()
+        .filter(|((a, b), _)| {
+            a.first().is_some_and(|x| x == "vocabulary")
+                && b.first().is_none_or(|y| y != "vocabulary")
+        })
+        .flat_map(|(_, why)| why.iter().cloned())
+        .collect();
+    assert!(
+        found.is_empty(),
+        "src/vocabulary imports from the rest of the crate (it must stay a leaf):\n{}",
+        found.join("\n")
+    );
+    let users = tree
+        .edges
+        .keys()
+        .filter(|(a, b)| {
+            a.first().is_some_and(|x| x != "vocabulary")
+                && b.first().is_some_and(|y| y == "vocabulary")
+        })
+        .count();
+    assert!(
+        users > 0,
+        "the import reader sees no use of crate::vocabulary"
+    );
+}

@@ -645,3 +645,125 @@ recordings = 12
         }
     }
 }
+
+/// Issue 28: `rigmon simulate`, `calibrate` and `adapt` read the rig file through the one
+/// loader (`RigConfig::load`) and its one table of acceleration units, so they take every
+/// spelling the daemon's velocity takes (`G`, `m/s2`, `m/s²`, `mm/s^2`, ...): the simulated
+/// channel is written in that unit, under the spelling the file had. A unit that is not an
+/// acceleration is refused by all three when the rig file is read, naming the line.
+#[test]
+fn every_acceleration_unit_spelling_simulates_and_a_wrong_one_is_refused_at_load() {
+    use std::process::Command;
+    let dir = tempfile::tempdir().unwrap();
+    let text =
+        std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("config/lut-rig.toml"))
+            .unwrap();
+    // The vertical channel's unit is on line 31 of the shipped rig file.
+    assert_eq!(text.lines().nth(30), Some("unit = \"m/s^2\""));
+    let rig_with = |spelling: &str| {
+        let p = dir
+            .path()
+            .join(format!("rig-{}.toml", spelling.replace('/', "_")));
+        let t = text.replacen("unit = \"m/s^2\"", &format!("unit = {spelling:?}"), 3);
+        std::fs::write(&p, t).unwrap();
+        p
+    };
+    let rigmon = |args: &[&std::ffi::OsStr]| {
+        Command::new(env!("CARGO_BIN_EXE_rigmon"))
+            .args(args)
+            .output()
+            .unwrap()
+    };
+    let simulate = |spelling: &str| -> Recording {
+        let rig = rig_with(spelling);
+        let out = dir
+            .path()
+            .join(format!("{}.mcap", spelling.replace('/', "_")));
+        let o = rigmon(&[
+            "simulate".as_ref(),
+            "--rig".as_ref(),
+            rig.as_os_str(),
+            "--fault".as_ref(),
+            "outer_race".as_ref(),
+            "--rpm".as_ref(),
+            "1200".as_ref(),
+            "--seconds".as_ref(),
+            "0.5".as_ref(),
+            "-o".as_ref(),
+            out.as_os_str(),
+        ]);
+        assert!(
+            o.status.success(),
+            "simulate with unit {spelling:?}: {}",
+            String::from_utf8_lossy(&o.stderr)
+        );
+        rigmon::recording::mcap::read_recording(&out).unwrap()
+    };
+    let rms = |r: &Recording| {
+        let x = vertical(r);
+        (x.iter().map(|&v| (v as f64).powi(2)).sum::<f64>() / x.len() as f64).sqrt()
+    };
+    let reference = simulate("m/s^2");
+    let m_s2 = rms(&reference);
+    for (spelling, per_m_s2) in [
+        ("G", 1.0 / 9.80665),
+        ("gn", 1.0 / 9.80665),
+        ("m/s2", 1.0),
+        ("m/s²", 1.0),
+        ("mm/s^2", 1000.0),
+        ("MM/S2", 1000.0),
+    ] {
+        let rec = simulate(spelling);
+        assert_eq!(rec.channel("vertical").unwrap().unit, spelling);
+        let ratio = rms(&rec) / m_s2;
+        assert!(
+            (ratio / per_m_s2 - 1.0).abs() < 1e-3,
+            "{spelling}: rms ratio {ratio}, want {per_m_s2}"
+        );
+    }
+
+    let furlong = rig_with("furlong");
+    let g = rig_with("G");
+    let missing = dir.path().join("missing.mcap");
+    let (out, report) = (dir.path().join("out"), dir.path().join("report"));
+    let run = |command: &str, rig: &Path| {
+        let mut args: Vec<&std::ffi::OsStr> = vec![command.as_ref(), "--rig".as_ref()];
+        args.push(rig.as_os_str());
+        let m = missing.as_os_str();
+        match command {
+            "simulate" => args.extend(["--rpm".as_ref(), "1200".as_ref(), "-o".as_ref(), m]),
+            "calibrate" => args.extend([
+                "--measured".as_ref(),
+                m,
+                "-o".as_ref(),
+                out.as_os_str(),
+                "--report".as_ref(),
+                report.as_os_str(),
+            ]),
+            _ => args.extend(["--measured".as_ref(), m, "-o".as_ref(), out.as_os_str()]),
+        }
+        let o = rigmon(&args);
+        assert!(!o.status.success(), "rigmon {args:?} succeeded");
+        String::from_utf8_lossy(&o.stderr).into_owned()
+    };
+    for command in ["simulate", "calibrate", "adapt"] {
+        let err = run(command, &furlong);
+        assert!(
+            err.contains(&furlong.display().to_string())
+                && err.contains(
+                    "line 25: channels \"axial\": unit = \"furlong\" is not an acceleration unit"
+                )
+                && err.contains("m/s^2, m/s2"),
+            "{command}: {err}"
+        );
+    }
+    // With `G` the same loader passes the rig file: calibrate and adapt go on to the
+    // measured recordings (missing here) before any long work.
+    for command in ["calibrate", "adapt"] {
+        let err = run(command, &g);
+        assert!(
+            err.contains("missing.mcap") && !err.contains("unit"),
+            "{command}: {err}"
+        );
+    }
+}

@@ -297,14 +297,14 @@ fn three_daemons_a_router_and_the_historian_keep_every_window_once_through_outag
     }
     let router_ep = format!("tcp/127.0.0.1:{}", free_port());
     let router = ZenohSettings {
-        mode: "router".into(),
+        mode: rigmon::vocabulary::ZenohMode::Router,
         listen: vec![router_ep.clone()],
         ..Default::default()
     }
     .open()
     .unwrap();
     let client = ZenohSettings {
-        mode: "client".into(),
+        mode: rigmon::vocabulary::ZenohMode::Client,
         connect: vec![router_ep.clone()],
         ..Default::default()
     }
@@ -1142,7 +1142,7 @@ fn every_health_field_survives_the_historian_and_a_version_1_database_is_upgrade
 
     let router_ep = format!("tcp/127.0.0.1:{}", free_port());
     let router = ZenohSettings {
-        mode: "router".into(),
+        mode: rigmon::vocabulary::ZenohMode::Router,
         listen: vec![router_ep.clone()],
         ..Default::default()
     }
@@ -1177,7 +1177,7 @@ fn every_health_field_survives_the_historian_and_a_version_1_database_is_upgrade
     bare.speed_rival_rpm = None;
     bare.model.foreign.clear();
     let client = ZenohSettings {
-        mode: "client".into(),
+        mode: rigmon::vocabulary::ZenohMode::Client,
         connect: vec![router_ep.clone()],
         ..Default::default()
     }

@@ -154,7 +154,7 @@ impl OpendaqSourceConfig {
         let units: HashMap<String, String> = rig
             .channels
             .iter()
-            .map(|c| (c.name.clone(), c.unit.clone()))
+            .map(|c| (c.name.clone(), c.unit.to_string()))
             .collect();
         // Device channel (rig order) -> aligner channel, for mapped channels.
         let mut mapped = Vec::new();
