@@ -28,6 +28,8 @@ fn calibrate_and_adapt_work_from_the_vibration_alone() {
             "healthy.csv",
             "-o",
             "calibrated.toml",
+            "--report",
+            "calibration",
             "--json",
         ],
     ))
