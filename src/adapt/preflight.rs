@@ -117,6 +117,22 @@ fn measured_speed(
     }
 }
 
+/// Calibration from one recording splits it in two halves (one to fit, one to confirm), so
+/// where the speed is read from the vibration each half must hold the tracker's history: the
+/// span is widened to twice it (as far as the recording reaches; shorter is refused by the
+/// split, naming both lengths).
+fn one_recording_span(
+    loaded: &[(&ManifestEntry, (f64, f64, Recording))],
+    rig: &RigConfig,
+    span: f64,
+) -> Result<f64> {
+    let [(_, (_, _, rec))] = loaded else {
+        return Ok(span);
+    };
+    let history = crate::analysis::SpeedSource::for_recording(rec, rig)?.history_s();
+    Ok(history.map_or(span, |h| span.max((2.0 * h).min(rec.duration_s()))))
+}
+
 /// The plan's slowest recording, simulated and featurised as training will: a plan whose
 /// recordings give no feature window on this rig fails here, not after the whole dataset.
 fn dry_run(plan: &Plan, rig: &RigConfig) -> Result<()> {
@@ -212,6 +228,7 @@ pub fn check(o: &AdaptOptions) -> Result<Checked> {
         .iter()
         .map(|(_, (_, s, _))| *s)
         .fold(o.seconds, f64::max);
+    let calibration_seconds = one_recording_span(&loaded, &rig, calibration_seconds)?;
     let mut recordings = Vec::new();
     let mut items = Vec::new();
     for (e, (rpm, _, mut rec)) in loaded {

@@ -169,6 +169,18 @@ pub fn checkerboard(ms: &[Measured]) -> Vec<bool> {
 /// A single recording: its first half fits, its second half is held out.
 pub fn split_single(m: &Measured, rig: &RigConfig) -> Result<Vec<Measured>> {
     let half = m.recording.duration_s() / 2.0;
+    let speed = crate::analysis::SpeedSource::for_recording(&m.recording, rig)?;
+    if let Some(need) = speed.history_s().filter(|&need| half < need) {
+        bail!(
+            "{}: {:.2} s of signal; calibrating from one recording splits it in two halves (one \
+             to fit, one to confirm the fit), and reading the speed from the vibration down to \
+             the rig's min_rpm needs {need:.2} s in each: give at least {:.2} s, or a second \
+             recording, or state the speed (labels.csv `rpm`, [speed] source = \"fixed\")",
+            m.name,
+            m.recording.duration_s(),
+            2.0 * need
+        );
+    }
     let mut out = Vec::new();
     for (i, tag) in ["first half", "second half"].iter().enumerate() {
         let mut rec = m.recording.clone();

@@ -10,7 +10,29 @@ use serde_json::Value;
 fn calibrate_and_adapt_work_from_the_vibration_alone() {
     let tmp = tempfile::tempdir().unwrap();
     let dir = tmp.path();
-    machine(dir, &["healthy", "outer_race", "inner_race"], 900.0, 4.0);
+    // one 4 s recording cannot be split into two halves the tracker can read (2.4 s each at
+    // 500 rpm): refused up front, with the lengths
+    machine(dir, &["healthy"], 900.0, 4.0);
+    std::fs::write(dir.join("healthy.csv"), "path,label\nhealthy.wav,healthy\n").unwrap();
+    let (good, _, err) = crate::estimate_rig::rigmon_in(
+        dir,
+        &[
+            "calibrate",
+            "--rig",
+            "rig.toml",
+            "--measured",
+            "healthy.csv",
+            "-o",
+            "c.toml",
+            "--report",
+            "c",
+        ],
+    );
+    assert!(
+        !good && err.contains("4.00 s") && err.contains("4.80 s"),
+        "{err}"
+    );
+    machine(dir, &["healthy", "outer_race", "inner_race"], 900.0, 6.0);
     std::fs::write(dir.join("healthy.csv"), "path,label\nhealthy.wav,healthy\n").unwrap();
     std::fs::write(
         dir.join("scored.csv"),
