@@ -12,7 +12,7 @@ cd "$(dirname "$0")/.."
 W=${1:-per-set}
 D=$(cd ../shared/data && pwd)
 mkdir -p "$W"
-cargo build --release -q
+[ -n "${RIGMON_NO_BUILD:-}" ] || cargo build --release -q
 R=target/release/rigmon
 
 row() { # name out-dir
@@ -23,8 +23,8 @@ v = json.load(open(f"{out}/report.json"))
 h = v["holdout_scores"]
 def cell(s):
     return f"{s['balanced_accuracy']:.3f} ({s['missed_alarms']} missed, {s['false_alarms']} false)"
-check = v.get("self_check", {})
-ok = "passed" if check.get("passed", check.get("ok", False)) else "FAILED"
+regressions = v["self_check"]["regressions"]
+ok = "passed" if not regressions else f"refused ({len(regressions)} regression(s))"
 print(f"| {name} | {h['after']['n_records']} | {cell(h['before'])} | **{cell(h['after'])}** | {cell(h['rule'])} | {ok} |")
 PY
 }
