@@ -143,10 +143,9 @@ pub fn shape(
     rig: &RigConfig,
     faults: &[(String, String, f64, &Recording)],
 ) -> Result<(Plan, Vec<ShapedFault>)> {
-    let labelled: Vec<&(String, String, f64, &Recording)> = faults
-        .iter()
-        .filter(|f| !Condition::is_healthy(&f.1))
-        .collect();
+    let is_fault = |f: &&(String, String, f64, &Recording)| !Condition::is_healthy(&f.1);
+    let labelled: Vec<&(String, String, f64, &Recording)> =
+        faults.iter().filter(is_fault).collect();
     let mut out = plan.clone();
     if labelled.is_empty() {
         return Ok((out, Vec::new()));

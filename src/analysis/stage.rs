@@ -218,8 +218,7 @@ impl AnalysisStage {
         };
         let velocity_mm_s = self
             .classifier
-            .and_then(|k| Some((k, self.units[k]?)))
-            .and_then(|(k, unit)| self.velocity.mm_per_s(view.channels[k], unit));
+            .and_then(|k| self.velocity.mm_per_s(view.channels[k], self.units[k]?));
         WindowAnalysis {
             t_start: view.t_start,
             t_end: view.t_end,

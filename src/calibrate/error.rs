@@ -148,6 +148,14 @@ pub fn pair(m: &Views, s: &Views) -> ErrorParts {
     pair_only(m, s, &ErrorComponent::ALL)
 }
 
+/// (`orders`, `harmonics`): the 1x and 2x lines' mean dB difference and the 3x-30x lines'
+/// summed dB difference per [`LINES_PER`].
+fn shaft_parts(m: &Views, s: &Views) -> (f64, f64) {
+    let (lm, ls) = levels_db(&m.shaft, &s.shaft);
+    let orders = mean_abs(&lm[..2], &ls[..2]);
+    (orders, summed_abs(&lm[2..], &ls[2..]) / LINES_PER)
+}
+
 /// [`pair`] for the given components only (the others `NaN`, `total` their sum): the
 /// simulated views need hold only what these read ([`super::views::Parts::for_components`]).
 /// Each computed component is the same as [`pair`]'s.
@@ -176,15 +184,7 @@ pub fn pair_only(m: &Views, s: &Views, components: &[ErrorComponent]) -> ErrorPa
         nan
     };
     let (orders, harmonics) = if want(C::Orders) || want(C::Harmonics) {
-        let (lm, ls) = levels_db(&m.shaft, &s.shaft);
-        let orders = mean_abs(&lm[..2], &ls[..2]);
-        let harmonics = lm[2..]
-            .iter()
-            .zip(&ls[2..])
-            .map(|(a, b)| (a - b).abs())
-            .sum::<f64>()
-            / LINES_PER;
-        (orders, harmonics)
+        shaft_parts(m, s)
     } else {
         (nan, nan)
     };

@@ -135,16 +135,7 @@ pub fn markdown(rig: &RigConfig, o: &Outcome, ops: &[Measured], id: &str) -> Str
         o.before.total,
         o.after.total
     );
-    let _ = writeln!(s, "| component | before | after |\n|---|---|---|");
-    for c in ErrorComponent::ALL {
-        let _ = writeln!(
-            s,
-            "| {c} ({}) | {:.3} | {:.3} |",
-            description(c),
-            o.before.get(c),
-            o.after.get(c)
-        );
-    }
+    s.push_str(&component_table(o));
     s.push_str(&split_table(o, ops));
     let _ = writeln!(s, "\n## Effects added (in order)\n");
     if o.accepted.is_empty() {
@@ -214,6 +205,16 @@ pub fn markdown(rig: &RigConfig, o: &Outcome, ops: &[Measured], id: &str) -> Str
         s,
         "\n![measured vs simulated](spectra.png)\n\n![residual](residual.png)"
     );
+    s
+}
+
+/// The error components of the Markdown summary, before and after.
+fn component_table(o: &Outcome) -> String {
+    let mut s = String::from("| component | before | after |\n|---|---|---|\n");
+    for c in ErrorComponent::ALL {
+        let (before, after) = (o.before.get(c), o.after.get(c));
+        let _ = writeln!(s, "| {c} ({}) | {before:.3} | {after:.3} |", description(c));
+    }
     s
 }
 

@@ -678,7 +678,7 @@ fn wide_rig(n: usize) -> RigConfig {
     );
     for k in 0..n {
         t.push_str(&format!(
-            "[[channels]]\nname = \"c{k}\"\nkind = \"acceleration\"\naxis = \"radial\"\nunit = \"V\"\n"
+            "[[channels]]\nname = \"c{k}\"\nkind = \"acceleration\"\naxis = \"radial\"\nunit = \"m/s^2\"\n"
         ));
     }
     t.push_str("[speed]\nsource = \"fixed\"\nrpm = 1200.0\n[features]\nlowpass_hz = 4000.0\nwindow_s = 1.0\nhop_s = 0.5\nbin_width_order = 0.5\nmax_order = 50.0\nclassifier_axis = \"c0\"\n");
