@@ -22,6 +22,7 @@
 //!   decide: the speed under which a BPFO, BPFI or 2xBSF family falls on its order, and under
 //!   which the other speed's lines do not, is taken ([`super::fault_family`]). A healthy
 //!   machine shows no family and keeps what the shaft lines say.
+//!
 //! A hint (a fixed or nominal speed) narrows the search to a band around it and is used
 //! itself when the vibration shows no clear line there.
 //!
