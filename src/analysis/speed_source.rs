@@ -11,10 +11,14 @@
 //! spectra, `rigmon inspect`), built from the same per-window speeds, and
 //! [`analog_tacho_to_edges`] turns an analog tacho into the edges it would read (before a
 //! recording is resampled). Also says when the tacho has gone quiet inside a window (so the
-//! state goes `unknown` instead of raising a false alarm).
+//! state goes `unknown` instead of raising a false alarm). The rig's bearing goes to the
+//! tracker too ([`SpeedSource::with_fault_families`], applied by the analysis stage and by
+//! [`whole_recording`]): its fault families in the envelope settle the octave where the shaft
+//! lines leave it open.
 
 use super::windows::WindowView;
 use crate::config::RigConfig;
+use crate::dsp::fault_family::FamilySettings;
 use crate::dsp::speed::SpeedTrack;
 use crate::dsp::speed_config::SpeedConfig;
 use crate::dsp::speed_tracker::{
@@ -64,6 +68,15 @@ fn tracked(min_rpm: f64, max_rpm: f64, hint: Option<(f64, f64)>) -> TrackerSetti
                 rpm,
                 within: within / 100.0,
             }),
+        families: None,
+    }
+}
+
+/// The rig's bearing fault families, for the tracker (carrier band up to the feature low-pass).
+fn rig_families(rig: &RigConfig) -> FamilySettings {
+    FamilySettings {
+        orders: rig.bearing.fault_orders(),
+        band_top_hz: rig.features.lowpass_hz,
     }
 }
 
@@ -218,6 +231,23 @@ impl SpeedSource {
             .check_recording(rec)
             .with_context(|| format!("speed for {}", rec.provenance.source_path))?;
         Ok(source)
+    }
+
+    /// Let the vibration tracker weigh the rig's bearing fault families (the envelope lines a
+    /// damaged bearing adds at fixed orders of the true shaft speed) where the shaft lines
+    /// leave the octave open. The analysis stage applies it for every rig, before any window;
+    /// speeds not read from the vibration are unaffected.
+    pub fn with_fault_families(mut self, rig: &RigConfig, sample_rate: f64) -> Result<Self> {
+        let families = Some(rig_families(rig));
+        match &mut self.mode {
+            Mode::Tracked { settings, .. } | Mode::EdgesOrTracked { settings, .. } => {
+                settings.families = families;
+                self.tracker = Some(SpeedTracker::new(*settings, sample_rate)?);
+                self.fed_until = None;
+            }
+            _ => {}
+        }
+        Ok(self)
     }
 
     /// Every window gets this track (e.g. `rigmon features --rpm`).
@@ -479,6 +509,10 @@ fn tracked_whole(
         .or_else(|| rec.channels.first())
         .context("the recording has no acceleration channel to read the speed from")?;
     let fs = rec.sample_rate;
+    let settings = TrackerSettings {
+        families: Some(rig_families(rig)),
+        ..settings
+    };
     let mut tracker = SpeedTracker::new(settings, fs)?;
     let window = (rig.features.window_s * fs).round() as usize;
     let hop = ((rig.features.hop_s * fs).round() as usize).max(1);

@@ -114,7 +114,7 @@ impl AnalysisStage {
         Ok(AnalysisStage {
             fault_bands: FaultBandMeter::new(o.bpfo, o.bpfi, o.two_bsf, rig.features.max_order),
             pipeline,
-            speed,
+            speed: speed.with_fault_families(rig, sample_rate)?,
             velocity: VelocityRms::new(len, sample_rate),
             absent: names.iter().map(|n| absent.contains(n)).collect(),
             scratch: names.iter().map(|_| vec![0.0; len]).collect(),

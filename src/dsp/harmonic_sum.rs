@@ -136,7 +136,7 @@ pub fn is_mains(f: f64) -> bool {
 }
 
 /// True when `f` sits on a harmonic of 50 or 60 Hz, within `tol` Hz (or 0.3 %).
-fn on_mains_harmonic(f: f64, tol: f64) -> bool {
+pub(crate) fn on_mains_harmonic(f: f64, tol: f64) -> bool {
     [50.0, 60.0].iter().any(|&m: &f64| {
         let k = (f / m).round();
         k >= 1.0 && (f - k * m).abs() <= tol.max(0.003 * k * m)

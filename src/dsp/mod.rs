@@ -10,9 +10,11 @@
 //! [`resample`] (a whole stretch down to a lower rate, band-limited).
 //! Windows of a stream or a whole recording are cut and given their speed in `analysis`.
 
+pub mod biquad;
 pub mod decimate;
 pub mod envelope;
 pub mod fault_band_ratios;
+pub mod fault_family;
 pub mod feature_settings;
 pub mod features;
 pub mod fft_len;

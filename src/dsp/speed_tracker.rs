@@ -17,6 +17,12 @@
 //!   scale as the stored-speed check), how many revolutions the history holds, whether the
 //!   line just jumped, and whether half or twice the speed explains the spectrum nearly as
 //!   well (an octave rival, reported with its speed).
+//! - **fault families**: where the shaft lines leave the octave open (f/2 explains every line
+//!   f does; a ratio such as 2f/3 scores nearly as well), a damaged bearing's envelope lines
+//!   decide: the speed under which a BPFO, BPFI or 2xBSF family falls on its order, and under
+//!   which the other speed's lines do not, is taken ([`super::fault_family`]). A healthy
+//!   machine shows no family and keeps what the shaft lines say.
+//!
 //! A hint (a fixed or nominal speed) narrows the search to a band around it and is used
 //! itself when the vibration shows no clear line there.
 //!
@@ -25,7 +31,8 @@
 //! how they were cut into blocks, so a live stream and a whole recording get the same speeds.
 
 use super::decimate::Decimator;
-use super::harmonic_sum::{fundamental, Whitened, Whitener, HARMONICS};
+use super::fault_family::{EnvelopeFeed, FamilyEvidence, FamilySettings};
+use super::harmonic_sum::{fundamental, on_mains_harmonic, Whitened, Whitener, HARMONICS};
 use super::speed::SpeedTrack;
 use anyhow::{bail, Result};
 
@@ -65,6 +72,21 @@ const ACQUIRE_TRENDS: [f64; 12] = [
 const MAX_MISSES: u32 = 3;
 /// Output rate of the history, in multiples of the highest frequency searched.
 const OVERSAMPLE: f64 = 4.0;
+/// Share of the output Nyquist the decimator keeps.
+const KEEP: f64 = 0.8;
+/// Speeds related to the shaft lines' choice g that the fault families may prefer: g p / q.
+const RELATED: [(f64, f64); 10] = [
+    (1.0, 2.0),
+    (2.0, 1.0),
+    (1.0, 3.0),
+    (3.0, 1.0),
+    (2.0, 3.0),
+    (3.0, 2.0),
+    (3.0, 4.0),
+    (4.0, 3.0),
+    (3.0, 5.0),
+    (5.0, 3.0),
+];
 
 /// Where the tracker looks.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -74,6 +96,8 @@ pub struct TrackerSettings {
     /// A fixed or nominal speed: searched within +-`within` (fraction), used itself when the
     /// vibration shows no clear line there.
     pub hint: Option<SpeedHint>,
+    /// The rig's bearing, whose fault families may settle the octave (None: shaft lines only).
+    pub families: Option<FamilySettings>,
 }
 
 /// A speed someone stated (a `fixed` rpm, a manifest's nominal rpm) and how far to trust it.
@@ -158,6 +182,14 @@ pub struct SpeedTracker {
     pending: Option<f64>,
     /// Windows since the followed line was last confirmed.
     misses: u32,
+    /// The fault families' evidence: the bearing, the envelope of the carrier band decimated
+    /// beside `hist` (same length, same times), its whitened spectrum and the history span
+    /// that spectrum was taken over.
+    families: Option<FamilySettings>,
+    env_feed: Option<EnvelopeFeed>,
+    env_hist: Vec<f32>,
+    env_spec: Whitened,
+    env_span: Option<(usize, usize)>,
 }
 
 impl SpeedTracker {
@@ -188,12 +220,15 @@ impl SpeedTracker {
         let factor = ((fs / (OVERSAMPLE * top)).floor() as usize).max(1);
         let fs_d = fs / factor as f64;
         let cap = (HISTORY_REVS / fmin * fs_d).ceil() as usize;
+        let env_feed = settings
+            .families
+            .and_then(|f| EnvelopeFeed::new(fs, factor, KEEP, f.band_top_hz));
         Ok(SpeedTracker {
             fs,
             fmin,
             fmax,
             hint: settings.hint,
-            decimator: Decimator::new(factor, 0.8),
+            decimator: Decimator::new(factor, KEEP),
             fs_d,
             hist: Vec::with_capacity(2 * cap),
             cap,
@@ -210,6 +245,15 @@ impl SpeedTracker {
             lock: None,
             pending: None,
             misses: 0,
+            families: settings.families.filter(|_| env_feed.is_some()),
+            env_hist: Vec::with_capacity(if env_feed.is_some() { 2 * cap } else { 0 }),
+            env_feed,
+            env_spec: Whitened {
+                skip_mains: true,
+                interpolate: true,
+                ..Whitened::default()
+            },
+            env_span: None,
         })
     }
 
@@ -227,6 +271,10 @@ impl SpeedTracker {
     pub fn reset(&mut self) {
         self.decimator.reset();
         self.hist.clear();
+        if let Some(e) = self.env_feed.as_mut() {
+            e.reset();
+        }
+        self.env_hist.clear();
         self.next = None;
         self.lock = None;
         self.pending = None;
@@ -246,10 +294,17 @@ impl SpeedTracker {
             hist.push(v);
             *newest = i;
         });
+        if let Some(e) = self.env_feed.as_mut() {
+            e.push(x, &mut self.env_hist);
+        }
         if self.hist.len() >= 2 * self.cap {
             let n = self.hist.len();
             self.hist.copy_within(n - self.cap.., 0);
             self.hist.truncate(self.cap);
+            if !self.env_hist.is_empty() {
+                self.env_hist.copy_within(n - self.cap.., 0);
+                self.env_hist.truncate(self.cap);
+            }
         }
     }
 
@@ -273,6 +328,7 @@ impl SpeedTracker {
             );
         }
         let t_end = self.t_newest();
+        self.env_span = None;
         let best = match self.lock.filter(|l| l.confirmed) {
             Some(lock) => self.follow(lock, n),
             None => self.acquire(n),
@@ -404,6 +460,7 @@ impl SpeedTracker {
             span,
             rival: None,
             unresolved: false,
+            by_family: false,
         };
         if let Some(lock) = self.lock {
             let t = self.t_newest();
@@ -425,9 +482,95 @@ impl SpeedTracker {
         }
         c.hz = refine(&self.spec, c.hz);
         c.rival = self.rival(c.hz);
+        self.settle_by_family(&mut c, (first, last), lo);
         // half this speed is in the rig's range but not yet resolvable in this span
         c.unresolved = lo > self.fmin && c.hz / 2.0 >= self.fmin && c.hz / 2.0 < lo;
         c
+    }
+
+    /// Let the bearing's fault families settle what the shaft lines leave open: a related
+    /// speed ([`RELATED`]) the shaft spectrum allows and the families prefer replaces the
+    /// candidate (which stays as its rival); else an octave rival the families rule out no
+    /// longer limits the confidence. Nothing changes without a family.
+    fn settle_by_family(&mut self, c: &mut Candidate, span: (usize, usize), lo: f64) {
+        let Some(fam) = self.families else {
+            return;
+        };
+        if self.env_span != Some(span) {
+            let fs_d = self.fs_d;
+            self.whitener.whiten_into(
+                &self.env_hist[span.0..span.1],
+                fs_d,
+                (2, 4),
+                KEEP * fs_d / 2.0,
+                &mut self.env_spec,
+            );
+            self.env_span = Some(span);
+        }
+        let ev = FamilyEvidence::new(&self.env_spec, &fam.orders, KEEP * self.fs_d / 2.0);
+        let g = c.hz;
+        let mut best: Option<(f64, f64)> = None;
+        for (p, q) in RELATED {
+            let r = g * p / q;
+            if r < lo || r > self.fmax || !self.shaft_allows(r, g) {
+                continue;
+            }
+            if let Some(s) = ev.prefers(r, g) {
+                if best.is_none_or(|(_, b)| s > b) {
+                    best = Some((r, s));
+                }
+            }
+        }
+        if let Some((r, _)) = best {
+            let r = refine(&self.spec, r);
+            c.score = self.explained_score(r, g);
+            (c.hz, c.rival, c.by_family) = (r, Some(g), true);
+            c.followed = self.lock.is_some_and(|l| {
+                let pred = l.hz * (1.0 + l.trend * (self.t_newest() - l.t));
+                (r / pred - 1.0).abs() < FOLLOW_BAND
+            });
+        } else if let Some(r) = c.rival {
+            if ev.prefers(g, r).is_some() {
+                c.score = self.explained_score(g, r);
+                c.by_family = true;
+            }
+        }
+    }
+
+    /// The shaft spectrum allows speed `r` in place of `g`: r's own series stands above noise
+    /// (its clarity on the tracker's scale is above 0: [`SCORE_NOISE`]), and r explains every
+    /// line of g (g is a multiple of r), or the lines of g it does not explain are no
+    /// stronger than a rival's lines ([`RIVAL_SUPPORT`]), or r's series scores nearly as well
+    /// ([`KEEP_SHARE`]).
+    fn shaft_allows(&self, r: f64, g: f64) -> bool {
+        let own = self.spec.full(r);
+        if own <= SCORE_NOISE {
+            return false;
+        }
+        let on = |f: f64| ((f / r) - (f / r).round()).abs() * r <= 0.005 * f + self.spec.df;
+        let tol = 1.5 * self.spec.df;
+        let (mut sum, mut n) = (0.0, 0);
+        for k in 1..=HARMONICS {
+            let f = k as f64 * g;
+            if on(f) || on_mains_harmonic(f, tol) {
+                continue;
+            }
+            sum += self.spec.at(f);
+            n += 1;
+        }
+        n == 0 || sum / n as f64 <= RIVAL_SUPPORT || own >= KEEP_SHARE * self.spec.full(g)
+    }
+
+    /// The harmonic prominence behind speed `hz`: its own series, or that of `other` when hz
+    /// explains every line of it (other a multiple of hz), whichever is stronger.
+    fn explained_score(&self, hz: f64, other: f64) -> f64 {
+        let k = other / hz;
+        let own = self.spec.full(hz);
+        if k > 1.5 && (k - k.round()).abs() < 0.01 {
+            own.max(self.spec.full(other))
+        } else {
+            own
+        }
     }
 
     /// Turn the best candidate into the window's speed, update the lock and the trend.
@@ -555,6 +698,8 @@ struct Candidate {
     rival: Option<f64>,
     /// Half the speed is in range but the span is too short to rule it out.
     unresolved: bool,
+    /// The bearing's fault families settled the octave (the rival does not limit confidence).
+    by_family: bool,
 }
 
 impl Candidate {
@@ -574,7 +719,7 @@ impl Candidate {
         let c = self.clear().min(self.filled());
         if self.unresolved {
             c.min(0.49 * MIN_CONFIDENCE / 0.5)
-        } else if self.rival.is_some() {
+        } else if self.rival.is_some() && !self.by_family {
             c.min(MIN_CONFIDENCE)
         } else {
             c
@@ -700,6 +845,7 @@ mod tests {
             min_rpm: lo,
             max_rpm: hi,
             hint: None,
+            families: None,
         }
     }
 
