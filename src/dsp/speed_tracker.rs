@@ -367,10 +367,8 @@ impl SpeedTracker {
             let span = m as f64 / self.fs_d;
             let resolvable = r1.abs() * best.hz * span * span >= 1.0;
             let c = self.search(last - m, last, if resolvable { r1 } else { 0.0 });
-            if c.followed || !best.followed {
-                if c.score >= KEEP_SHARE * best.score {
-                    best = c;
-                }
+            if (c.followed || !best.followed) && c.score >= KEEP_SHARE * best.score {
+                best = c;
             }
         }
         best

@@ -614,7 +614,7 @@ fn training_on_the_simulators_speed_gives_the_features_the_tracker_would() {
 fn twice_per_rev_hit_sm_rig() -> RigConfig {
     let mut r = rig("hit-sm-self.toml");
     let sim = r.simulation.as_mut().unwrap();
-    sim.shaft_lines = Some(rigmon::sim::config::ShaftLinesConfig {
+    sim.shaft_lines = Some(rigmon::config::simulation::ShaftLinesConfig {
         ref_rpm: 600.0,
         exponent: 1.0,
         amplitudes_m_s2: (1..=10)
