@@ -170,6 +170,38 @@ pub struct Evaluation {
     pub records: Vec<RecordResult>,
 }
 
+impl Evaluation {
+    /// The whole-record picture's title and note: the balanced accuracy, and the missed and
+    /// false alarms (by the state the daemon ends in too, which the matrix of majority votes
+    /// does not show).
+    pub fn record_caption(&self, name: &str) -> (String, String) {
+        (
+            format!(
+                "{name}: whole records (balanced acc. {:.1} %)",
+                100.0 * self.balanced_accuracy
+            ),
+            format!(
+                "missed alarms {}, false alarms {}",
+                self.missed_alarms, self.false_alarms
+            ),
+        )
+    }
+
+    /// The window picture's title and note.
+    pub fn window_caption(&self, name: &str) -> (String, String) {
+        (
+            format!(
+                "{name}: windows (acc. {:.1} %)",
+                100.0 * self.window_accuracy
+            ),
+            format!(
+                "missed alarms {}, false alarms {}",
+                self.window_missed_alarms, self.window_false_alarms
+            ),
+        )
+    }
+}
+
 /// Majority vote: the class with the most windows; among equal counts the lowest class index.
 pub fn majority(predicted: &[usize], n_classes: usize) -> (usize, Vec<usize>) {
     let mut votes = vec![0usize; n_classes];

@@ -29,14 +29,9 @@ fn draw_set(dir: &Path, prefix: &str, s: &SetScores) -> Result<()> {
         ("after", &s.after),
         ("rule", &s.rule),
     ] {
-        crate::plots::confusion::draw(
-            &dir.join(format!("{prefix}confusion_{name}.png")),
-            &ev.confusion,
-            &format!(
-                "{prefix}{name}: whole records (balanced acc. {:.1} %)",
-                100.0 * ev.balanced_accuracy
-            ),
-        )?;
+        let (title, note) = ev.record_caption(&format!("{prefix}{name}"));
+        let png = dir.join(format!("{prefix}confusion_{name}.png"));
+        crate::plots::confusion::draw(&png, &ev.confusion, &title, &note)?;
     }
     Ok(())
 }

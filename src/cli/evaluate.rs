@@ -62,19 +62,11 @@ pub enum Baseline {
 
 /// Both confusion matrices of `ev` to `png` and `<png>.windows.png`.
 fn draw(png: &Path, ev: &Evaluation, name: &str) -> Result<()> {
-    crate::plots::confusion::draw(
-        png,
-        &ev.confusion,
-        &format!(
-            "{name}: whole records (balanced acc. {:.1} %)",
-            100.0 * ev.balanced_accuracy
-        ),
-    )?;
-    crate::plots::confusion::draw(
-        &png.with_extension("windows.png"),
-        &ev.window_confusion,
-        &format!("{name}: windows (acc. {:.1} %)", 100.0 * ev.window_accuracy),
-    )
+    let (title, note) = ev.record_caption(name);
+    crate::plots::confusion::draw(png, &ev.confusion, &title, &note)?;
+    let (title, note) = ev.window_caption(name);
+    let windows = png.with_extension("windows.png");
+    crate::plots::confusion::draw(&windows, &ev.window_confusion, &title, &note)
 }
 
 pub fn run(args: Args) -> Result<()> {

@@ -6,8 +6,9 @@ use anyhow::{anyhow, Result};
 use plotters::prelude::*;
 use std::path::Path;
 
-/// Draw `cm` to `path` with a title.
-pub fn draw(path: &Path, cm: &Confusion, title: &str) -> Result<()> {
+/// Draw `cm` to `path` with a title and, above the matrix, a one-line note (the alarms the
+/// matrix alone does not show).
+pub fn draw(path: &Path, cm: &Confusion, title: &str, note: &str) -> Result<()> {
     super::ensure_font()?;
     let k = cm.labels.len().max(1);
     let cell = 120i32;
@@ -24,7 +25,7 @@ pub fn draw(path: &Path, cm: &Confusion, title: &str) -> Result<()> {
         font(20).color(&BLACK),
     ))
     .map_err(|e| err(&e))?;
-    root.draw(&Text::new("", (left, top - 28), font(16).color(&BLACK)))
+    root.draw(&Text::new(note, (left, top - 28), font(16).color(&BLACK)))
         .map_err(|e| err(&e))?;
     root.draw(&Text::new(
         "true \\ predicted",
