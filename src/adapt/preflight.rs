@@ -129,8 +129,8 @@ fn one_recording_span(
     let [(_, (_, _, rec))] = loaded else {
         return Ok(span);
     };
-    let history = crate::analysis::SpeedSource::for_recording(rec, rig)?.history_s();
-    Ok(history.map_or(span, |h| span.max((2.0 * h).min(rec.duration_s()))))
+    let need = measured::split_needs_s(rec, rig)?;
+    Ok(need.map_or(span, |n| span.max(n.min(rec.duration_s()))))
 }
 
 /// The plan's slowest recording, simulated and featurised as training will: a plan whose

@@ -114,6 +114,14 @@ pub fn mean_rpm(rec: &Recording, rig: &RigConfig) -> Result<f64> {
     Ok(track.mean_rpm(0.0, rec.duration_s()))
 }
 
+/// Seconds a recording must last to be split in two halves ([`split_single`]) whose speed can
+/// each be read: twice the vibration tracker's history; None when the speed is not read from
+/// the vibration.
+pub fn split_needs_s(rec: &Recording, rig: &RigConfig) -> Result<Option<f64>> {
+    let speed = crate::analysis::SpeedSource::for_recording(rec, rig)?;
+    Ok(speed.history_s().map(|h| 2.0 * h))
+}
+
 /// Keep samples in [t0, t0 + seconds) of every channel and the analog tacho.
 pub fn cut(rec: &mut Recording, t0: f64, seconds: f64) {
     let n = rec.len();
@@ -169,8 +177,8 @@ pub fn checkerboard(ms: &[Measured]) -> Vec<bool> {
 /// A single recording: its first half fits, its second half is held out.
 pub fn split_single(m: &Measured, rig: &RigConfig) -> Result<Vec<Measured>> {
     let half = m.recording.duration_s() / 2.0;
-    let speed = crate::analysis::SpeedSource::for_recording(&m.recording, rig)?;
-    if let Some(need) = speed.history_s().filter(|&need| half < need) {
+    if let Some(need) = split_needs_s(&m.recording, rig)?.filter(|&n| 2.0 * half < n) {
+        let need = need / 2.0;
         bail!(
             "{}: {:.2} s of signal; calibrating from one recording splits it in two halves (one \
              to fit, one to confirm the fit), and reading the speed from the vibration down to \
