@@ -3,8 +3,7 @@
 //! Python eclipse-zenoh client, a NOTIFY_SOCKET datagram socket, Unix signals, MCAP files read
 //! back, and `systemd-analyze verify`.
 
-#[path = "../common/wrong_shape.rs"]
-mod wrong_shape;
+use crate::wrong_shape;
 
 use rigmon::health::message::HealthMessage;
 use std::collections::BTreeMap;

@@ -6,10 +6,8 @@
 //! Each test prints its figure (`FIGURE ...`) for the README's reliability table; run with
 //! `cargo test --all-features --test fast faults:: -- --nocapture --test-threads=1`.
 
-#[path = "../common/daemon_harness.rs"]
-mod harness;
-#[path = "../common/wrong_shape.rs"]
-mod wrong_shape;
+use crate::daemon_harness as harness;
+use crate::wrong_shape;
 
 use harness::*;
 use rigmon::health::message::HealthMessage;

@@ -6,8 +6,12 @@
 
 #[path = "../common/mod.rs"]
 mod common;
+#[path = "../common/daemon_harness.rs"]
+mod daemon_harness;
 #[path = "../common/estimate_rig.rs"]
 mod estimate_rig;
+#[path = "../common/wrong_shape.rs"]
+mod wrong_shape;
 
 mod access;
 mod acquire;

@@ -9,8 +9,7 @@
 //! adds no discovery server). Where `unshare` is not permitted the test says so and runs on
 //! loopback endpoints only.
 
-#[path = "../common/daemon_harness.rs"]
-mod harness;
+use crate::daemon_harness as harness;
 
 use harness::{bin, lines, model, rig_path, signal, wait_exit, Guard};
 use rigmon::acquire::opendaq::protocol::{encode_meta, encode_packet, TYPE_DATA, TYPE_META};
