@@ -132,10 +132,27 @@ impl EnvelopeFeed {
     }
 }
 
+/// The ball-spin line (1x BSF and its harmonics): not a family that speaks for a speed (a
+/// fault train is the ball striking a race, at 2x BSF), but a line a bearing shows at its
+/// true speed, so it explains what sits on it. It matters for the octave: 2x BSF at half a
+/// speed is 1x BSF at that speed, the same line, so without it a ball-spin line at the true
+/// speed would read as a ball family at half of it. The price: a ball family cannot settle
+/// an octave from g to g/2 (BPFO and BPFI still can). No sidebands: the cage's would cover
+/// the other families' fundamentals at the half speed (BSF + FTF lies within the slip of
+/// BPFI at half the speed on a 9-ball bearing).
+fn ball_spin(o: &FaultOrders) -> Family {
+    Family {
+        order: o.bsf,
+        spacing: 0.0,
+    }
+}
+
 /// The fault families of one bearing read in one whitened envelope spectrum.
 pub struct FamilyEvidence<'a> {
     env: &'a Whitened,
     families: [Family; 3],
+    /// Lines a speed explains: its fault families and the ball-spin line.
+    explaining: [Family; 4],
     /// Highest frequency scored, Hz.
     top: f64,
 }
@@ -146,6 +163,10 @@ impl<'a> FamilyEvidence<'a> {
         FamilyEvidence {
             env,
             families: families(orders),
+            explaining: {
+                let [a, b, c] = families(orders);
+                [a, b, c, ball_spin(orders)]
+            },
             top,
         }
     }
@@ -155,8 +176,20 @@ impl<'a> FamilyEvidence<'a> {
     /// below the strongest fault fundamental g predicts (the train that decides is the
     /// envelope's main one, not a combination line beside it), and no family's lines that
     /// only g predicts are.
+    ///
+    /// When c is a whole multiple of g, g predicts every line c does (each of c's lines is
+    /// an even harmonic of g's); then c is preferred when one of its families is present
+    /// while that family's own fundamental at g, the line only g would add, is not
+    /// ([`Self::multiple_support`]): an impact train shows its strongest envelope line at
+    /// its own rate, so a train at g without a line at g is a train at c.
     pub fn prefers(&self, c: f64, g: f64) -> Option<f64> {
-        let sc = self.unique_support(c, g, self.strongest_fundamental(g) - std::f64::consts::LN_2);
+        let floor = self.strongest_fundamental(g) - std::f64::consts::LN_2;
+        let k = c / g;
+        let sc = if k > 1.5 && (k - k.round()).abs() < 0.01 {
+            self.multiple_support(c, g, floor)
+        } else {
+            self.unique_support(c, g, floor)
+        };
         let sg = self.unique_support(g, c, self.strongest_fundamental(c) - std::f64::consts::LN_2);
         (sc >= FAMILY_PRESENT && sg < FAMILY_PRESENT).then_some(sc)
     }
@@ -192,8 +225,46 @@ impl<'a> FamilyEvidence<'a> {
         best
     }
 
+    /// For c a whole multiple of g: the best support (as [`Self::unique_support`], over all
+    /// of the family's lines off the shaft harmonics) of a family at c whose fundamental at
+    /// g stands nowhere above noise ([`FUNDAMENTAL_PRESENT`], at any slip); -inf when there
+    /// is none.
+    pub fn multiple_support(&self, c: f64, g: f64, floor: f64) -> f64 {
+        let mut best = f64::NEG_INFINITY;
+        for fam in self.families {
+            if self.fundamental_absent(fam, g) {
+                best = best.max(self.support(fam, c, g, floor, false));
+            }
+        }
+        best
+    }
+
+    /// The family's fundamental at `g` is scorable and below [`FUNDAMENTAL_PRESENT`] at every
+    /// slip.
+    fn fundamental_absent(&self, fam: Family, g: f64) -> bool {
+        let f = line(fam, g, 1, 0, 1.0);
+        if !self.scorable(f * (1.0 + SLIP)) || !self.scorable(f * (1.0 - SLIP)) {
+            return false;
+        }
+        let step = (self.env.df / (4.0 * f)).max(1e-5);
+        let mut s = 1.0 - SLIP;
+        while s <= 1.0 + SLIP {
+            if self.env.at(line(fam, g, 1, 0, s)) >= FUNDAMENTAL_PRESENT {
+                return false;
+            }
+            s += step;
+        }
+        true
+    }
+
     fn family_support(&self, fam: Family, c: f64, g: f64, floor: f64) -> f64 {
-        // the lines of this family at c that g does not explain, as (harmonic, side) pairs
+        self.support(fam, c, g, floor, true)
+    }
+
+    /// A family's support at `c`: its lines that `g` does not explain (`exclusive`), or all
+    /// of its lines off the shaft harmonics of c and g (not `exclusive`).
+    fn support(&self, fam: Family, c: f64, g: f64, floor: f64, exclusive: bool) -> f64 {
+        // the lines of this family at c that count, as (harmonic, side) pairs
         let mut own = [(0usize, 0i32); 3 * FAMILY_HARMONICS];
         let mut n = 0;
         for h in 1..=FAMILY_HARMONICS {
@@ -204,7 +275,11 @@ impl<'a> FamilyEvidence<'a> {
                 let f = line(fam, c, h, side, 1.0);
                 if self.scorable(f * (1.0 + SLIP))
                     && self.scorable(f * (1.0 - SLIP))
-                    && !self.explained(f, c, g)
+                    && !(if exclusive {
+                        self.explained(f, c, g)
+                    } else {
+                        self.on_shaft(f, c, g)
+                    })
                 {
                     own[n] = (h, side);
                     n += 1;
@@ -254,18 +329,14 @@ impl<'a> FamilyEvidence<'a> {
         f >= MIN_BINS * self.env.df && f <= self.top && !on_mains_harmonic(f, 1.5 * self.env.df)
     }
 
-    /// Some family line at shaft speed `g` (harmonics and up to [`EXPLAINED_SIDEBANDS`]
-    /// sidebands either side) lies within the slip of both lines of `f`, or `f` sits on a
+    /// Some family or ball-spin line at shaft speed `g` (harmonics and up to
+    /// [`EXPLAINED_SIDEBANDS`] sidebands either side) lies within the slip of both lines of `f`, or `f` sits on a
     /// shaft harmonic of `g` or of `c` (the envelope carries the shaft's own modulation at
     /// whole orders; those lines speak for neither).
     fn explained(&self, f: f64, c: f64, g: f64) -> bool {
         let df = self.env.df;
-        let on_shaft = [c, g].iter().any(|&s| {
-            let k = (f / s).round();
-            k >= 1.0 && (f - k * s).abs() <= SLIP * f + df
-        });
-        on_shaft
-            || self.families.iter().any(|&fam| {
+        self.on_shaft(f, c, g)
+            || self.explaining.iter().any(|&fam| {
                 (1..)
                     .take_while(|&h| {
                         line(fam, g, h, -EXPLAINED_SIDEBANDS, 1.0)
@@ -280,6 +351,15 @@ impl<'a> FamilyEvidence<'a> {
                             })
                     })
             })
+    }
+
+    /// `f` sits on a shaft harmonic of `c` or of `g` (the envelope carries the shaft's own
+    /// modulation at whole orders; those lines speak for neither speed).
+    fn on_shaft(&self, f: f64, c: f64, g: f64) -> bool {
+        [c, g].iter().any(|&s| {
+            let k = (f / s).round();
+            k >= 1.0 && (f - k * s).abs() <= SLIP * f + self.env.df
+        })
     }
 }
 
@@ -339,6 +419,51 @@ mod tests {
         assert!(ev.prefers(10.0, 20.0).is_none());
     }
 
+    /// The outer race at 1200 rpm, seen where the shaft lines leave 600 rpm open: its lines
+    /// are even harmonics of BPFO at 600 rpm, but 600 rpm's own BPFO line is missing, so the
+    /// family speaks for 1200 (and a family that does show the 600 rpm line does not).
+    #[test]
+    fn a_family_without_its_line_at_half_the_speed_picks_the_speed() {
+        let o = skf6205();
+        let at_1200: Vec<f64> = (1..=3).map(|h| h as f64 * o.bpfo * 20.0).collect();
+        let w = spectrum(&at_1200, 3.0);
+        let ev = FamilyEvidence::new(&w, &o, 240.0);
+        assert!(ev.prefers(20.0, 10.0).is_some());
+        let at_600: Vec<f64> = (1..=6).map(|h| h as f64 * o.bpfo * 10.0).collect();
+        let w = spectrum(&at_600, 3.0);
+        let ev = FamilyEvidence::new(&w, &o, 240.0);
+        assert!(ev.prefers(20.0, 10.0).is_none());
+        assert!(ev.prefers(10.0, 20.0).is_some());
+    }
+
+    /// 2x BSF at 600 rpm is 1x BSF at 1200 rpm, line for line: a ball-spin line at the true
+    /// speed (HIT-SM's inner-race records at 1200 rpm show one at 47 Hz) is not a ball
+    /// family at half of it.
+    #[test]
+    fn a_ball_spin_line_is_not_a_ball_family_at_half_the_speed() {
+        let o = skf6205();
+        // ball-spin harmonics at 1200 rpm with cage sidebands at 600 rpm's spacing: line for
+        // line a 2x BSF family at 600 rpm
+        let spin: Vec<f64> = (1..=3)
+            .flat_map(|h| {
+                let f = h as f64 * o.bsf * 20.0;
+                [f - o.ftf * 10.0, f, f + o.ftf * 10.0]
+            })
+            .collect();
+        let w = spectrum(&spin, 3.0);
+        let ev = FamilyEvidence::new(&w, &o, 240.0);
+        assert!(ev.prefers(10.0, 20.0).is_none());
+        // without the ball-spin line among the lines 1200 rpm explains, they did
+        let families_only = FamilyEvidence {
+            explaining: {
+                let [a, b, c] = families(&o);
+                [a, b, c, a]
+            },
+            ..ev
+        };
+        assert!(families_only.prefers(10.0, 20.0).is_some());
+    }
+
     #[test]
     fn no_family_no_preference() {
         let o = skf6205();
@@ -394,6 +519,9 @@ mod tests {
                     let c = g * p / q;
                     largest = largest.max(ev.unique_support(c, g, f64::NEG_INFINITY));
                     largest = largest.max(ev.unique_support(g, c, f64::NEG_INFINITY));
+                }
+                for k in [2.0, 3.0] {
+                    largest = largest.max(ev.multiple_support(k * g, g, f64::NEG_INFINITY));
                 }
                 g += 0.5;
             }

@@ -7,7 +7,9 @@
 //! never voting). It does not start from scratch each window:
 //! - **continuity**: the line found before is followed (searched within a few per cent of
 //!   where its trend puts it); a stronger line elsewhere is taken only once it has won two
-//!   windows in a row, and the window where it first wins is marked uncertain;
+//!   windows in a row, and the window where it first wins is marked uncertain; the followed
+//!   line's own half, which it already reports as its octave rival, is held off the same way
+//!   but without the mark (the window keeps the followed line, ambiguous);
 //! - **run-ups**: the history is warped in time along the speed trend measured over the last
 //!   windows before its spectrum is taken, so the harmonics of an accelerating shaft stay
 //!   sharp lines; the speed reported is the speed at the end of the history, and the window's
@@ -20,8 +22,10 @@
 //! - **fault families**: where the shaft lines leave the octave open (f/2 explains every line
 //!   f does; a ratio such as 2f/3 scores nearly as well), a damaged bearing's envelope lines
 //!   decide: the speed under which a BPFO, BPFI or 2xBSF family falls on its order, and under
-//!   which the other speed's lines do not, is taken ([`super::fault_family`]). A healthy
-//!   machine shows no family and keeps what the shaft lines say.
+//!   which the other speed's lines do not, is taken; of two speeds an octave apart, a family
+//!   at the higher one whose fundamental at the lower one is missing speaks for the higher
+//!   ([`super::fault_family`]). A healthy machine shows no family and keeps what the shaft
+//!   lines say.
 //!
 //! A hint (a fixed or nominal speed) narrows the search to a band around it and is used
 //! itself when the vibration shows no clear line there.
@@ -459,6 +463,7 @@ impl SpeedTracker {
             rival: None,
             unresolved: false,
             by_family: false,
+            held: None,
         };
         if let Some(lock) = self.lock {
             let t = self.t_newest();
@@ -475,6 +480,7 @@ impl SpeedTracker {
                 let (half, support) = self.spec.odd_support(f / 2.0, 2);
                 if f / 2.0 >= lo && support >= 0.5 * s && support > SCORE_NOISE {
                     (c.hz, c.score, c.followed) = (half, self.spec.full(half), false);
+                    c.held = Some((f, s));
                 }
             }
         }
@@ -574,6 +580,7 @@ impl SpeedTracker {
     /// Turn the best candidate into the window's speed, update the lock and the trend.
     fn decide(&mut self, c: Candidate, t_end: f64) -> TrackedSpeed {
         let following = self.lock.is_some_and(|l| l.confirmed);
+        let (c, holding) = self.hold_octave(c, following);
         let mut status = SpeedStatus::Tracking;
         if following && !c.followed {
             // a new line won: it is taken once it wins twice in a row
@@ -586,7 +593,7 @@ impl SpeedTracker {
                 self.pending = Some(c.hz);
                 status = SpeedStatus::Jumped;
             }
-        } else {
+        } else if !holding {
             self.pending = None;
         }
         let filled = c.filled();
@@ -663,6 +670,36 @@ impl SpeedTracker {
         }
     }
 
+    /// Octave continuity: when the octave guard moved a followed line to its half (the
+    /// half's odd harmonics crossed half the line's strength), the half is the rival the
+    /// followed line already reported, not a new line. The window keeps the followed line,
+    /// with the half as its rival (so at most [`MIN_CONFIDENCE`]: ambiguous, not unknown),
+    /// and the half is taken once it wins twice in a row, as any jump is. Without this a
+    /// line whose half reads at the guard's threshold flips octave every other window, and
+    /// every other window is flagged.
+    fn hold_octave(&mut self, c: Candidate, following: bool) -> (Candidate, bool) {
+        let Some((f, s)) = c.held.filter(|_| following && !c.followed) else {
+            return (c, false);
+        };
+        let confirmed = self
+            .pending
+            .is_some_and(|p| (p / c.hz - 1.0).abs() < FOLLOW_BAND);
+        if confirmed || (c.hz / (f / 2.0) - 1.0).abs() >= FOLLOW_BAND {
+            return (c, false);
+        }
+        self.pending = Some(c.hz);
+        let held = Candidate {
+            hz: f,
+            score: s,
+            followed: true,
+            rival: Some(c.hz),
+            by_family: false,
+            held: None,
+            ..c
+        };
+        (held, true)
+    }
+
     /// Half or twice `hz` when the spectrum supports it nearly as well: for half, the odd
     /// harmonics of hz / 2 (the lines it would add) stand out; for twice, the odd harmonics
     /// of `hz` (the lines that rule out 2 hz) do not.
@@ -698,6 +735,8 @@ struct Candidate {
     unresolved: bool,
     /// The bearing's fault families settled the octave (the rival does not limit confidence).
     by_family: bool,
+    /// The followed line (Hz, score) when the octave guard moved the candidate to its half.
+    held: Option<(f64, f64)>,
 }
 
 impl Candidate {
@@ -916,6 +955,66 @@ mod tests {
             .collect();
         let est = run(&x, fs, range(300.0, 3000.0), 2_500);
         assert!(est.iter().all(|(_, e)| e.uncertain()), "{est:?}");
+    }
+
+    /// A candidate the octave guard moved from a followed 20 Hz line (score 3) to its half.
+    fn moved_to_half() -> Candidate {
+        Candidate {
+            hz: 10.0,
+            score: 2.1,
+            followed: false,
+            trend: 0.0,
+            span: 2.4,
+            rival: None,
+            unresolved: false,
+            by_family: false,
+            held: Some((20.0, 3.0)),
+        }
+    }
+
+    fn followed_line() -> Candidate {
+        Candidate {
+            hz: 20.0,
+            score: 3.0,
+            followed: true,
+            rival: Some(10.0),
+            held: None,
+            ..moved_to_half()
+        }
+    }
+
+    /// The line of a machine whose half-speed lines hover at the octave guard's threshold
+    /// (HIT-SM's OR8_1200 at 1204 rpm: 1.5x and 2.5x lines): the half wins every other
+    /// window. Each such window keeps the followed line, ambiguous but not uncertain; the
+    /// half is taken when it wins twice in a row.
+    #[test]
+    fn the_followed_lines_own_half_is_held_off_until_it_wins_twice() {
+        let mut tr = SpeedTracker::new(range(500.0, 1500.0), 5_000.0).unwrap();
+        tr.lock = Some(Lock {
+            hz: 20.0,
+            t: 0.0,
+            confirmed: true,
+            trend: 0.0,
+        });
+        for (k, c) in [
+            moved_to_half(),
+            followed_line(),
+            moved_to_half(),
+            followed_line(),
+        ]
+        .into_iter()
+        .enumerate()
+        {
+            let e = tr.decide(c, 0.5 * (k + 1) as f64);
+            assert!((e.rpm - 1200.0).abs() < 1e-9, "window {k}: {e:?}");
+            assert!(!e.uncertain(), "window {k}: {e:?}");
+            assert_eq!(e.rival_rpm, Some(600.0), "window {k}");
+        }
+        let first = tr.decide(moved_to_half(), 2.5);
+        assert!((first.rpm - 1200.0).abs() < 1e-9, "{first:?}");
+        let second = tr.decide(moved_to_half(), 3.0);
+        assert!((second.rpm - 600.0).abs() < 1e-9, "{second:?}");
+        assert_eq!(second.status, SpeedStatus::Tracking);
     }
 
     #[test]

@@ -723,3 +723,52 @@ fn speed_from_the_vibration_takes_the_octave_the_bearing_faults_fit() {
         assert!(checked >= 8, "{name}: {checked} windows checked");
     }
 }
+
+/// HIT-SM (one accelerometer, no tacho; the nominal speed only in the file name, never given
+/// to rigmon): the speed `rigmon features` reads each record at with the shipped rig file
+/// (`[speed] estimate`, 500-1500 rpm), the median of its windows, within 1 % of the speed the
+/// record turns at. That is the nominal speed for the 18 fault records; the three Normal
+/// records all turn at ~1201 rpm whatever their name says (each shows a 20.1 Hz line about
+/// 240x its spectrum's median and nothing at 10 or 15 Hz, checked with SciPy outside rigmon,
+/// docs/diagnosis.md). Guards the octave rules of `dsp::speed_tracker` and
+/// `dsp::fault_family`: the 600 <-> 1200 rpm octave is open in this rig's shaft lines.
+#[test]
+fn hit_sm_records_are_read_at_the_speed_they_turn_at() {
+    let data = shared_data().join("hit-sm-self");
+    let rig = concat!(env!("CARGO_MANIFEST_DIR"), "/config/hit-sm-self.toml");
+    let mut wrong = Vec::new();
+    for cond in ["Normal", "IR2", "IR5", "IR8", "OR2", "OR5", "OR8"] {
+        for nominal in [600.0, 900.0, 1200.0] {
+            let name = format!("{cond}_{nominal}.mat");
+            let out = std::process::Command::new(env!("CARGO_BIN_EXE_rigmon"))
+                .args(["features", "--json", "--rig", rig])
+                .arg(data.join(&name))
+                .output()
+                .unwrap();
+            assert!(
+                out.status.success(),
+                "{name}: {}",
+                String::from_utf8_lossy(&out.stderr)
+            );
+            let mut rpm: Vec<f64> = String::from_utf8(out.stdout)
+                .unwrap()
+                .lines()
+                .map(|l| {
+                    serde_json::from_str::<serde_json::Value>(l).unwrap()["rpm"]
+                        .as_f64()
+                        .unwrap()
+                })
+                .collect();
+            assert!(rpm.len() >= 9, "{name}: {} windows", rpm.len());
+            rpm.sort_by(f64::total_cmp);
+            let median = rpm[rpm.len() / 2];
+            let turns_at = if cond == "Normal" { 1200.0 } else { nominal };
+            if (median / turns_at - 1.0).abs() > 0.01 {
+                wrong.push(format!(
+                    "{name}: median {median:.1} rpm, turns at {turns_at}"
+                ));
+            }
+        }
+    }
+    assert!(wrong.is_empty(), "{wrong:#?}");
+}
