@@ -16,7 +16,7 @@ use crate::recording::Recording;
 use crate::sim::plan::Plan;
 use crate::train::dataset::RecordingFeatures;
 use crate::train::featurise::featurise_all;
-use crate::train::score::{analyse_all, ScoredRecording};
+use crate::train::score::{analyze_all, ScoredRecording};
 use crate::vocabulary::Condition;
 use anyhow::{bail, Context, Result};
 use indicatif::ProgressBar;
@@ -66,7 +66,7 @@ fn labelled_set(manifest: &Path, rig: &RigConfig, what: &str) -> Result<Labelled
             );
         }
     }
-    let scored = analyse_all(&entries, rig, &ProgressBar::hidden())
+    let scored = analyze_all(&entries, rig, &ProgressBar::hidden())
         .with_context(|| format!("{what} recordings of {}", manifest.display()))?;
     Ok(LabelledSet {
         manifest: manifest.to_path_buf(),

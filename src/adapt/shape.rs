@@ -59,7 +59,7 @@ pub struct ShapedFault {
 /// every window ([`crate::dsp::fault_band_ratios::FaultBandRatios`]: the band at the fault
 /// order and at twice it, over the median band); median over the recording's windows.
 pub fn family_ratio(rec: &Recording, rig: &RigConfig, label: &str) -> Result<f64> {
-    let windows = crate::analysis::analyse_recording(rec, rig)?;
+    let windows = crate::analysis::analyze_recording(rec, rig)?;
     let mut v: Vec<f64> = windows
         .iter()
         .filter_map(|w| w.fault_bands.as_ref())

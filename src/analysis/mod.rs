@@ -13,7 +13,7 @@ pub mod stage;
 pub mod velocity;
 pub mod windows;
 
-pub use recording::{analyse_recording, extract_recording, extract_with_speed};
+pub use recording::{analyze_recording, extract_recording, extract_with_speed};
 pub use speed_source::{whole_recording, SpeedSource};
 pub use stage::{AnalysisStage, WindowAnalysis, WindowError};
 pub use windows::{WindowSpec, WindowView, Windower};

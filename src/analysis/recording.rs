@@ -2,7 +2,7 @@
 //! recording is fed as sample blocks through the same [`Windower`] and [`AnalysisStage`]
 //! (window by window speed included), so `rigmon features`, training and evaluation see the
 //! features a served model is given. A window that cannot be computed (NaN samples, no
-//! speed) is an error naming the window; [`analyse_recording`] instead keeps every window as
+//! speed) is an error naming the window; [`analyze_recording`] instead keeps every window as
 //! the daemon would see it (quality flags, no-speed and failed windows included), for scores
 //! that must say what the daemon says.
 
@@ -36,7 +36,7 @@ pub fn extract_with_speed(
 /// Every full window of a recording as the daemon analyses it (non-finite samples zeroed and
 /// flagged, windows without speed or features kept with their error), with the speed source
 /// from the rig file.
-pub fn analyse_recording(rec: &Recording, rig: &RigConfig) -> Result<Vec<WindowAnalysis>> {
+pub fn analyze_recording(rec: &Recording, rig: &RigConfig) -> Result<Vec<WindowAnalysis>> {
     let speed = SpeedSource::for_recording(rec, rig)?;
     let mut out = Vec::new();
     each_window(rec, rig, speed, false, |a| {
@@ -108,7 +108,7 @@ fn each_window(
         windower.push(&block_of(rec, start, end));
         // Every window is complete once its last sample is in: none waits for a later block.
         while let Some(view) = windower.window() {
-            let a = stage.analyse(&view);
+            let a = stage.analyze(&view);
             drop(view);
             windower.advance();
             each(a)?;

@@ -3,7 +3,7 @@
 //! spectrum features with their quality flags, the classifier channel's band ratios at the
 //! bearing's fault orders (what the rule baseline judges), and the ISO 20816-3 velocity RMS of
 //! the classifier channel. The daemon and whole recordings (`rigmon features`, training,
-//! evaluation) both go through [`AnalysisStage::analyse`], so a model is served the features
+//! evaluation) both go through [`AnalysisStage::analyze`], so a model is served the features
 //! it was trained on. Buffers are made once and reused.
 
 use super::speed_source::SpeedSource;
@@ -142,7 +142,7 @@ impl AnalysisStage {
     }
 
     /// Analyse one window.
-    pub fn analyse(&mut self, view: &WindowView) -> WindowAnalysis {
+    pub fn analyze(&mut self, view: &WindowView) -> WindowAnalysis {
         let mut nan_samples = 0;
         // Copy, count and zero non-finite samples (the feature pipeline refuses them).
         let mut classifier_nan = view.lost_samples > 0;

@@ -12,7 +12,7 @@ use crate::manifest::{manifest_path, read_manifest};
 use crate::model::rule::{EnvelopeRule, RuleSettings};
 use crate::model::OnnxClassifier;
 use crate::train::score::{
-    analyse_all, model_outcomes_with, rule_labels, rule_outcomes, ModelOutcomes, ScoredRecording,
+    analyze_all, model_outcomes_with, rule_labels, rule_outcomes, ModelOutcomes, ScoredRecording,
 };
 use anyhow::{bail, Context, Result};
 use indicatif::ProgressBar;
@@ -96,7 +96,7 @@ pub fn run(args: Args) -> Result<()> {
         }
         None => HealthPolicy::default(),
     };
-    let recs = analyse_all(&entries, &rig, &ProgressBar::hidden())?;
+    let recs = analyze_all(&entries, &rig, &ProgressBar::hidden())?;
     let mut scored = None;
     if let (Some(path), Some(clf)) = (&args.model, clf) {
         let mo = model_outcomes_with(&clf, &recs, &rig, &policy)?;

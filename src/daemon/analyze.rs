@@ -143,7 +143,7 @@ impl Analyzer {
     /// Analyse one window.
     pub fn analyze(&mut self, view: &WindowView) -> WindowOutput {
         self.seq += 1;
-        let analysis = self.stage.analyse(view);
+        let analysis = self.stage.analyze(view);
         let labels = self.model.meta().labels.clone();
         let mut c = self.classify(view, analysis);
         let features = c.features.take();

@@ -149,7 +149,7 @@ impl EnvelopeRule {
                 ch.name
             );
         }
-        let windows = crate::analysis::analyse_recording(rec, rig)?;
+        let windows = crate::analysis::analyze_recording(rec, rig)?;
         Ok(windows
             .iter()
             .filter_map(|w| self.judge_window(w))

@@ -1,6 +1,6 @@
 //! Scoring labelled recordings of a manifest whole-record, with what the daemon would say.
 //! Each recording is cut into the daemon's windows by the analysis stage
-//! ([`crate::analysis::analyse_recording`]: real window times, quality flags, the fault-band
+//! ([`crate::analysis::analyze_recording`]: real window times, quality flags, the fault-band
 //! ratios, no window dropped), then an ONNX model file runs through tract (as the daemon runs
 //! it) and every window through the daemon's own verdict and health state machine
 //! ([`HealthStateMachine::observe`], default `[health]`); the rule baseline
@@ -68,7 +68,7 @@ impl ScoredRecording {
 }
 
 /// Load one manifest row and cut it into the daemon's windows (those inside its span).
-pub fn analyse_entry(entry: &ManifestEntry, rig: &RigConfig) -> Result<ScoredRecording> {
+pub fn analyze_entry(entry: &ManifestEntry, rig: &RigConfig) -> Result<ScoredRecording> {
     let at = || format!("manifest line {}: {}", entry.line, entry.path.display());
     let bytes = std::fs::read(&entry.path).with_context(|| format!("{}: cannot read", at()))?;
     let sha256 = crate::model::digest::sha256_hex(&bytes);
@@ -80,7 +80,7 @@ pub fn analyse_entry(entry: &ManifestEntry, rig: &RigConfig) -> Result<ScoredRec
         .context("the rig file names no classifier channel (features.classifier_axis)")?
         .name
         .clone();
-    let all = crate::analysis::analyse_recording(&rec, rig).with_context(at)?;
+    let all = crate::analysis::analyze_recording(&rec, rig).with_context(at)?;
     let n_all = all.len();
     let windows: Vec<ScoredWindow> = all
         .into_iter()
@@ -117,9 +117,9 @@ pub fn analyse_entry(entry: &ManifestEntry, rig: &RigConfig) -> Result<ScoredRec
     })
 }
 
-/// [`analyse_entry`] on every row, in parallel, keeping manifest order; `progress` is ticked
+/// [`analyze_entry`] on every row, in parallel, keeping manifest order; `progress` is ticked
 /// per file.
-pub fn analyse_all(
+pub fn analyze_all(
     entries: &[ManifestEntry],
     rig: &RigConfig,
     progress: &indicatif::ProgressBar,
@@ -127,7 +127,7 @@ pub fn analyse_all(
     entries
         .par_iter()
         .map(|e| {
-            let r = analyse_entry(e, rig);
+            let r = analyze_entry(e, rig);
             progress.inc(1);
             r
         })

@@ -790,7 +790,7 @@ fn a_looping_replay_restarts_the_speed_at_the_seam() {
         delivered += block.len() as u64;
         windower.push(&block);
         while let Some(view) = windower.window() {
-            let a = stage.analyse(&view);
+            let a = stage.analyze(&view);
             drop(view);
             windower.advance();
             let fw = a.features.expect("every window has its speed and features");
