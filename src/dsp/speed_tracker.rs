@@ -584,10 +584,7 @@ impl SpeedTracker {
         let mut status = SpeedStatus::Tracking;
         if following && !c.followed {
             // a new line won: it is taken once it wins twice in a row
-            if self
-                .pending
-                .is_some_and(|p| (p / c.hz - 1.0).abs() < FOLLOW_BAND)
-            {
+            if self.pending_is(c.hz) {
                 self.pending = None;
             } else {
                 self.pending = Some(c.hz);
@@ -670,6 +667,12 @@ impl SpeedTracker {
         }
     }
 
+    /// The line that won the last window without being taken is at `hz` (its second win).
+    fn pending_is(&self, hz: f64) -> bool {
+        self.pending
+            .is_some_and(|p| (p / hz - 1.0).abs() < FOLLOW_BAND)
+    }
+
     /// Octave continuity: when the octave guard moved a followed line to its half (the
     /// half's odd harmonics crossed half the line's strength), the half is the rival the
     /// followed line already reported, not a new line. The window keeps the followed line,
@@ -681,10 +684,7 @@ impl SpeedTracker {
         let Some((f, s)) = c.held.filter(|_| following && !c.followed) else {
             return (c, false);
         };
-        let confirmed = self
-            .pending
-            .is_some_and(|p| (p / c.hz - 1.0).abs() < FOLLOW_BAND);
-        if confirmed || (c.hz / (f / 2.0) - 1.0).abs() >= FOLLOW_BAND {
+        if self.pending_is(c.hz) || (c.hz / (f / 2.0) - 1.0).abs() >= FOLLOW_BAND {
             return (c, false);
         }
         self.pending = Some(c.hz);
