@@ -19,9 +19,20 @@ fluid-film whirl is). `slow_speed_fluctuation` is a speed fluctuation slower tha
 plus an impact once every two revolutions ringing down at 900 Hz (a loose housing that lifts
 and lands every other revolution, issue 26), `noise` changes the sensor noise.
 
+Two cases test fault detection where physics still allows it but the defaults do not go
+(issue 26, "never below the physics"); neither has an effect for `rigmon calibrate`:
+`weak_inner_race` makes the inner-race impacts a quarter of the default and runs at 300 and
+600 rpm (the impact strength already scales with speed, so the 300 rpm inner race is an
+eighth of the default 600 rpm one); `skf6205_low_load` puts a different bearing on the rig
+(SKF 6205: 9 balls of 7.94 mm on a 39.04 mm pitch, 0 deg; its rig file is config/lut-rig.toml
+with only [bearing] changed, which docs/per-set.sh writes) with strong inner-race impacts and
+a light radial load: every ball is loaded all the way round (Harris's load distribution with
+factor `load_zone_epsilon` > 0.5), so the inner-race train is barely modulated at 1x and its
+1x sidebands are small.
+
     python3 measured_like.py --out DIR --case CASE [--seed N] [--seconds S]
 
-writes DIR/<label>-<rpm>rpm.csv (header `time,axial,vertical,horizontal,tacho`; m/s^2 and V;
+writes DIR/<label>-<rpm>rpm.csv (rpm 600 and 1200; 300 and 600 for `weak_inner_race`) (header `time,axial,vertical,horizontal,tacho`; m/s^2 and V;
 10 kHz; the channel names of config/lut-rig.toml), DIR/labels.csv (`path,label`) and
 DIR/truth.json = {"case", "effect", "params", "outside"}.
 
@@ -38,10 +49,12 @@ FS = 10_000.0
 SPEEDS_RPM = (600.0, 1200.0)  # whole cycles in 3 s: no scalloping of 1x
 LABELS = ("healthy", "outer_race", "inner_race")
 
-# LUT rig bearing, SKF 6007-2Z (config/lut-rig.toml [bearing])
-BALLS = 11
-BALL_D_MM = 7.94
-PITCH_D_MM = 48.0
+# Bearings (balls, ball diameter mm, pitch diameter mm); contact angle 0 deg unless a case
+# sets one. LUT rig: SKF 6007-2Z (config/lut-rig.toml [bearing]); the default of every case.
+BEARINGS = {
+    "skf6007": {"balls": 11, "ball_diameter_mm": 7.94, "pitch_diameter_mm": 48.0},
+    "skf6205": {"balls": 9, "ball_diameter_mm": 7.94, "pitch_diameter_mm": 39.04},
+}
 
 # The "real" rig this generator pretends to measure. Resonances: (Hz, damping ratio,
 # participation axial, vertical, horizontal).
@@ -126,6 +139,23 @@ CASES = {
     "outside": (None, {}),
     "whirl": (None, {}),
     "slow_speed_fluctuation": ("speed_fluctuation", {"fraction": 0.04, "period_s": 4.0}),
+    # Fault detection near the physics (issue 26), no calibration effect. A quarter of the
+    # default inner-race impact at half the low speed and at the low speed.
+    "weak_inner_race": (None, {"ir_impact_scale": 0.25, "speeds_rpm": [300.0, 600.0]}),
+    # Another bearing, strong inner-race impacts (peak at the load zone's centre equal to the
+    # outer race's, 50 m/s^2 at 600 rpm), light radial load: strength follows Harris's
+    # q(psi)/q_max = (1 - (1 - cos psi) / (2 eps))^1.5 with eps = 4, so the impacts at the top
+    # are 0.65 of those at the bottom (the default LUT train goes from 1.15 to 0.15).
+    "skf6205_low_load": (
+        None,
+        {
+            "bearing": "skf6205",
+            **BEARINGS["skf6205"],
+            "contact_angle_deg": 0.0,
+            "ir_impact_at_600_m_s2": 50.0,
+            "load_zone_epsilon": 4.0,
+        },
+    ),
 }
 OUTSIDE = {"location": 17.3, "unit": "order", "locked_to": "speed", "amplitude_m_s2": 0.5}
 WHIRL = {"location": 0.46, "unit": "order", "locked_to": "speed", "amplitude_m_s2": 0.3}
@@ -176,20 +206,33 @@ def ring(n, times, amps, resonances, axis, rng):
     return y
 
 
-def fault_impacts(label, revs, rpm, rng, slip, contact_deg):
+def inner_race_strength(shaft_angle, params):
+    """Relative strength of inner-race impacts at each shaft angle (0 = defect at the bottom,
+    the centre of the load zone). Default: a load zone of the lower half, cos^1.5, over a
+    floor of 0.15. With `load_zone_epsilon` (a light radial load, every ball loaded): Harris's
+    load distribution (1 - (1 - cos psi) / (2 eps))^1.5, 1 at the bottom."""
+    eps = params.get("load_zone_epsilon")
+    if eps is None:
+        return 0.15 + np.clip(np.cos(shaft_angle), 0.0, None) ** 1.5
+    return np.clip(1.0 - (1.0 - np.cos(shaft_angle)) / (2.0 * eps), 0.0, None) ** 1.5
+
+
+def fault_impacts(label, revs, rpm, rng, slip, contact_deg, params):
     """Impact times and strengths (before the resonance gains) of a localized defect."""
-    r = BALL_D_MM / PITCH_D_MM * np.cos(np.radians(contact_deg))
+    b = BEARINGS[params.get("bearing", "skf6007")]
+    r = b["ball_diameter_mm"] / b["pitch_diameter_mm"] * np.cos(np.radians(contact_deg))
     cage = revs * 0.5 * (1.0 - r) * (1.0 - slip)  # cage revolutions
     speed_gain = (rpm / 600.0) ** IMPACT_SPEED_EXPONENT
     if label == "outer_race":
-        times = crossing_times(BALLS * cage)
+        times = crossing_times(b["balls"] * cage)
         amps = OR_IMPACT_AT_600 * speed_gain * (1.0 + 0.1 * rng.standard_normal(len(times)))
     elif label == "inner_race":
-        times = crossing_times(BALLS * (revs - cage))
+        times = crossing_times(b["balls"] * (revs - cage))
         # the defect turns with the shaft: strength follows the load zone at the bottom
         shaft_angle = np.interp(times, np.arange(len(revs)) / FS, revs) * 2 * np.pi
-        load = np.clip(np.cos(shaft_angle), 0.0, None) ** 1.5
-        amps = IR_IMPACT_AT_600 * speed_gain * (0.15 + load) * (1.0 + 0.1 * rng.standard_normal(len(times)))
+        load = inner_race_strength(shaft_angle, params)
+        at_600 = params.get("ir_impact_at_600_m_s2", IR_IMPACT_AT_600) * params.get("ir_impact_scale", 1.0)
+        amps = at_600 * speed_gain * load * (1.0 + 0.1 * rng.standard_normal(len(times)))
     else:
         return np.zeros(0), np.zeros(0)
     spacing = np.median(np.diff(times)) if len(times) > 1 else 0.0
@@ -252,7 +295,7 @@ def record(label, rpm, case, params, seconds, rng):
     resonances = list(RESONANCES)
     if case == "resonance":
         resonances[0] = (params["hz"], params["damping"], resonances[0][2])
-    times, amps = fault_impacts(label, revs, rpm, rng, slip, contact)
+    times, amps = fault_impacts(label, revs, rpm, rng, slip, contact, params)
     chans = []
     for axis in range(3):
         y = ring(n, times, amps, resonances, axis, rng)
@@ -321,7 +364,7 @@ def main():
         params["half_order_m_s2"] = round(total, 4)
         params["impact_half_order_m_s2"] = round(impacts, 6)
     rows = ["path,label"]
-    for rpm in SPEEDS_RPM:
+    for rpm in params.get("speeds_rpm", SPEEDS_RPM):
         for label in LABELS:
             t, chans, tacho = record(label, rpm, a.case, params, a.seconds, rng)
             name = f"{label}-{int(rpm)}rpm.csv"
