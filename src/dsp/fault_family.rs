@@ -330,9 +330,8 @@ impl<'a> FamilyEvidence<'a> {
     }
 
     /// Some family or ball-spin line at shaft speed `g` (harmonics and up to
-    /// [`EXPLAINED_SIDEBANDS`] sidebands either side) lies within the slip of both lines of `f`, or `f` sits on a
-    /// shaft harmonic of `g` or of `c` (the envelope carries the shaft's own modulation at
-    /// whole orders; those lines speak for neither).
+    /// [`EXPLAINED_SIDEBANDS`] sidebands either side) lies within the slip of both lines of
+    /// `f`, or `f` sits on a shaft harmonic of `g` or of `c` ([`Self::on_shaft`]).
     fn explained(&self, f: f64, c: f64, g: f64) -> bool {
         let df = self.env.df;
         self.on_shaft(f, c, g)
