@@ -6,18 +6,18 @@
 //! by `type` (`file`, `serial`, `can`, `audio`, `opendaq`); [`SourceConfig::build`] checks it against
 //! the rig and returns a ready [`Source`], or an error that says what to fix.
 
-pub mod assembler;
+pub(crate) mod assembler;
 pub mod audio;
 pub mod can;
 pub mod can_protocol;
-pub mod channel_order;
+pub(crate) mod channel_order;
 pub mod emulator;
-pub mod file_replay;
+pub(crate) mod file_replay;
 pub mod layout;
 pub mod opendaq;
 pub mod serial;
 pub mod serial_protocol;
-pub mod stream_replay;
+pub(crate) mod stream_replay;
 
 use crate::config::{Acquisition, RigConfig};
 use serde::{Deserialize, Serialize};

@@ -12,12 +12,12 @@
 //! that the adapted model misses no labelled fault ([`check`]) -> write the folder
 //! ([`report`], with wall and CPU time per step: [`timing`]).
 
-pub mod check;
-pub mod plan;
-pub mod preflight;
-pub mod report;
-pub mod shape;
-pub mod timing;
+pub(crate) mod check;
+pub(crate) mod plan;
+pub(crate) mod preflight;
+pub(crate) mod report;
+pub(crate) mod shape;
+pub(crate) mod timing;
 
 use crate::calibrate::{fit as cal_fit, measured, plots as cal_plots, report as cal_report};
 use crate::config::RigConfig;

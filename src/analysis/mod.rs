@@ -7,7 +7,7 @@
 //! `dsp` (the maths) and `model`/`health`.
 
 pub mod recording;
-pub mod rig_recipe;
+pub(crate) mod rig_recipe;
 pub mod speed_source;
 pub mod stage;
 pub mod velocity;

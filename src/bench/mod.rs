@@ -2,13 +2,13 @@
 //! measured in the same run. One file per benchmark; results go in the README with the
 //! machine they ran on (see [`machine_line`]).
 
-pub mod calibrate;
-pub mod features;
-pub mod footprint;
-pub mod historian;
-pub mod load;
-pub mod simulate;
-pub mod speed;
+pub(crate) mod calibrate;
+pub(crate) mod features;
+pub(crate) mod footprint;
+pub(crate) mod historian;
+pub(crate) mod load;
+pub(crate) mod simulate;
+pub(crate) mod speed;
 
 use anyhow::{Context, Result};
 use std::path::{Path, PathBuf};

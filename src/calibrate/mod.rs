@@ -11,7 +11,7 @@
 
 pub mod catalog;
 pub mod error;
-pub mod fault_peaks;
+pub(crate) mod fault_peaks;
 pub mod fit;
 pub mod fractional_orders;
 pub mod half_orders;
@@ -19,13 +19,13 @@ pub mod impacts;
 pub mod locate;
 pub mod measured;
 pub mod modes;
-pub mod plots;
+pub(crate) mod plots;
 pub mod rate;
 pub mod report;
 pub mod search;
 pub mod shaft_orders;
-pub mod speed_line;
+pub(crate) mod speed_line;
 pub mod stats;
-pub mod timing;
-pub mod trace;
+pub(crate) mod timing;
+pub(crate) mod trace;
 pub mod views;

@@ -18,7 +18,7 @@ pub mod history;
 pub mod import;
 pub mod inspect;
 pub mod model;
-pub mod read_args;
+pub(crate) mod read_args;
 pub mod repair;
 pub mod replay;
 pub mod run;

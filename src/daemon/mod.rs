@@ -7,25 +7,25 @@
 //! the pipeline its events: blocks, SIGHUP reloads, ticks and the end.
 
 pub mod analyze;
-pub mod backlog;
-pub mod code_pages;
+pub(crate) mod backlog;
+pub(crate) mod code_pages;
 pub mod config;
-pub mod intake;
-pub mod latency;
+pub(crate) mod intake;
+pub(crate) mod latency;
 pub mod notify;
-pub mod options;
+pub(crate) mod options;
 pub mod pipeline;
-pub mod preflight;
-pub mod queued_sink;
-pub mod record_sink;
+pub(crate) mod preflight;
+pub(crate) mod queued_sink;
+pub(crate) mod record_sink;
 pub mod reload;
 pub mod signals;
-pub mod sink;
-pub mod sinks;
+pub(crate) mod sink;
+pub(crate) mod sinks;
 pub mod status;
-pub mod stdout_sink;
+pub(crate) mod stdout_sink;
 pub mod summary;
-pub mod zenoh_sink;
+pub(crate) mod zenoh_sink;
 
 pub use options::DaemonOptions;
 pub use stdout_sink::Output;

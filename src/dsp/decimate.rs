@@ -37,10 +37,6 @@ impl Decimator {
         }
     }
 
-    pub fn factor(&self) -> usize {
-        self.factor
-    }
-
     /// Delay of the filter in input samples ((taps - 1) / 2).
     pub fn delay(&self) -> f64 {
         (self.taps.len() - 1) as f64 / 2.0

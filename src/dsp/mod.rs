@@ -10,25 +10,25 @@
 //! [`resample`] (a whole stretch down to a lower rate, band-limited).
 //! Windows of a stream or a whole recording are cut and given their speed in `analysis`.
 
-pub mod biquad;
-pub mod decimate;
+pub(crate) mod biquad;
+pub(crate) mod decimate;
 pub mod envelope;
-pub mod fault_band_ratios;
+pub(crate) mod fault_band_ratios;
 pub mod fault_family;
-pub mod feature_settings;
+pub(crate) mod feature_settings;
 pub mod features;
-pub mod fft_len;
-pub mod harmonic_sum;
+pub(crate) mod fft_len;
+pub(crate) mod harmonic_sum;
 pub mod kurtogram;
 pub mod order_spectrum;
-pub mod order_tracking;
+pub(crate) mod order_tracking;
 pub mod quality;
-pub mod resample;
+pub(crate) mod resample;
 pub mod speed;
-pub mod speed_config;
+pub(crate) mod speed_config;
 pub mod speed_estimate;
 pub mod speed_tracker;
-pub mod stored_speed;
+pub(crate) mod stored_speed;
 pub mod synthetic;
 pub mod tacho;
 

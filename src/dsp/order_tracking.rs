@@ -149,13 +149,8 @@ impl OrderTracker {
         })
     }
 
-    /// Number of angle samples of the prepared window.
-    pub fn count(&self) -> usize {
-        self.count
-    }
-
     /// Resample one channel's envelope (`len` samples) onto the prepared angle grid:
-    /// `out[..count()]` receives the order-domain signal.
+    /// the first angle-sample count of `out` receives the order-domain signal.
     pub fn resample(&mut self, envelope: &[f32], out: &mut [f32]) {
         assert_eq!(envelope.len(), self.len, "order tracker input length");
         let c2r = self.c2r.as_ref().expect("prepare() before resample()");

@@ -1,6 +1,6 @@
 //! Band-limited resampling of a whole stretch of samples down to a lower rate, in the
 //! frequency domain: the stretch is mirrored at its end (so its periodic continuation has no
-//! jump to ring, only a kink that rings for [`EDGE_S`] at each end), transformed once, its spectrum kept unchanged up to [`PASS_FRACTION`] of
+//! jump to ring, only a kink that rings for about 2.5 ms at the new rate at each end), transformed once, its spectrum kept unchanged up to [`PASS_FRACTION`] of
 //! the new rate, rolled off with a raised cosine to zero at the new Nyquist frequency and cut
 //! there (nothing above it can alias), and transformed back at the new length. The new
 //! length is the largest whole number of samples the target rate allows, so the new rate is
@@ -18,7 +18,8 @@ pub const PASS_FRACTION: f64 = 0.45;
 
 /// The kink the mirror leaves at each end of the stretch rings for about this long at the
 /// new rate (a sine just below the pass band's edge: under 0.2 % of its amplitude after it).
-pub const EDGE_S: f64 = 0.0025;
+#[cfg(test)]
+const EDGE_S: f64 = 0.0025;
 
 /// FFT plans, the gain per output bin and buffers for one stretch length and rate pair.
 pub struct Resampler {
@@ -97,6 +98,7 @@ impl Resampler {
     }
 
     /// Samples per stretch at the new rate.
+    #[cfg(test)]
     pub fn len_out(&self) -> usize {
         self.len_out
     }
@@ -201,7 +203,7 @@ mod tests {
                 "{hz} Hz: amplitude {a}, was {amp}"
             );
             // and sample by sample, where it should be in time: the mirror leaves no jump,
-            // only a kink whose ringing dies out within [`EDGE_S`] of the ends
+            // only a kink whose ringing dies out within EDGE_S of the ends
             let truth = sine(24_000, 12_000.0, hz, amp, 0.4);
             let edge = (EDGE_S * 12_000.0) as usize;
             let worst = y[edge..y.len() - edge]

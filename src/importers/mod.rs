@@ -11,7 +11,7 @@
 pub mod csv;
 pub mod cwru;
 pub mod mat5;
-pub mod mat_layout;
+pub(crate) mod mat_layout;
 pub mod memory;
 pub mod mfpt;
 pub mod wav;

@@ -8,10 +8,10 @@
 //! with ([`rule`]), and its statistic under kurtogram-chosen envelope bands ([`band_ratios`]).
 
 pub mod align;
-pub mod band_ratios;
+pub(crate) mod band_ratios;
 pub mod baseline;
 pub mod classifier;
-pub mod digest;
+pub(crate) mod digest;
 pub mod evidence;
 pub mod export;
 pub mod identity;

@@ -1,8 +1,8 @@
 //! PNG pictures (plotters): shared set-up such as the font. One file per kind of picture.
 
-pub mod confusion;
-pub mod embedding;
-pub mod kurtogram;
+pub(crate) mod confusion;
+pub(crate) mod embedding;
+pub(crate) mod kurtogram;
 
 use anyhow::{bail, Result};
 use std::sync::OnceLock;
@@ -45,4 +45,4 @@ pub fn ensure_font() -> Result<()> {
     }
 }
 
-pub mod spectrum;
+pub(crate) mod spectrum;

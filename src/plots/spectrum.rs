@@ -41,11 +41,6 @@ fn colour(group: usize) -> RGBColor {
     }
 }
 
-/// Draw `plot` into a 1400 x 700 PNG at `path`.
-pub fn draw_order_spectrum(path: &Path, plot: &SpectrumPlot) -> Result<()> {
-    draw_order_spectra(path, std::slice::from_ref(plot))
-}
-
 /// Draw `plots` one above the other (1400 x 700 for one, 560 px high each for more) into a
 /// PNG at `path`; each panel keeps its own amplitude scale.
 pub fn draw_order_spectra(path: &Path, plots: &[SpectrumPlot]) -> Result<()> {

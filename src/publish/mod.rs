@@ -7,6 +7,6 @@
 //! messages for late joiners on `.../recent`; [`time_range`] reads `_time=[..]` selectors.
 
 pub mod access;
-pub mod recent;
-pub mod time_range;
+pub(crate) mod recent;
+pub(crate) mod time_range;
 pub mod zenoh;

@@ -203,15 +203,6 @@ impl RecentHistory {
             g.push_back(entry);
         }
     }
-
-    /// Messages held now.
-    pub fn len(&self) -> usize {
-        self.entries.lock().map(|g| g.len()).unwrap_or(0)
-    }
-
-    pub fn is_empty(&self) -> bool {
-        self.len() == 0
-    }
 }
 
 #[cfg(test)]

@@ -20,14 +20,6 @@ pub struct TimeRange {
 }
 
 impl TimeRange {
-    /// Everything since `from_ns` (inclusive).
-    pub fn since(from_ns: u64) -> Self {
-        TimeRange {
-            from_ns: Some(from_ns),
-            until_ns: None,
-        }
-    }
-
     /// Parse `[t1..t2]` (evaluating `now()` against `now_ns`).
     pub fn parse(text: &str, now_ns: u64) -> Result<Self> {
         let t = text.trim();
@@ -76,7 +68,7 @@ impl TimeRange {
     }
 
     /// The selector value: `[from..until[` with RFC 3339 instants (µs).
-    pub fn to_selector_value(&self) -> String {
+    pub fn to_selector_value(self) -> String {
         let fmt = |ns: Option<u64>| {
             ns.map(|v| humantime::format_rfc3339_micros(UNIX_EPOCH + Duration::from_nanos(v)))
                 .map(|d| d.to_string())

@@ -51,11 +51,6 @@ impl Decimator {
         }
     }
 
-    /// Group delay in input samples.
-    pub fn delay(&self) -> usize {
-        self.taps.len() / 2
-    }
-
     #[inline]
     pub fn push(&mut self, x: f64) {
         let n = self.taps.len();
@@ -67,7 +62,7 @@ impl Decimator {
         }
     }
 
-    /// Filter output for the sample `delay()` steps before the last pushed one.
+    /// Filter output for the sample half the filter's length (its group delay) before the last pushed one.
     pub fn output(&self) -> f64 {
         let n = self.taps.len();
         let window = &self.ring[self.pos..self.pos + n];

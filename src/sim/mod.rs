@@ -11,17 +11,17 @@
 //! [`run_engine`]), [`scenario`], [`plan`] (datasets) and [`output`] (MCAP/WAV); its
 //! `[simulation]` rig-file section is [`crate::config::simulation`].
 
-pub mod bearing_contact;
+pub(crate) mod bearing_contact;
 pub mod dataset;
-pub mod decimate;
+pub(crate) mod decimate;
 pub mod defects;
-pub mod integrate;
-pub mod linalg;
+pub(crate) mod integrate;
+pub(crate) mod linalg;
 pub mod output;
 pub mod plan;
 pub mod profile;
 pub mod rotor;
-pub mod scenario;
+pub(crate) mod scenario;
 pub mod sensor;
 pub mod signature;
 pub mod structure;

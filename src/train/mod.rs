@@ -5,7 +5,7 @@
 //! model file and of the rule baseline on a manifest ([`score`]).
 
 pub mod dataset;
-pub mod featurise;
+pub(crate) mod featurise;
 pub mod finetune;
 pub mod fit;
 pub mod score;

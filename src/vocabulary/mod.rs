@@ -10,10 +10,10 @@
 //!   both its error and its views name them, so they sit below both).
 
 pub mod condition;
-pub mod error_component;
+pub(crate) mod error_component;
 pub mod quality;
 pub mod unit;
-pub mod zenoh_mode;
+pub(crate) mod zenoh_mode;
 
 pub use condition::Condition;
 pub use error_component::ErrorComponent;

@@ -253,7 +253,11 @@ fn paths_in(code: &str, file_module: &Module) -> Vec<(Module, String)> {
             while j < c.len() && (is_ident(c[j]) || c[j] == ':') {
                 j += 1;
             }
-            out.push((here(&inline), c[i..j].iter().collect()));
+            let path: String = c[i..j].iter().collect();
+            // a bare `crate` / `super` is a visibility (`pub(crate)`), not a path
+            if path.contains("::") {
+                out.push((here(&inline), path));
+            }
             i = j;
         } else {
             i += 1;
@@ -374,6 +378,8 @@ fn the_import_reader_sees_known_imports() {
         expand("super::{a, b::{C, d as D}}"),
         ["super::a", "super::b::C", "super::b::d"]
     );
+    let visibility = paths_in("pub(crate) mod a;\npub(super) fn f() {}", &Vec::new());
+    assert!(visibility.is_empty(), "{visibility:?}");
     let code = code_only("let s = \"crate::x\"; // crate::y\nlet c = '\"'; crate::z::w");
     assert!(
         !code.contains("crate::x") && !code.contains("crate::y") && code.contains("crate::z::w")

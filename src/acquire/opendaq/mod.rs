@@ -12,12 +12,12 @@
 //! - [`browse`]: list a server's signals (`rigmon devices`).
 //! - [`source`]: the `[source] type = "opendaq"` source.
 
-pub mod aligner;
-pub mod browse;
+pub(crate) mod aligner;
+pub(crate) mod browse;
 pub mod connection;
-pub mod msgpack;
+pub(crate) mod msgpack;
 pub mod protocol;
-pub mod session;
+pub(crate) mod session;
 pub mod signal;
 pub mod source;
 

@@ -35,15 +35,15 @@
 //! reported ([`crate::recording::Losses`]). [`repair`] rewrites a damaged or unfinished file
 //! as a clean, finished one.
 
-pub mod assemble;
+pub(crate) mod assemble;
 pub mod codec;
-pub mod durable_file;
-pub mod file_writer;
+pub(crate) mod durable_file;
+pub(crate) mod file_writer;
 pub mod layout;
 pub mod reader;
 pub mod repair;
-pub mod scan;
-pub mod stream_writer;
+pub(crate) mod scan;
+pub(crate) mod stream_writer;
 
 pub use codec::{decode_block, decode_edges, DecodedBlock};
 pub use durable_file::{McapFile, McapFileOptions};
