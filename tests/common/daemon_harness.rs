@@ -1,6 +1,6 @@
-//! Helpers to run the real `rigmon` binary in tests (copied from tests/fast/daemon.rs so both test
-//! files stay independent): the repository paths, a child guard, line readers for its pipes,
-//! waiting for exit, signals, and a daemon config replaying a file with recording on.
+//! Helpers to run the real `rigmon` binary in tests (the fast tier's daemon, faults and
+//! openDAQ modules share them): the repository paths, a child guard, line readers for its
+//! pipes, waiting for exit, signals, and a daemon config replaying a file with recording on.
 #![allow(dead_code)]
 
 use std::io::{BufRead, BufReader, Read};

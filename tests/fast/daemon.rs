@@ -3,6 +3,7 @@
 //! Python eclipse-zenoh client, a NOTIFY_SOCKET datagram socket, Unix signals, MCAP files read
 //! back, and `systemd-analyze verify`.
 
+use crate::daemon_harness::{bin, daemon_config, lines, repo, signal, wait_exit, Guard};
 use crate::wrong_shape;
 
 use rigmon::health::message::HealthMessage;
@@ -10,17 +11,9 @@ use std::collections::BTreeMap;
 use std::io::{BufRead, BufReader, Read};
 use std::os::unix::net::UnixDatagram;
 use std::path::{Path, PathBuf};
-use std::process::{Child, Command, Stdio};
+use std::process::{Command, Stdio};
 use std::sync::mpsc::{channel, Receiver};
 use std::time::{Duration, Instant};
-
-fn repo() -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-}
-
-fn bin() -> &'static str {
-    env!("CARGO_BIN_EXE_rigmon")
-}
 
 fn model() -> PathBuf {
     let m = repo().join("models/lut-rig.onnx");
@@ -92,20 +85,6 @@ fn expected_windows(path: &Path) -> usize {
     (rec.len() - w) / h + 1
 }
 
-/// Lines of a child's pipe, delivered through a channel by a reader thread.
-fn lines(r: impl Read + Send + 'static) -> Receiver<String> {
-    let (tx, rx) = channel();
-    std::thread::spawn(move || {
-        for l in BufReader::new(r).lines() {
-            let Ok(l) = l else { break };
-            if tx.send(l).is_err() {
-                break;
-            }
-        }
-    });
-    rx
-}
-
 /// Wait for a line containing `needle`, collecting everything seen.
 fn wait_line(
     rx: &Receiver<String>,
@@ -124,34 +103,6 @@ fn wait_line(
         }
     }
     false
-}
-
-fn wait_exit(child: &mut Child, timeout: Duration) -> std::process::ExitStatus {
-    let deadline = Instant::now() + timeout;
-    loop {
-        if let Some(s) = child.try_wait().unwrap() {
-            return s;
-        }
-        if Instant::now() > deadline {
-            let _ = child.kill();
-            panic!("process {} did not exit within {timeout:?}", child.id());
-        }
-        std::thread::sleep(Duration::from_millis(50));
-    }
-}
-
-fn signal(child: &Child, sig: i32) {
-    // SAFETY: plain kill(2) on our own child.
-    assert_eq!(unsafe { libc::kill(child.id() as i32, sig) }, 0);
-}
-
-/// Kills a child when dropped (a failing assertion must not leave daemons behind).
-struct Guard(Child);
-impl Drop for Guard {
-    fn drop(&mut self) {
-        let _ = self.0.kill();
-        let _ = self.0.wait();
-    }
 }
 
 #[test]
@@ -312,49 +263,6 @@ fn replays_reach_watch_and_python_over_zenoh_with_expected_states() {
             "{v}"
         );
     }
-}
-
-/// A daemon config in `dir` replaying `file` (looping, at `speed`) with the given model path.
-fn daemon_config(
-    dir: &Path,
-    file: &Path,
-    model: &Path,
-    speed: &str,
-    port: u16,
-    record: bool,
-) -> PathBuf {
-    let text = format!(
-        r#"rig = "{rig}"
-[model]
-path = "{model}"
-[source]
-type = "file"
-path = "{file}"
-speed = {speed}
-loop = true
-[health]
-vote_n = 5
-vote_k = 3
-dwell_s = 1.0
-[pipeline]
-status_every_s = 0.5
-[zenoh]
-mode = "peer"
-listen = ["tcp/127.0.0.1:{port}"]
-[recording]
-enabled = {record}
-dir = "{rec}"
-flush_s = 0.5
-chunk_kb = 64
-"#,
-        rig = repo().join("config/lut-rig.toml").display(),
-        model = model.display(),
-        file = file.display(),
-        rec = dir.join("rec").display(),
-    );
-    let p = dir.join("rigmon.toml");
-    std::fs::write(&p, text).unwrap();
-    p
 }
 
 #[test]
