@@ -196,20 +196,27 @@ impl<'a> FamilyEvidence<'a> {
 
     /// The most prominent fault fundamental (any family, any slip) at shaft speed `c`.
     fn strongest_fundamental(&self, c: f64) -> f64 {
-        let mut best = f64::NEG_INFINITY;
-        for fam in self.families {
-            let f = line(fam, c, 1, 0, 1.0);
-            if !self.scorable(f * (1.0 + SLIP)) || !self.scorable(f * (1.0 - SLIP)) {
-                continue;
-            }
-            let step = (self.env.df / (4.0 * f)).max(1e-5);
-            let mut s = 1.0 - SLIP;
-            while s <= 1.0 + SLIP {
-                best = best.max(self.env.at(line(fam, c, 1, 0, s)));
-                s += step;
-            }
+        self.families
+            .iter()
+            .filter_map(|&fam| self.fundamental(fam, c))
+            .fold(f64::NEG_INFINITY, f64::max)
+    }
+
+    /// The family's fundamental at shaft speed `c`, its most prominent reading over the slip
+    /// (None when the slip band leaves the scored range).
+    fn fundamental(&self, fam: Family, c: f64) -> Option<f64> {
+        let f = line(fam, c, 1, 0, 1.0);
+        if !self.scorable(f * (1.0 + SLIP)) || !self.scorable(f * (1.0 - SLIP)) {
+            return None;
         }
-        best
+        let step = (self.env.df / (4.0 * f)).max(1e-5);
+        let mut best = f64::NEG_INFINITY;
+        let mut s = 1.0 - SLIP;
+        while s <= 1.0 + SLIP {
+            best = best.max(self.env.at(line(fam, c, 1, 0, s)));
+            s += step;
+        }
+        Some(best)
     }
 
     /// The best, over families and their slip, of the summed prominence of the lines a family
@@ -220,7 +227,7 @@ impl<'a> FamilyEvidence<'a> {
     pub fn unique_support(&self, c: f64, g: f64, floor: f64) -> f64 {
         let mut best = f64::NEG_INFINITY;
         for fam in self.families {
-            best = best.max(self.family_support(fam, c, g, floor));
+            best = best.max(self.support(fam, c, g, floor, true));
         }
         best
     }
@@ -232,33 +239,14 @@ impl<'a> FamilyEvidence<'a> {
     pub fn multiple_support(&self, c: f64, g: f64, floor: f64) -> f64 {
         let mut best = f64::NEG_INFINITY;
         for fam in self.families {
-            if self.fundamental_absent(fam, g) {
+            if self
+                .fundamental(fam, g)
+                .is_some_and(|p| p < FUNDAMENTAL_PRESENT)
+            {
                 best = best.max(self.support(fam, c, g, floor, false));
             }
         }
         best
-    }
-
-    /// The family's fundamental at `g` is scorable and below [`FUNDAMENTAL_PRESENT`] at every
-    /// slip.
-    fn fundamental_absent(&self, fam: Family, g: f64) -> bool {
-        let f = line(fam, g, 1, 0, 1.0);
-        if !self.scorable(f * (1.0 + SLIP)) || !self.scorable(f * (1.0 - SLIP)) {
-            return false;
-        }
-        let step = (self.env.df / (4.0 * f)).max(1e-5);
-        let mut s = 1.0 - SLIP;
-        while s <= 1.0 + SLIP {
-            if self.env.at(line(fam, g, 1, 0, s)) >= FUNDAMENTAL_PRESENT {
-                return false;
-            }
-            s += step;
-        }
-        true
-    }
-
-    fn family_support(&self, fam: Family, c: f64, g: f64, floor: f64) -> f64 {
-        self.support(fam, c, g, floor, true)
     }
 
     /// A family's support at `c`: its lines that `g` does not explain (`exclusive`), or all
