@@ -728,9 +728,9 @@ fn speed_from_the_vibration_takes_the_octave_the_bearing_faults_fit() {
 /// to rigmon): the speed `rigmon features` reads each record at with the shipped rig file
 /// (`[speed] estimate`, 500-1500 rpm), the median of its windows, within 1 % of the speed the
 /// record turns at. That is the nominal speed for the 18 fault records; the three Normal
-/// records all turn at ~1201 rpm whatever their name says (each shows a 20.1 Hz line about
-/// 240x its spectrum's median and nothing at 10 or 15 Hz, checked with SciPy outside rigmon,
-/// docs/diagnosis.md). Guards the octave rules of `dsp::speed_tracker` and
+/// records all turn at ~1201 rpm whatever their name says (each shows a 20.1 Hz line 470-580x
+/// the median of its 5-120 Hz spectrum, 4x at 10 Hz, nothing at 15 Hz:
+/// `docs/study/outside_checks.py`, outside rigmon). Guards the octave rules of `dsp::speed_tracker` and
 /// `dsp::fault_family`: the 600 <-> 1200 rpm octave is open in this rig's shaft lines.
 #[test]
 fn hit_sm_records_are_read_at_the_speed_they_turn_at() {
