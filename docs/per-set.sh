@@ -55,7 +55,7 @@ $R adapt -q --rig config/hit-sm-self.toml --measured docs/hit-sm/healthy-first-h
 # skf6205_low_load: an SKF 6205 on the LUT rig (its rig file is config/lut-rig.toml with only
 # [bearing] changed; the simulator's [simulation.bearing] stiffness stays LUT's, an
 # assumption), strong inner-race impacts barely modulated by a light load.
-GEN_CASES="contact_angle slip speed_fluctuation resonance unbalance line_interference weak_inner_race skf6205_low_load"
+GEN_CASES="contact_angle slip speed_fluctuation resonance unbalance line_interference weak_inner_race skf6205_low_load intermittent_ball"
 mkdir -p "$W/gen"
 python3 - config/lut-rig.toml "$W/gen/skf6205-rig.toml" <<'PY'
 import re, sys

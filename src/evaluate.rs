@@ -44,6 +44,8 @@ pub struct DaemonOutcome {
     pub alarm_despite_windows: usize,
     /// Windows whose class the fault-family evidence decided, overruling the classifier.
     pub evidence_windows: usize,
+    /// Windows an impulsive signal made an alarm, overruling a `healthy` classifier.
+    pub impulsive_windows: usize,
     /// Every window's state, in order (what `replay --json` prints as `window_state`).
     pub window_states: Vec<String>,
 }
@@ -117,10 +119,12 @@ pub struct RecordResult {
     /// as a fault although novel or doubtful; null for the rule baseline.
     pub daemon_unknown_rate: Option<f64>,
     pub alarm_despite_rate: Option<f64>,
-    /// Windows the daemon calls `unknown` for their data quality, and windows whose class the
-    /// fault-family evidence decided; null for the rule baseline.
+    /// Windows the daemon calls `unknown` for their data quality, windows whose class the
+    /// fault-family evidence decided, and windows an impulsive signal made an alarm; null for
+    /// the rule baseline.
     pub bad_quality_windows: Option<usize>,
     pub evidence_windows: Option<usize>,
+    pub impulsive_windows: Option<usize>,
     /// The daemon's state of every window, in order (empty for the rule baseline).
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub window_states: Vec<String>,
@@ -272,12 +276,13 @@ pub fn score(labels: &[String], outcomes: &[RecordOutcome]) -> Evaluation {
         let unk = o.unknown.iter().filter(|&&u| u).count();
         n_unknown += unk;
         n_windows += o.predicted.len();
-        n_bad += o.daemon.as_ref().map_or(0, |d| d.bad_quality_windows);
+        let daemon = o.daemon.as_ref();
+        n_bad += daemon.map_or(0, |d| d.bad_quality_windows);
         let n = o.predicted.len().max(1) as f64;
-        let (missed_alarm, false_alarm) = record_alarms(labels, o.label, pred, o.daemon.as_ref());
+        let (missed_alarm, false_alarm) = record_alarms(labels, o.label, pred, daemon);
         n_missed += usize::from(missed_alarm);
         n_false += usize::from(false_alarm);
-        n_unknown_states += usize::from(o.daemon.as_ref().is_some_and(|d| d.state == UNKNOWN));
+        n_unknown_states += usize::from(daemon.is_some_and(|d| d.state == UNKNOWN));
         records.push(RecordResult {
             path: o.path.clone(),
             label: labels[o.label].clone(),
@@ -288,19 +293,13 @@ pub fn score(labels: &[String], outcomes: &[RecordOutcome]) -> Evaluation {
             unknown_rate: unk as f64 / n,
             votes,
             rpm: o.rpm,
-            state: o.daemon.as_ref().map(|d| d.state.clone()),
-            daemon_unknown_rate: o.daemon.as_ref().map(|d| d.unknown_windows as f64 / n),
-            alarm_despite_rate: o
-                .daemon
-                .as_ref()
-                .map(|d| d.alarm_despite_windows as f64 / n),
-            bad_quality_windows: o.daemon.as_ref().map(|d| d.bad_quality_windows),
-            evidence_windows: o.daemon.as_ref().map(|d| d.evidence_windows),
-            window_states: o
-                .daemon
-                .as_ref()
-                .map(|d| d.window_states.clone())
-                .unwrap_or_default(),
+            state: daemon.map(|d| d.state.clone()),
+            daemon_unknown_rate: daemon.map(|d| d.unknown_windows as f64 / n),
+            alarm_despite_rate: daemon.map(|d| d.alarm_despite_windows as f64 / n),
+            bad_quality_windows: daemon.map(|d| d.bad_quality_windows),
+            evidence_windows: daemon.map(|d| d.evidence_windows),
+            impulsive_windows: daemon.map(|d| d.impulsive_windows),
+            window_states: daemon.map(|d| d.window_states.clone()).unwrap_or_default(),
             missed_alarm,
             false_alarm,
         });

@@ -20,4 +20,11 @@ impl FeatureWindow {
         rig.classifier_channel()
             .map_or(&[][..], |c| self.channel_features(&c.name))
     }
+
+    /// The classifier channel's excess kurtosis and the samples it was measured over (None
+    /// if this window lacks that channel or it was flat).
+    pub fn classifier_kurtosis(&self, rig: &RigConfig) -> Option<(f32, usize)> {
+        let c = rig.classifier_channel()?;
+        Some((*self.excess_kurtosis.get(&c.name)?, self.samples))
+    }
 }

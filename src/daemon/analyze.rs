@@ -15,6 +15,7 @@ use crate::health::message::{
 use crate::health::verdict::{novelty_threshold, quality_problem};
 use crate::health::{HealthPolicy, HealthStateMachine, Smoothed, UnknownReason, WindowInput};
 use crate::model::evidence::{BaselineSpread, FamilyBins, FamilyEvidence};
+use crate::model::impulsiveness::{Impulse, ImpulseBaseline};
 use crate::model::onnx::OnnxClassifier;
 use crate::vocabulary::QualityFlag;
 use anyhow::{Context, Result};
@@ -44,6 +45,8 @@ pub struct Analyzer {
     /// (None: the model gives no evidence).
     family_bins: FamilyBins,
     spread: Option<BaselineSpread>,
+    /// The aligned model's healthy kurtosis (None: the model gives no impulsiveness).
+    impulse_baseline: Option<ImpulseBaseline>,
     sample_rate: f64,
     start_time_ns: u64,
     seq: u64,
@@ -91,6 +94,7 @@ impl Analyzer {
         let speed = SpeedSource::new(&rig.speed, sample_rate, nominal_rpm)?;
         Ok(Analyzer {
             spread: BaselineSpread::of(model.meta()),
+            impulse_baseline: ImpulseBaseline::of(model.meta()),
             stage: AnalysisStage::new(rig, sample_rate, &chans, absent, speed)?,
             foreign: foreign_to(&model, rig),
             model,
@@ -135,6 +139,7 @@ impl Analyzer {
         self.health.reconfigure(policy, &model.meta().labels)?;
         self.foreign = foreign_to(&model, &self.rig);
         self.spread = BaselineSpread::of(model.meta());
+        self.impulse_baseline = ImpulseBaseline::of(model.meta());
         self.model = model;
         self.model_id = model_id.to_string();
         Ok(())
@@ -159,6 +164,7 @@ impl Analyzer {
                 quality: c.problem,
                 beyond_baseline: c.beyond_baseline,
                 evidence: c.evidence,
+                impulse: c.impulse,
             },
         );
         let health = self.message(view, c, features.as_ref(), labels, smoothed, threshold);
@@ -176,6 +182,7 @@ impl Analyzer {
             baseline_distance: None,
             beyond_baseline: None,
             evidence: None,
+            impulse: None,
             rpm: None,
             speed_source: analysis.speed_source.to_string(),
             speed_confidence: analysis.speed_confidence,
@@ -263,6 +270,10 @@ impl Analyzer {
                     .spread
                     .zip(p.baseline_deviation.as_deref())
                     .map(|(spread, dev)| self.family_bins.evidence(dev, spread, fw.rpm));
+                c.impulse = self
+                    .impulse_baseline
+                    .zip(fw.classifier_kurtosis(&self.rig))
+                    .map(|(b, (k, n))| b.impulse(k, n));
                 c.probs = p.probs;
                 c.novelty = p.novelty;
                 c.baseline_distance = p.baseline_distance;
@@ -331,6 +342,7 @@ impl Analyzer {
             decision: smoothed.window.basis,
             overruled: smoothed.window.overruled,
             evidence: smoothed.evidence,
+            impulse: smoothed.impulse,
             state: smoothed.state,
             state_since_s: smoothed.since_s,
             state_changed: smoothed.changed,
@@ -429,6 +441,8 @@ struct Classified {
     beyond_baseline: Option<bool>,
     /// Fault-family evidence against the machine's healthy baseline (aligned models).
     evidence: Option<FamilyEvidence>,
+    /// Impulsiveness against the machine's healthy baseline (aligned models).
+    impulse: Option<Impulse>,
     rpm: Option<f64>,
     speed_source: String,
     speed_confidence: Option<f64>,

@@ -32,6 +32,13 @@ pub struct FeatureWindow {
     pub quality: Quality,
     /// Channel name -> RMS per order bin (bin k covers (k*w, (k+1)*w] orders).
     pub features: BTreeMap<String, Vec<f32>>,
+    /// Channel name -> excess kurtosis of the window's samples (0 for Gaussian noise; sparse
+    /// impacts raise it): how impulsive the raw signal is, [`crate::dsp::quality::scan`].
+    #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
+    pub excess_kurtosis: BTreeMap<String, f32>,
+    /// Samples per channel in the window (what the kurtosis was measured over).
+    #[serde(default)]
+    pub samples: usize,
 }
 
 impl FeatureWindow {
@@ -132,6 +139,7 @@ impl FeaturePipeline {
     ) -> Result<FeatureWindow> {
         let t_end = t_start + self.len as f64 / self.sample_rate;
         let mut quality = Quality::default();
+        let mut excess_kurtosis = BTreeMap::new();
         for (name, x) in channels {
             if x.len() != self.len {
                 bail!(
@@ -152,6 +160,7 @@ impl FeaturePipeline {
             if s.flat {
                 quality.flat.push(name.to_string());
             } else {
+                excess_kurtosis.insert(name.to_string(), s.excess_kurtosis);
                 if s.clipped {
                     quality.clipped.push(name.to_string());
                 }
@@ -196,6 +205,8 @@ impl FeaturePipeline {
             speed_confidence: None,
             quality,
             features,
+            excess_kurtosis,
+            samples: self.len,
         })
     }
 

@@ -116,6 +116,10 @@ pub struct ChannelScan {
     pub dropout: bool,
     /// |mean| > AC RMS (see [`Quality::dc_offset`]).
     pub dc_offset: bool,
+    /// Excess kurtosis of the samples (fourth central moment over the squared variance,
+    /// minus 3): 0 for Gaussian noise, -1.5 for a sine, large for sparse impacts (Dyer &
+    /// Stewart's bearing-damage indicator). 0 for a flat or non-finite channel.
+    pub excess_kurtosis: f32,
 }
 
 /// Minimum run of identical samples at the extreme value that counts as clipping.
@@ -156,10 +160,12 @@ pub fn scan(samples: &[f32], sample_rate: f64) -> ChannelScan {
     let dropout_run = ((0.010 * sample_rate).round() as usize).max(8);
     let band = 0.02 * (hi - lo);
     let (mut at_hi, mut near_hi, mut at_lo, mut near_lo) = (0usize, 0usize, 0usize, 0usize);
-    let mut sq = 0.0f64;
+    let (mut sq, mut quad) = (0.0f64, 0.0f64);
     let (mut run, mut prev) = (0usize, f32::NAN);
     for &x in samples {
-        sq += (f64::from(x) - mean).powi(2);
+        let d2 = (f64::from(x) - mean).powi(2);
+        sq += d2;
+        quad += d2 * d2;
         if x == hi {
             at_hi += 1;
         } else if x >= hi - band {
@@ -184,6 +190,9 @@ pub fn scan(samples: &[f32], sample_rate: f64) -> ChannelScan {
         }
     }
     out.dc_offset = mean.abs() > (sq / n).sqrt();
+    if sq > 0.0 {
+        out.excess_kurtosis = (quad * n / (sq * sq) - 3.0) as f32;
+    }
     let many = ((CLIP_SHARE * n).ceil() as usize).max(CLIP_RUN + 1);
     if (at_hi >= many && at_hi >= 2 * near_hi) || (at_lo >= many && at_lo >= 2 * near_lo) {
         out.clipped = true;
@@ -197,6 +206,29 @@ mod tests {
 
     fn sine(n: usize) -> Vec<f32> {
         (0..n).map(|i| (i as f32 * 0.05).sin()).collect()
+    }
+
+    #[test]
+    fn excess_kurtosis_tells_impacts_from_a_sine_and_noise() {
+        use rand::SeedableRng;
+        use rand_distr::{Distribution, Normal};
+        let k = |x: &[f32]| scan(x, 10_000.0).excess_kurtosis;
+        // a sine: -1.5 (exactly, over whole periods)
+        let s: Vec<f32> = (0..10_000)
+            .map(|i| (i as f32 * std::f32::consts::TAU / 100.0).sin())
+            .collect();
+        assert!((k(&s) + 1.5).abs() < 1e-3, "{}", k(&s));
+        // Gaussian noise: 0 within its sampling spread sqrt(24 / n) = 0.049
+        let mut rng = rand::rngs::StdRng::seed_from_u64(3);
+        let normal = Normal::new(0.0f32, 1.0).unwrap();
+        let g: Vec<f32> = (0..10_000).map(|_| normal.sample(&mut rng)).collect();
+        assert!(k(&g).abs() < 0.2, "{}", k(&g));
+        // the same noise with a unit impact every 1000 samples, ten times its RMS
+        let mut hit = g.clone();
+        for i in (0..10_000).step_by(1000) {
+            hit[i] += 10.0;
+        }
+        assert!(k(&hit) > 5.0, "{}", k(&hit));
     }
 
     #[test]

@@ -6,6 +6,7 @@
 use super::iso20816::Zone;
 use super::{Basis, UnknownReason};
 use crate::model::evidence::FamilyEvidence;
+use crate::model::impulsiveness::Impulse;
 use crate::vocabulary::QualityFlag;
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
@@ -67,6 +68,11 @@ pub struct HealthMessage {
     /// second harmonics) stand above the machine's healthy level (aligned models only).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub evidence: Option<FamilyEvidence>,
+    /// How far the classifier channel's excess kurtosis (mean over the last windows) stands
+    /// above the machine's healthy windows and above Gaussian noise, in standard deviations
+    /// (aligned models carrying the kurtosis baseline only).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub impulse: Option<Impulse>,
     /// The smoothed state (k-of-n voting with dwell time).
     pub state: String,
     /// Window-end time (s, sample clock) at which `state` was entered.
@@ -278,6 +284,10 @@ mod tests {
                 outer_race: 9.5,
                 inner_race: 0.3,
                 ball: -1.0,
+            }),
+            impulse: Some(Impulse {
+                beyond_healthy: 7.5,
+                beyond_gaussian: 6.0,
             }),
             state: "outer_race".into(),
             state_since_s: 2.0,

@@ -19,7 +19,14 @@
 //!    not choose (they share bins: an inner-race fault's 1x sidebands fall into the outer
 //!    race's bins), so a supported class stands, novel or not. A confirmed or evidence-decided window is an alarm even when it is novel or doubtful
 //!    (flagged `alarm_despite`): the decision follows the spectrum, not the network's guess.
-//! 3. **Doubt** (no evidence either way): a novel window (novelty above the model's or the
+//! 3. **Impulsiveness** (aligned models carrying the healthy windows' kurtosis;
+//!    [`Impulse`], the mean over the last windows): a window the classifier calls healthy
+//!    whose raw signal stands `impulse_z` standard deviations above both the machine's
+//!    healthy windows and Gaussian noise is an alarm (`basis` `impulsive`): a defect's
+//!    impacts without a clean fault-family line (a small ball defect rolling in and out of
+//!    the load zone). It is named by the family whose bins stand highest, however weakly,
+//!    else the classifier's most probable fault class.
+//! 4. **Doubt** (no evidence either way): a novel window (novelty above the model's or the
 //!    policy's threshold) or one whose top probability is below `min_confidence` is
 //!    `unknown`, unless it is clearly a fault -- beyond the machine's healthy baseline, or a
 //!    fault class of at least `novel_alarm_confidence` -- which keeps its class as an alarm
@@ -28,6 +35,7 @@
 use super::{HealthPolicy, UnknownReason, UNKNOWN};
 use crate::analysis::{WindowAnalysis, WindowError};
 use crate::model::evidence::FamilyEvidence;
+use crate::model::impulsiveness::Impulse;
 use crate::vocabulary::Condition;
 use crate::vocabulary::QualityFlag;
 use serde::{Deserialize, Serialize};
@@ -84,6 +92,8 @@ pub struct WindowInput<'a> {
     pub beyond_baseline: Option<bool>,
     /// Fault-family evidence against the machine's healthy baseline (None: not available).
     pub evidence: Option<FamilyEvidence>,
+    /// Impulsiveness against the machine's healthy baseline (None: not available).
+    pub impulse: Option<Impulse>,
 }
 
 /// What decided a window's class.
@@ -98,15 +108,18 @@ pub enum Basis {
     Confirmed,
     /// The fault family the evidence points at, overruling a class it does not support.
     Evidence,
+    /// An impulsive signal overruling a `healthy` class ([`Impulse`]).
+    Impulsive,
 }
 
 impl Basis {
-    /// The name used in JSON (`model`, `confirmed`, `evidence`).
+    /// The name used in JSON (`model`, `confirmed`, `evidence`, `impulsive`).
     pub fn as_str(self) -> &'static str {
         match self {
             Basis::Model => "model",
             Basis::Confirmed => "confirmed",
             Basis::Evidence => "evidence",
+            Basis::Impulsive => "impulsive",
         }
     }
 }
@@ -180,24 +193,15 @@ pub fn judge(w: &WindowInput, policy: &HealthPolicy) -> WindowVerdict {
         basis,
         overruled,
     };
-    if let Some(ev) = &w.evidence {
-        let z = policy.evidence_z;
-        let supported = ev.of(model_class).is_some_and(|v| v >= z);
-        // The evidence refuses a class it does not support; it does not choose among
-        // supported families: in 0.5-order bins the families share bins (an inner-race
-        // fault's 1x sidebands, BPFI -+ 1x, -+ 2x, fall into the outer race's bins on common
-        // geometries), so which family stands highest is no class of its own.
-        let follow = if supported {
-            Some(model_class.as_str())
-        } else {
-            ev.strongest(z).map(|(family, _)| family)
-        };
-        if let Some(family) = follow {
-            return if family == model_class {
-                decided(model_class, Basis::Confirmed, None)
-            } else {
-                decided(family, Basis::Evidence, Some(model_class.clone()))
-            };
+    let evidence = w.evidence.as_ref();
+    if let Some((class, basis)) = evidence.and_then(|e| follow(e, model_class, policy.evidence_z)) {
+        let overruled = (basis == Basis::Evidence).then(|| model_class.clone());
+        return decided(class, basis, overruled);
+    }
+    let impulsive = w.impulse.is_some_and(|i| i.z() >= policy.impulse_z);
+    if impulsive && Condition::is_healthy(model_class) {
+        if let Some(fault) = impulsive_fault(w) {
+            return decided(fault, Basis::Impulsive, Some(model_class.clone()));
         }
     }
     let Some(doubt) = doubt else {
@@ -206,7 +210,7 @@ pub fn judge(w: &WindowInput, policy: &HealthPolicy) -> WindowVerdict {
     // Beyond the healthy baseline the gate has already zeroed `healthy`: every class left is
     // a fault, so the window is an alarm whatever the network's doubt.
     let clearly_faulty = !Condition::is_healthy(model_class)
-        && (w.beyond_baseline == Some(true) || top_p >= policy.novel_alarm_confidence);
+        && (w.beyond_baseline == Some(true) || impulsive || top_p >= policy.novel_alarm_confidence);
     if clearly_faulty {
         decided(model_class, Basis::Model, None)
     } else {
@@ -218,6 +222,38 @@ pub fn judge(w: &WindowInput, policy: &HealthPolicy) -> WindowVerdict {
             overruled: None,
         }
     }
+}
+
+/// What the fault-family evidence decides (step 2): the classifier's class when its family
+/// stands at least `z` (`confirmed`), else the family standing highest beyond `z`
+/// (`evidence`); None when no family does.
+fn follow<'a>(ev: &FamilyEvidence, model_class: &'a str, z: f32) -> Option<(&'a str, Basis)> {
+    // The evidence refuses a class it does not support; it does not choose among supported
+    // families: in 0.5-order bins the families share bins (an inner-race fault's 1x
+    // sidebands, BPFI -+ 1x, -+ 2x, fall into the outer race's bins on common geometries),
+    // so which family stands highest is no class of its own.
+    if ev.of(model_class).is_some_and(|v| v >= z) {
+        return Some((model_class, Basis::Confirmed));
+    }
+    ev.strongest(z).map(|(family, _)| (family, Basis::Evidence))
+}
+
+/// The fault an impulsive window is named by: the family whose bins stand highest, however
+/// weakly, else the classifier's most probable fault class (None: the model has no fault
+/// class and there is no evidence).
+fn impulsive_fault<'a>(w: &WindowInput<'a>) -> Option<&'a str> {
+    if let Some((family, _)) = w.evidence.and_then(|e| e.strongest(f32::MIN)) {
+        return Some(family);
+    }
+    w.labels
+        .iter()
+        .zip(w.probs)
+        .filter(|(l, _)| !Condition::is_healthy(l))
+        .fold(None, |best: Option<(&String, f32)>, (l, &p)| match best {
+            Some((_, b)) if b >= p => best,
+            _ => Some((l, p)),
+        })
+        .map(|(l, _)| l.as_str())
 }
 
 #[cfg(test)]
@@ -240,6 +276,7 @@ mod tests {
             quality: None,
             beyond_baseline: Some(false),
             evidence: None,
+            impulse: None,
         }
     }
 
@@ -266,6 +303,71 @@ mod tests {
         // no probabilities (the classifier did not run) is bad quality too
         let v = judge(&input(&l, &[]), &HealthPolicy::default());
         assert_eq!(v.unknown_reason, Some(UnknownReason::BadQuality));
+    }
+
+    #[test]
+    fn an_impulsive_signal_overrules_healthy_and_is_named_by_the_highest_family() {
+        let l = labels();
+        let p = HealthPolicy::default();
+        let imp = |beyond_healthy: f32, beyond_gaussian: f32| {
+            Some(Impulse {
+                beyond_healthy,
+                beyond_gaussian,
+            })
+        };
+        // a confident healthy call, impulsive beyond both, no family beyond evidence_z: the
+        // family standing highest (ball, which the model lacks) names the alarm
+        let w = WindowInput {
+            impulse: imp(12.0, 8.0),
+            evidence: ev(0.5, -1.0, 2.0),
+            ..input(&l, &[0.95, 0.03, 0.02])
+        };
+        let v = judge(&w, &p);
+        assert_eq!((v.state(), v.basis), ("ball", Basis::Impulsive));
+        assert_eq!(v.overruled.as_deref(), Some("healthy"));
+        // without evidence: the classifier's most probable fault class
+        let w = WindowInput {
+            evidence: None,
+            ..w
+        };
+        assert_eq!(judge(&w, &p).state(), "outer_race");
+        // beyond the healthy windows but not beyond Gaussian noise (a sine-dominated machine
+        // turning noisier): not impulsive, the classifier stands
+        let w = WindowInput {
+            impulse: imp(12.0, 2.0),
+            ..w
+        };
+        assert_eq!(
+            (judge(&w, &p).state(), judge(&w, &p).basis),
+            ("healthy", Basis::Model)
+        );
+        // switched off
+        let off = HealthPolicy {
+            impulse_z: f32::INFINITY,
+            ..HealthPolicy::default()
+        };
+        let w = WindowInput {
+            impulse: imp(50.0, 50.0),
+            ..w
+        };
+        assert_eq!(judge(&w, &off).state(), "healthy");
+        // a novel window the network calls a fault with little confidence: impulsive makes it
+        // clearly a fault (an alarm despite novelty) instead of `unknown`
+        let w = WindowInput {
+            novelty: 50.0,
+            beyond_baseline: Some(false),
+            ..input(&l, &[0.3, 0.4, 0.3])
+        };
+        assert_eq!(judge(&w, &p).state(), UNKNOWN);
+        let w = WindowInput {
+            impulse: imp(9.0, 9.0),
+            ..w
+        };
+        let v = judge(&w, &p);
+        assert_eq!(
+            (v.state(), v.alarm_despite),
+            ("outer_race", Some(UnknownReason::Novelty))
+        );
     }
 
     #[test]

@@ -14,6 +14,7 @@ use crate::health::message::{
 };
 use crate::health::{Basis, UnknownReason};
 use crate::model::evidence::FamilyEvidence;
+use crate::model::impulsiveness::Impulse;
 use crate::publish::time_range::{now_ns, TimeRange, PARAMETER as TIME};
 use crate::vocabulary::Condition;
 use anyhow::{anyhow, Result};
@@ -33,7 +34,8 @@ const SELECT: &str = "SELECT p.key, t.site, w.time, w.window_s, w.run_start, w.s
     w.nan_samples, w.dropout_samples, w.missing_tacho_pulses,
     p.band_channel, p.band_orders, p.calibration_id, p.software_version, p.iso_limits_mm_s,
     w.decision, w.overruled, w.evidence_outer_race, w.evidence_inner_race, w.evidence_ball,
-    w.speed_confidence, w.speed_rival_rpm, w.model_foreign
+    w.speed_confidence, w.speed_rival_rpm, w.model_foreign, w.impulse_beyond_healthy,
+    w.impulse_beyond_gaussian
 FROM windows w JOIN points p USING (point_id) JOIN asset_tree t USING (point_id)
 JOIN models mo USING (model_id)";
 
@@ -60,6 +62,14 @@ fn evidence(r: &Row, from: usize) -> Option<FamilyEvidence> {
     })
 }
 
+/// The impulsiveness (columns `from`, `from + 1`), when stored.
+fn impulse(r: &Row, from: usize) -> Option<Impulse> {
+    Some(Impulse {
+        beyond_healthy: r.get::<_, Option<f32>>(from)?,
+        beyond_gaussian: r.get::<_, Option<f32>>(from + 1)?,
+    })
+}
+
 fn bands(r: &Row, from: usize) -> Vec<f32> {
     (from..from + 3)
         .map(|i| r.get::<_, Option<f32>>(i))
@@ -82,12 +92,9 @@ fn message_of(r: &Row) -> serde_json::Value {
     let start_ns = end_ns.saturating_sub((f64::from(window_s) * 1e9).round() as u64);
     let secs = |ns: u64| ns.saturating_sub(run) as f64 / 1e9;
     let labels: Vec<String> = r.get(16);
-    let mut probabilities = BTreeMap::new();
-    for (i, l) in Condition::NAMES.iter().enumerate() {
-        if let Some(p) = r.get::<_, Option<f32>>(17 + i) {
-            probabilities.insert(l.to_string(), p);
-        }
-    }
+    let mut probabilities: BTreeMap<String, f32> = (Condition::NAMES.iter().enumerate())
+        .filter_map(|(i, l)| Some((l.to_string(), r.get::<_, Option<f32>>(17 + i)?)))
+        .collect();
     if let Some(serde_json::Value::Object(o)) = r.get::<_, Option<serde_json::Value>>(21) {
         for (l, p) in o {
             probabilities.insert(l, p.as_f64().unwrap_or(f64::NAN) as f32);
@@ -135,6 +142,7 @@ fn message_of(r: &Row) -> serde_json::Value {
         decision: basis(r.get(51)),
         overruled: r.get(52),
         evidence: evidence(r, 53),
+        impulse: impulse(r, 59),
         state: r.get(7),
         state_since_s: secs(ns_of(r.get::<_, SystemTime>(8))),
         state_changed: r.get(9),

@@ -14,6 +14,7 @@ pub const MIGRATIONS: &[(i32, &str, &str)] = &[
         "decision_evidence_speed",
         include_str!("migrations/0002_decision_evidence_speed.sql"),
     ),
+    (3, "impulse", include_str!("migrations/0003_impulse.sql")),
 ];
 
 /// Advisory-lock key ("rigmon" in ASCII).

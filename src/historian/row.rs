@@ -63,6 +63,8 @@ pub const COLUMNS: &[(&str, Type)] = &[
     ("speed_confidence", Type::FLOAT4),
     ("speed_rival_rpm", Type::FLOAT8),
     ("model_foreign", Type::TEXT_ARRAY),
+    ("impulse_beyond_healthy", Type::FLOAT4),
+    ("impulse_beyond_gaussian", Type::FLOAT4),
 ];
 
 /// The model a row was classified by (`models` table).
@@ -130,7 +132,7 @@ pub struct WindowRow {
     pub quality_ok: bool,
     pub quality_flags: Option<Vec<String>>,
     pub counts: [i32; 4],
-    /// What decided the class: `model`, `confirmed` or `evidence`.
+    /// What decided the class: `model`, `confirmed`, `evidence` or `impulsive`.
     pub decision: &'static str,
     pub overruled: Option<String>,
     /// Fault-family evidence: outer race, inner race, ball (all or none).
@@ -139,6 +141,8 @@ pub struct WindowRow {
     pub speed_rival_rpm: Option<f64>,
     /// How an allowed foreign model differs from the rig (None when it is the rig's own).
     pub model_foreign: Option<Vec<String>>,
+    /// Impulsiveness: beyond healthy, beyond Gaussian (both or none).
+    pub impulse: [Option<f32>; 2],
     /// The whole message, kept for the state-change event.
     pub message: Option<serde_json::Value>,
 }
@@ -250,17 +254,10 @@ impl WindowRow {
                 .iso_zone
                 .and_then(|z| serde_json::to_value(z).ok())
                 .and_then(|v| v.as_str().map(str::to_string)),
-            bands: [
-                band(&fb.bpfo, 0),
-                band(&fb.bpfo, 1),
-                band(&fb.bpfo, 2),
-                band(&fb.bpfi, 0),
-                band(&fb.bpfi, 1),
-                band(&fb.bpfi, 2),
-                band(&fb.two_bsf, 0),
-                band(&fb.two_bsf, 1),
-                band(&fb.two_bsf, 2),
-            ],
+            bands: {
+                let families = [&fb.bpfo, &fb.bpfi, &fb.two_bsf];
+                std::array::from_fn(|k| band(families[k / 3], k % 3))
+            },
             band_floor: (!fb.bpfo.is_empty()).then_some(fb.floor).and_then(finite),
             quality_ok: q.ok,
             quality_flags: (!q.flags.is_empty()).then(|| q.flags.clone()),
@@ -281,6 +278,12 @@ impl WindowRow {
                 .map(|c| c as f32),
             speed_rival_rpm: m.speed_rival_rpm.filter(|r| r.is_finite()),
             model_foreign: (!m.model.foreign.is_empty()).then_some(m.model.foreign),
+            impulse: m
+                .impulse
+                .filter(|i| i.beyond_healthy.is_finite() && i.beyond_gaussian.is_finite())
+                .map_or([None; 2], |i| {
+                    [Some(i.beyond_healthy), Some(i.beyond_gaussian)]
+                }),
             message,
         }
     }
@@ -340,6 +343,8 @@ impl WindowRow {
             &self.speed_confidence,
             &self.speed_rival_rpm,
             &self.model_foreign,
+            &self.impulse[0],
+            &self.impulse[1],
             &self.message,
         ]
     }
@@ -386,7 +391,8 @@ mod tests {
             "calibration_id": null, "software_version": "0.1.0",
             "decision": "evidence", "overruled": "healthy",
             "evidence": {"outer_race": 9.5, "inner_race": 0.25, "ball": -1.0},
-            "speed_confidence": 0.75, "speed_rival_rpm": 294.0
+            "speed_confidence": 0.75, "speed_rival_rpm": 294.0,
+            "impulse": {"beyond_healthy": 12.5, "beyond_gaussian": 7.0}
         });
         let r = WindowRow::parse(msg.to_string().as_bytes(), "lab").unwrap();
         assert_eq!(r.point.key(), "lut-rig/shaft/nde");
@@ -407,6 +413,7 @@ mod tests {
             ("evidence", Some("healthy"))
         );
         assert_eq!(r.evidence, [Some(9.5), Some(0.25), Some(-1.0)]);
+        assert_eq!(r.impulse, [Some(12.5), Some(7.0)]);
         assert_eq!(
             (r.speed_confidence, r.speed_rival_rpm),
             (Some(0.75), Some(294.0))
@@ -425,6 +432,7 @@ mod tests {
             "evidence",
             "speed_confidence",
             "speed_rival_rpm",
+            "impulse",
         ] {
             old.as_object_mut().unwrap().remove(key);
         }
@@ -432,6 +440,7 @@ mod tests {
         let r = WindowRow::parse(old.to_string().as_bytes(), "lab").unwrap();
         assert_eq!((r.decision, r.overruled), ("model", None));
         assert_eq!(r.evidence, [None; 3]);
+        assert_eq!(r.impulse, [None; 2]);
         assert_eq!((r.speed_confidence, r.speed_rival_rpm), (None, None));
         assert_eq!(r.model_foreign, None);
         let e = WindowRow::parse(b"{\"schema\":\"rigmon.status\"}", "lab").unwrap_err();

@@ -11,6 +11,7 @@
 
 use super::baseline::HealthyBaseline;
 use super::classifier::TrainedModel;
+use super::impulsiveness::ImpulseBaseline;
 use super::preprocess::Preprocess;
 use anyhow::{bail, Result};
 use ndarray::{Array1, ArrayView2, Axis};
@@ -36,6 +37,18 @@ pub struct Alignment {
     /// 1 / pooled spread of the healthy windows (the unit of `baseline_deviation`; read by
     /// [`super::evidence::BaselineSpread`]).
     pub baseline_inv_spread: f32,
+    /// The healthy windows' excess kurtosis (read by [`ImpulseBaseline::of`]; None when the
+    /// windows' kurtosis was not given).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub healthy_kurtosis: Option<ImpulseBaseline>,
+}
+
+/// The healthy windows' classifier-channel excess kurtosis, one per row of the feature
+/// windows, and the samples per window.
+#[derive(Debug, Clone, Copy)]
+pub struct HealthyKurtosis<'a> {
+    pub values: &'a [f32],
+    pub window_samples: usize,
 }
 
 /// Per-feature mean of the scale-free log ratios of `windows` (rows = windows).
@@ -45,13 +58,15 @@ pub fn log_mean(windows: ArrayView2<f32>, floor: f32) -> Array1<f32> {
         .unwrap_or_else(|| Array1::zeros(windows.ncols()))
 }
 
-/// A copy of `model` whose reference levels are those of the measured healthy `windows`.
+/// A copy of `model` whose reference levels are those of the measured healthy `windows`
+/// (and, given their `kurtosis`, whose impulsiveness baseline is theirs).
 /// The model must carry the simulated healthy reference (`healthy_reference` in its
 /// metadata, written by `rigmon train`); an aligned model is aligned again from its original
 /// offsets, so aligning twice with the same data gives the same file.
 pub fn align_to_healthy(
     model: &TrainedModel,
     windows: ArrayView2<f32>,
+    kurtosis: Option<HealthyKurtosis>,
     records: &[String],
 ) -> Result<TrainedModel> {
     let sim = &model.meta.healthy_reference;
@@ -101,6 +116,7 @@ pub fn align_to_healthy(
         largest_shift: big,
         baseline_threshold: baseline.threshold,
         baseline_inv_spread: baseline.inv_spread,
+        healthy_kurtosis: kurtosis.and_then(|k| ImpulseBaseline::fit(k.values, k.window_samples)),
     };
     out.baseline = Some(baseline);
     out.meta.trained_mean = trained.to_vec();
@@ -150,7 +166,11 @@ mod tests {
         let real_h = Array2::from_shape_fn((6, 4), |(i, j)| {
             [1.0f32, 2.0, 9.0, 0.1][j] * (1.0 + 0.01 * i as f32)
         });
-        let a = align_to_healthy(&m, real_h.view(), &["97.mat".into()]).unwrap();
+        let kurtosis = HealthyKurtosis {
+            values: &[-0.3, -0.2, -0.25, -0.3, -0.2, -0.25],
+            window_samples: 12_000,
+        };
+        let a = align_to_healthy(&m, real_h.view(), Some(kurtosis), &["97.mat".into()]).unwrap();
         // Standardised real healthy == standardised simulated healthy, feature by feature.
         let zr = a.pre.apply(real_h.view()).mean_axis(Axis(0)).unwrap();
         let zs = m.pre.apply(sim_h.view()).mean_axis(Axis(0)).unwrap();
@@ -164,20 +184,23 @@ mod tests {
         }
         let info: serde_json::Value = serde_json::from_str(&a.meta.alignment).unwrap();
         assert_eq!(info["windows"], 6);
+        let k = ImpulseBaseline::of(&a.meta).expect("the kurtosis baseline is stored");
+        assert!((k.mean + 0.25).abs() < 1e-6 && k.windows == 6, "{k:?}");
         assert_eq!(info["largest_shift_feature"], 3); // 0.5 -> 0.1 of a larger mean: ln 0.44 -> ln 0.033
                                                       // Aligning the aligned model again with the same data gives the same offsets.
-        let b = align_to_healthy(&a, real_h.view(), &["97.mat".into()]).unwrap();
+        let b = align_to_healthy(&a, real_h.view(), None, &["97.mat".into()]).unwrap();
         assert_eq!(a.pre.mean, b.pre.mean);
     }
 
     #[test]
     fn refuses_models_without_a_reference_and_too_few_windows() {
         let w = Array2::<f32>::ones((6, 4));
-        let e = align_to_healthy(&model(vec![]), w.view(), &[]).unwrap_err();
+        let e = align_to_healthy(&model(vec![]), w.view(), None, &[]).unwrap_err();
         assert!(e.to_string().contains("retrain"), "{e}");
         let e = align_to_healthy(
             &model(vec![0.0; 4]),
             w.slice(ndarray::s![..2, ..]),
+            None,
             &["a".into()],
         )
         .unwrap_err();

@@ -3,7 +3,8 @@
 //! ([`meta`]) and whether it fits a rig file ([`identity`]), file digests ([`digest`]), the
 //! ONNX writer/reader and metadata stamp ([`export`]), tract inference ([`onnx`]) and the
 //! alignment to one machine: reference levels ([`align`]) and the healthy-baseline gate
-//! ([`baseline`]), and the fault-family evidence against that baseline ([`evidence`]). The
+//! ([`baseline`]), and the fault-family evidence ([`evidence`]) and the impulsiveness
+//! ([`impulsiveness`]) against that baseline. The
 //! envelope-order rule every model is compared
 //! with ([`rule`]), and its statistic under kurtogram-chosen envelope bands ([`band_ratios`]).
 
@@ -15,6 +16,7 @@ pub(crate) mod digest;
 pub mod evidence;
 pub mod export;
 pub mod identity;
+pub mod impulsiveness;
 pub mod meta;
 pub mod mlp;
 pub mod novelty;

@@ -33,6 +33,7 @@ pub fn featurise(entry: &ManifestEntry, rig: &RigConfig) -> Result<RecordingFeat
         .with_context(|| format!("features of {}", entry.path.display()))?;
     let n = rig.features.n_bins();
     let mut data = Vec::with_capacity(wins.len() * n);
+    let mut kurtosis = Vec::with_capacity(wins.len());
     let mut rpm = 0.0;
     let mut kept = 0usize;
     for w in wins
@@ -44,6 +45,7 @@ pub fn featurise(entry: &ManifestEntry, rig: &RigConfig) -> Result<RecordingFeat
             continue;
         }
         data.extend_from_slice(f);
+        kurtosis.push(w.classifier_kurtosis(rig).map_or(f32::NAN, |(k, _)| k));
         rpm += w.rpm;
         kept += 1;
     }
@@ -61,6 +63,8 @@ pub fn featurise(entry: &ManifestEntry, rig: &RigConfig) -> Result<RecordingFeat
         simulated: rec.is_simulated(),
         rpm: rpm / kept as f64,
         windows: Array2::from_shape_vec((kept, n), data)?,
+        kurtosis,
+        window_samples: wins.first().map_or(0, |w| w.samples),
     })
 }
 

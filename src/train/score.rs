@@ -20,6 +20,7 @@ use crate::health::{Basis, HealthPolicy, HealthStateMachine, WindowInput};
 use crate::importers;
 use crate::manifest::ManifestEntry;
 use crate::model::evidence::{BaselineSpread, FamilyBins};
+use crate::model::impulsiveness::ImpulseBaseline;
 use crate::model::rule::{EnvelopeRule, RULE_LABELS};
 use crate::model::{OnnxClassifier, ALL_LABELS};
 use crate::vocabulary::QualityFlag;
@@ -41,6 +42,9 @@ pub struct ScoredWindow {
     pub quality: Option<QualityFlag>,
     /// The classifier channel's band ratios at the fault orders (what the rule judges).
     pub fault_bands: Option<FaultBandRatios>,
+    /// The classifier channel's excess kurtosis and the samples it was measured over (None
+    /// without features).
+    pub kurtosis: Option<(f32, usize)>,
 }
 
 /// A labelled recording cut into the daemon's windows.
@@ -87,9 +91,13 @@ pub fn analyze_entry(entry: &ManifestEntry, rig: &RigConfig) -> Result<ScoredRec
         .filter(|a| entry.keeps_window(a.t_start, a.t_end))
         .map(|a| {
             let quality = quality_problem(&a, &classifier);
-            let (rpm, features) = match &a.features {
-                Ok(fw) => (fw.rpm, fw.classifier_features(rig).to_vec()),
-                Err(_) => (f64::NAN, Vec::new()),
+            let (rpm, features, kurtosis) = match &a.features {
+                Ok(fw) => (
+                    fw.rpm,
+                    fw.classifier_features(rig).to_vec(),
+                    fw.classifier_kurtosis(rig),
+                ),
+                Err(_) => (f64::NAN, Vec::new(), None),
             };
             ScoredWindow {
                 t_start: a.t_start,
@@ -98,6 +106,7 @@ pub fn analyze_entry(entry: &ManifestEntry, rig: &RigConfig) -> Result<ScoredRec
                 features,
                 quality,
                 fault_bands: a.fault_bands,
+                kurtosis,
             }
         })
         .collect();
@@ -203,6 +212,7 @@ fn run_record(
     policy: &HealthPolicy,
 ) -> Result<RecordRun> {
     let meta = clf.meta();
+    let impulse_baseline = ImpulseBaseline::of(meta);
     let mut sm = HealthStateMachine::new(policy.clone(), &meta.labels)?;
     sm.set_hop_fraction(bins.hop_fraction());
     let mut run = RecordRun {
@@ -232,6 +242,10 @@ fn run_record(
                 quality: w.quality,
                 beyond_baseline: p.as_ref().and_then(|p| p.beyond_baseline),
                 evidence,
+                impulse: w
+                    .kurtosis
+                    .zip(impulse_baseline)
+                    .map(|((k, n), b)| b.impulse(k, n)),
             },
         );
         let d = &mut run.daemon;
@@ -245,6 +259,7 @@ fn run_record(
         }
         d.alarm_despite_windows += usize::from(s.window.alarm_despite.is_some());
         d.evidence_windows += usize::from(s.window.basis == Basis::Evidence);
+        d.impulsive_windows += usize::from(s.window.basis == Basis::Impulsive);
         d.window_states.push(s.window_state);
         d.state = s.state;
     }

@@ -22,6 +22,7 @@ mod faults;
 mod features_identity;
 mod house;
 mod importers;
+mod impulsive;
 mod model;
 mod novel_faults;
 mod opendaq;

@@ -75,6 +75,8 @@ fn recordings(
                 simulated,
                 rpm: 600.0,
                 windows: Array2::from_shape_vec((windows, 100), data).unwrap(),
+                kurtosis: vec![0.0; windows],
+                window_samples: 10_000,
             });
         }
     }
@@ -520,7 +522,8 @@ fn aligned_model_keeps_its_classes_gates_the_unknown_and_runs_alike_everywhere()
     let (model, _, _) = trained(3);
     assert_eq!(model.meta.healthy_reference.len(), 100);
     let healthy = machine_windows("healthy", 12, false, 1);
-    let aligned = align_to_healthy(&model, healthy.view(), &["machine-healthy".into()]).unwrap();
+    let aligned =
+        align_to_healthy(&model, healthy.view(), None, &["machine-healthy".into()]).unwrap();
     let b = aligned
         .baseline
         .as_ref()
@@ -611,7 +614,7 @@ fn aligned_model_keeps_its_classes_gates_the_unknown_and_runs_alike_everywhere()
     assert_eq!(back.baseline, aligned.baseline);
     assert_eq!(back.meta.healthy_reference, model.meta.healthy_reference);
     assert_eq!(back.meta.trained_mean, model.pre.mean.to_vec());
-    let again = align_to_healthy(&back, healthy.view(), &["machine-healthy".into()]).unwrap();
+    let again = align_to_healthy(&back, healthy.view(), None, &["machine-healthy".into()]).unwrap();
     assert_eq!(again.pre, aligned.pre);
 }
 
@@ -1171,7 +1174,8 @@ fn aligned_model_evidence_decides_where_the_network_guesses() {
     use rigmon::model::evidence::{BaselineSpread, FamilyBins};
     let (model, _, _) = trained(3);
     let healthy = machine_windows("healthy", 12, false, 1);
-    let aligned = align_to_healthy(&model, healthy.view(), &["machine-healthy".into()]).unwrap();
+    let aligned =
+        align_to_healthy(&model, healthy.view(), None, &["machine-healthy".into()]).unwrap();
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("aligned.onnx");
     export::write(&aligned, &path).unwrap();
@@ -1215,6 +1219,7 @@ fn aligned_model_evidence_decides_where_the_network_guesses() {
                     quality: None,
                     beyond_baseline: p.beyond_baseline,
                     evidence: Some(ev),
+                    impulse: None,
                 },
                 &policy,
             );

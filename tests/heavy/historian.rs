@@ -1087,12 +1087,16 @@ fn every_field_set(run_ns: u64, seq: u64) -> rigmon::health::message::HealthMess
         window_state: "inner_race".into(),
         unknown_reason: None,
         alarm_despite: Some(rigmon::health::UnknownReason::Novelty),
-        decision: rigmon::health::Basis::Evidence,
+        decision: rigmon::health::Basis::Impulsive,
         overruled: Some("healthy".into()),
         evidence: Some(rigmon::model::evidence::FamilyEvidence {
             outer_race: 0.5,
             inner_race: 7.25,
             ball: -1.125,
+        }),
+        impulse: Some(rigmon::model::impulsiveness::Impulse {
+            beyond_healthy: 12.5,
+            beyond_gaussian: 7.25,
         }),
         state: "inner_race".into(),
         state_since_s: 2.5,
@@ -1166,7 +1170,7 @@ fn every_health_field_survives_the_historian_and_a_version_1_database_is_upgrade
     wait_until(
         "the historian to migrate the version-1 database",
         Duration::from_secs(60),
-        || versions() == [1, 2],
+        || versions() == [1, 2, 3],
     );
 
     // A daemon's two windows: the first with every field set, the second with the optional
@@ -1177,6 +1181,7 @@ fn every_health_field_survives_the_historian_and_a_version_1_database_is_upgrade
     bare.decision = rigmon::health::Basis::Model;
     bare.overruled = None;
     bare.evidence = None;
+    bare.impulse = None;
     bare.speed_confidence = None;
     bare.speed_rival_rpm = None;
     bare.model.foreign.clear();

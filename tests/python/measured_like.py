@@ -29,6 +29,15 @@ with only [bearing] changed, which docs/per-set.sh writes) with strong inner-rac
 a light radial load: every ball is loaded all the way round (Harris's load distribution with
 factor `load_zone_epsilon` > 0.5), so the inner-race train is barely modulated at 1x and its
 1x sidebands are small.
+`intermittent_ball` adds ball-defect records (label `ball`) to the draw: the defect strikes
+the outer and the inner race in turn, twice per ball revolution (2x BSF, the inner-race
+strike weaker), only while the ball is in the load zone (its cage angle in the lower half,
+cos^1.5 over a floor of 0.15) and only while the ball's spin axis keeps the defect on its
+rolling track: on and off episodes of random length (exponential, mean 0.3 s on, 0.6 s off),
+so the impacts come in bursts. Ball motion is loosely guided, so each impact slips by 5 % of
+its spacing (five times the races' jitter). A signal that is impulsive while its 2x BSF line
+is smeared and intermittent: what a small ball defect looks like in the literature (Smith &
+Randall, MSSP 2015, on the CWRU ball records), made here from that description alone.
 
     python3 measured_like.py --out DIR --case CASE [--seed N] [--seconds S]
 
@@ -142,6 +151,18 @@ CASES = {
     # Fault detection near the physics (issue 26), no calibration effect. A quarter of the
     # default inner-race impact at half the low speed and at the low speed.
     "weak_inner_race": (None, {"ir_impact_scale": 0.25, "speeds_rpm": [300.0, 600.0]}),
+    # Ball defects seen only in bursts, as strong as `weak_inner_race`'s impacts (a quarter of
+    # the default inner race); with all four labels in the draw.
+    "intermittent_ball": (
+        None,
+        {
+            "ball_impact_at_600_m_s2": 7.5,
+            "ball_on_s": 0.3,
+            "ball_off_s": 0.6,
+            "ball_jitter": 0.05,
+            "labels": ["healthy", "outer_race", "inner_race", "ball"],
+        },
+    ),
     # Another bearing, strong inner-race impacts (peak at the load zone's centre equal to the
     # outer race's, 50 m/s^2 at 600 rpm), light radial load: strength follows Harris's
     # q(psi)/q_max = (1 - (1 - cos psi) / (2 eps))^1.5 with eps = 4, so the impacts at the top
@@ -233,11 +254,40 @@ def fault_impacts(label, revs, rpm, rng, slip, contact_deg, params):
         load = inner_race_strength(shaft_angle, params)
         at_600 = params.get("ir_impact_at_600_m_s2", IR_IMPACT_AT_600) * params.get("ir_impact_scale", 1.0)
         amps = at_600 * speed_gain * load * (1.0 + 0.1 * rng.standard_normal(len(times)))
+    elif label == "ball":
+        return ball_impacts(revs, cage, r, b, speed_gain, rng, params)
     else:
         return np.zeros(0), np.zeros(0)
     spacing = np.median(np.diff(times)) if len(times) > 1 else 0.0
     times = times + JITTER * spacing * rng.standard_normal(len(times))
     keep = times > 0
+    return times[keep], amps[keep]
+
+
+def ball_impacts(revs, cage, r, b, speed_gain, rng, params):
+    """A ball defect (`intermittent_ball`): strikes at twice the ball spin frequency,
+    alternately on the outer race (1) and the inner race (0.5), gated by the load zone the
+    ball is in and by on/off episodes of the defect meeting the races."""
+    # ball revolutions: (D / 2d)(1 - r^2) per shaft revolution, = (inner race - cage)(D/d)(1 - r)
+    spin = (revs - cage) * b["pitch_diameter_mm"] / b["ball_diameter_mm"] * (1.0 - r)
+    times = crossing_times(2.0 * spin)
+    cage_angle = np.interp(times, np.arange(len(revs)) / FS, cage) * 2 * np.pi
+    load = 0.15 + np.clip(np.cos(cage_angle), 0.0, None) ** 1.5
+    race = np.where(np.arange(len(times)) % 2 == 0, 1.0, 0.5)
+    at_600 = params["ball_impact_at_600_m_s2"]
+    amps = at_600 * speed_gain * load * race * (1.0 + 0.1 * rng.standard_normal(len(times)))
+    # on/off episodes of the defect meeting the races (telegraph process)
+    end = len(revs) / FS
+    on = np.zeros(len(times), bool)
+    t, state = 0.0, rng.random() < params["ball_on_s"] / (params["ball_on_s"] + params["ball_off_s"])
+    while t < end:
+        d = rng.exponential(params["ball_on_s"] if state else params["ball_off_s"])
+        if state:
+            on |= (times >= t) & (times < t + d)
+        t, state = t + d, not state
+    spacing = np.median(np.diff(times)) if len(times) > 1 else 0.0
+    times = times + params["ball_jitter"] * spacing * rng.standard_normal(len(times))
+    keep = on & (times > 0)
     return times[keep], amps[keep]
 
 
@@ -365,7 +415,7 @@ def main():
         params["impact_half_order_m_s2"] = round(impacts, 6)
     rows = ["path,label"]
     for rpm in params.get("speeds_rpm", SPEEDS_RPM):
-        for label in LABELS:
+        for label in params.get("labels", LABELS):
             t, chans, tacho = record(label, rpm, a.case, params, a.seconds, rng)
             name = f"{label}-{int(rpm)}rpm.csv"
             data = np.column_stack([t] + chans + [tacho])
