@@ -1219,12 +1219,13 @@ fn every_health_field_survives_the_historian_and_a_version_1_database_is_upgrade
     let stored = rt
         .block_on(db.query_one(
             "SELECT decision, overruled, evidence_outer_race, evidence_inner_race, evidence_ball,
-                    speed_confidence, speed_rival_rpm, model_foreign
+                    speed_confidence, speed_rival_rpm, model_foreign, impulse_beyond_healthy,
+                    impulse_beyond_gaussian
              FROM windows WHERE seq = 1",
             &[],
         ))
         .unwrap();
-    assert_eq!(stored.get::<_, String>(0), "evidence");
+    assert_eq!(stored.get::<_, String>(0), "impulsive");
     assert_eq!(
         stored.get::<_, Option<String>>(1).as_deref(),
         Some("healthy")
@@ -1238,10 +1239,14 @@ fn every_health_field_survives_the_historian_and_a_version_1_database_is_upgrade
     assert_eq!(stored.get::<_, f32>(5), 0.8125);
     assert_eq!(stored.get::<_, f64>(6), 735.75);
     assert_eq!(stored.get::<_, Vec<String>>(7), full.model.foreign);
+    assert_eq!(
+        (stored.get::<_, f32>(8), stored.get::<_, f32>(9)),
+        (12.5, 7.25)
+    );
     let refused = rt.block_on(db.execute("UPDATE windows SET decision = 'guess'", &[]));
     assert!(
         refused.is_err_and(|e| format!("{e:?}").contains("windows_decision_check")),
-        "decision is one of model, confirmed, evidence"
+        "decision is one of model, confirmed, evidence, impulsive"
     );
 
     // Back over Zenoh, as `rigmon history` asks: field for field what the daemon sent.
@@ -1279,7 +1284,7 @@ fn every_health_field_survives_the_historian_and_a_version_1_database_is_upgrade
             back[1].model.foreign.len()
         ),
         (
-            rigmon::health::Basis::Evidence,
+            rigmon::health::Basis::Impulsive,
             Some("healthy"),
             Some(7.25),
             Some(0.8125),
@@ -1297,6 +1302,7 @@ fn every_health_field_survives_the_historian_and_a_version_1_database_is_upgrade
     assert!(
         old.overruled.is_none()
             && old.evidence.is_none()
+            && old.impulse.is_none()
             && old.speed_confidence.is_none()
             && old.speed_rival_rpm.is_none()
             && old.model.foreign.is_empty()
