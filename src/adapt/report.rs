@@ -76,12 +76,17 @@ fn set_md(title: &str, s: &SetScores) -> String {
                 .filter(|r| r.path == a.path)
                 .or_else(|| e.records.iter().find(|r| r.path == a.path))
                 .map(|r| {
-                    format!(
-                        "{} ({:.0} % of windows)",
-                        r.predicted,
-                        100.0 * r.votes.iter().copied().max().unwrap_or(0) as f64
-                            / r.windows.max(1) as f64
-                    )
+                    let share = 100.0 * r.votes.iter().copied().max().unwrap_or(0) as f64
+                        / r.windows.max(1) as f64;
+                    // windows the physics decided against the network, where any did
+                    let physics = [
+                        (r.evidence_windows, "by the fault-family evidence"),
+                        (r.impulsive_windows, "impulsive"),
+                    ]
+                    .into_iter()
+                    .filter_map(|(n, what)| Some(format!("; {} {what}", n.filter(|&n| n > 0)?)))
+                    .collect::<String>();
+                    format!("{} ({share:.0} % of windows{physics})", r.predicted)
                 })
                 .unwrap_or_else(|| "-".into())
         };
