@@ -3,6 +3,7 @@
 
 use rigmon::config::RigConfig;
 use std::path::{Path, PathBuf};
+use std::process::Command;
 
 /// A shipped rig file from `config/`.
 pub fn rig(name: &str) -> RigConfig {
@@ -23,4 +24,18 @@ pub fn shared_data() -> PathBuf {
         p.display()
     );
     p
+}
+
+/// Run the `rigmon` binary; fails the test with its stderr unless it exits 0; its stdout.
+pub fn rigmon(args: &[&str]) -> String {
+    let out = Command::new(env!("CARGO_BIN_EXE_rigmon"))
+        .args(args)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "rigmon {args:?} failed:\n{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    String::from_utf8_lossy(&out.stdout).into_owned()
 }

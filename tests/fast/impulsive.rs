@@ -18,7 +18,7 @@ use std::path::Path;
 fn manifest_dir() -> &'static Path {
     Path::new(env!("CARGO_MANIFEST_DIR"))
 }
-use std::process::Command;
+use crate::common::rigmon;
 
 const FS: f64 = 12_000.0;
 const RPM: f64 = 1797.0;
@@ -62,19 +62,6 @@ fn write_record(path: &Path, seed: u64, seconds: f64, impacts_per_s: f64, peak: 
         .unwrap();
     }
     std::fs::write(path, out).unwrap();
-}
-
-fn rigmon(args: &[&str]) -> String {
-    let out = Command::new(env!("CARGO_BIN_EXE_rigmon"))
-        .args(args)
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "rigmon {args:?}: {}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    String::from_utf8(out.stdout).unwrap()
 }
 
 fn record<'a>(v: &'a Value, name: &str) -> &'a Value {

@@ -2,6 +2,7 @@
 //! and check that tract (in-process) and onnxruntime (Python, an independent runtime) give
 //! the in-memory model's outputs; novelty, fine-tuning, reproducibility and the shipped models.
 
+use crate::common::rigmon;
 use ndarray::Array2;
 use rand::{Rng, SeedableRng};
 use rigmon::config::RigConfig;
@@ -340,19 +341,6 @@ fn shared_data() -> PathBuf {
         p.display()
     );
     p
-}
-
-fn rigmon(args: &[&str]) -> String {
-    let out = Command::new(env!("CARGO_BIN_EXE_rigmon"))
-        .args(args)
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "rigmon {args:?} failed:\n{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    String::from_utf8_lossy(&out.stdout).to_string()
 }
 
 /// The shipped models: valid for the reference tooling, metadata for their rig (identity

@@ -9,22 +9,9 @@
 
 use serde_json::Value;
 use std::path::{Path, PathBuf};
-use std::process::Command;
 
+use crate::common::rigmon;
 use crate::common::shared_data;
-
-fn rigmon(args: &[&str]) -> String {
-    let out = Command::new(env!("CARGO_BIN_EXE_rigmon"))
-        .args(args)
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "rigmon {args:?}: {}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    String::from_utf8(out.stdout).unwrap()
-}
 
 fn repo(rel: &str) -> String {
     Path::new(env!("CARGO_MANIFEST_DIR"))

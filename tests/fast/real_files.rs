@@ -13,8 +13,8 @@
 use rigmon::importers::{self, ImportOptions};
 use serde_json::Value;
 use std::path::{Path, PathBuf};
-use std::process::Command;
 
+use crate::common::rigmon;
 use crate::common::{rig, shared_data};
 
 /// CWRU's approximate motor speed per load (hp 0..3), rpm.
@@ -377,19 +377,6 @@ fn mat_files(root: &Path, dir: &Path, out: &mut Vec<String>) {
             out.push(p.strip_prefix(root).unwrap().to_string_lossy().into_owned());
         }
     }
-}
-
-fn rigmon(args: &[&str]) -> String {
-    let out = Command::new(env!("CARGO_BIN_EXE_rigmon"))
-        .args(args)
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "rigmon {args:?} failed:\n{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    String::from_utf8(out.stdout).unwrap()
 }
 
 /// Which rig file watches the faulty bearing of a file's folder.

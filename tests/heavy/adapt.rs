@@ -5,6 +5,7 @@
 //! checker, the report's before/after/rule scores and calibration errors, and that
 //! `rigmon evaluate` then uses the folder's model and rig file like any other.
 
+use crate::common::rigmon;
 use serde_json::Value;
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -26,19 +27,6 @@ fn generate(dir: &Path, case: &str, seed: &str) {
         "measured_like.py failed: {}",
         String::from_utf8_lossy(&out.stderr)
     );
-}
-
-fn rigmon(args: &[&str]) -> String {
-    let out = Command::new(env!("CARGO_BIN_EXE_rigmon"))
-        .args(args)
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "rigmon {args:?} failed:\n{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    String::from_utf8_lossy(&out.stdout).to_string()
 }
 
 fn num(v: &Value, what: &str) -> f64 {

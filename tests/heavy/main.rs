@@ -3,6 +3,8 @@
 //! with the fast tier (`cargo test --all-features`); alone: `cargo test --all-features --test
 //! heavy`. One binary, so the crate and its dependencies are linked once.
 
+#[path = "../common/mod.rs"]
+mod common;
 #[path = "../common/estimate_rig.rs"]
 mod estimate_rig;
 
