@@ -1,13 +1,14 @@
 //! Health state machine: per-window verdicts -> a smoothed machine state with hysteresis.
 //!
 //! Each window gets a *window verdict* from the one mapping in [`verdict`] (data quality,
-//! the classifier's probabilities and novelty, the machine's healthy baseline and the
-//! fault-family evidence, under this policy): its class, or `unknown` when the data quality
-//! is bad, or when the window is novel or doubtful and nothing shows it is clearly a fault.
-//! Faults on a real machine are often stronger than anything simulated, so a
-//! distance-to-training-set test calls them novel; answering `unknown` there would hide the
-//! alarm, so a window beyond the machine's healthy baseline, a confident fault, or a fault
-//! the spectrum's fault-family bins support keeps its class, flagged `alarm_despite`. The
+//! the classifier's probabilities and novelty, the machine's healthy baseline, the
+//! fault-family evidence and the impulsiveness, under this policy): its class, or `unknown`
+//! when the data quality is bad, or when the window is novel or doubtful and nothing shows it
+//! is clearly a fault. Faults on a real machine are often stronger than anything simulated,
+//! so a distance-to-training-set test calls them novel; answering `unknown` there would hide
+//! the alarm, so a window beyond the machine's healthy baseline, a confident fault, an
+//! impulsive one, or a fault the spectrum's fault-family bins support keeps its class,
+//! flagged `alarm_despite`. The
 //! *smoothed state* changes only when one state wins at least `k` of the last `n` window
 //! states (k-of-n voting) and has kept winning for `dwell_s` seconds of signal (dwell time).
 //! Going to `unknown` uses `unknown_dwell_s` (default 0: stop claiming a state as soon as the
@@ -21,7 +22,7 @@ pub mod message;
 pub mod verdict;
 
 use crate::model::evidence::{EvidenceHistory, FamilyEvidence};
-use crate::model::impulsiveness::{Impulse, ImpulseHistory};
+use crate::model::impulsiveness::{window_cap, Impulse, ImpulseHistory};
 use anyhow::{bail, Result};
 use serde::{Deserialize, Serialize};
 use std::collections::VecDeque;
@@ -314,7 +315,13 @@ impl HealthStateMachine {
             _ => None,
         };
         let impulse = match (w.impulse, w.quality) {
-            (Some(i), None) => Some(self.impulse.push(i)),
+            (Some(i), None) => {
+                let p = &self.policy;
+                Some(
+                    self.impulse
+                        .push(i, window_cap(p.impulse_z, p.vote_n, self.hop_fraction)),
+                )
+            }
             _ => None,
         };
         let verdict = judge(

@@ -23,7 +23,7 @@ use crate::calibrate::{fit as cal_fit, measured, plots as cal_plots, report as c
 use crate::config::RigConfig;
 use crate::evaluate::{score, Evaluation};
 use crate::manifest::{read_manifest, ManifestEntry};
-use crate::model::align::{align_to_healthy, HealthyKurtosis};
+use crate::model::align::align_to_healthy;
 use crate::model::classifier::TrainedModel;
 use crate::model::rule::{EnvelopeRule, RuleSettings};
 use crate::model::{export, OnnxClassifier};
@@ -264,20 +264,10 @@ fn align_step(
     let views: Vec<_> = healthy.iter().map(|r| r.windows.view()).collect();
     let windows = ndarray::concatenate(ndarray::Axis(0), &views)?;
     let names: Vec<String> = healthy.iter().map(|r| r.path_text.clone()).collect();
-    let (kurtosis, samples) = healthy_kurtosis(healthy);
+    let kurtosis = healthy_kurtosis(healthy);
     let aligned = models
         .iter()
-        .map(|m| {
-            align_to_healthy(
-                m,
-                windows.view(),
-                Some(HealthyKurtosis {
-                    values: &kurtosis,
-                    window_samples: samples,
-                }),
-                &names,
-            )
-        })
+        .map(|m| align_to_healthy(m, windows.view(), Some(&kurtosis), &names))
         .collect::<Result<Vec<_>>>()?;
     let info = serde_json::from_str(&aligned[0].meta.alignment)?;
     Ok((aligned, Some(info)))
@@ -295,28 +285,16 @@ pub fn align_to_recordings(
     let views: Vec<_> = recs.iter().map(|r| r.windows.view()).collect();
     let windows = ndarray::concatenate(ndarray::Axis(0), &views)?;
     let names: Vec<String> = recs.iter().map(|r| r.path_text.clone()).collect();
-    let (kurtosis, samples) = healthy_kurtosis(&recs);
-    align_to_healthy(
-        model,
-        windows.view(),
-        Some(HealthyKurtosis {
-            values: &kurtosis,
-            window_samples: samples,
-        }),
-        &names,
-    )
+    let kurtosis = healthy_kurtosis(&recs);
+    align_to_healthy(model, windows.view(), Some(&kurtosis), &names)
 }
 
-/// The healthy recordings' excess kurtosis per window (in the row order of their
-/// concatenated feature windows) and the fewest samples per window among them (the widest
-/// Gaussian floor).
-fn healthy_kurtosis(recs: &[RecordingFeatures]) -> (Vec<f32>, usize) {
-    let values = recs
-        .iter()
+/// The healthy recordings' excess kurtosis per window, in the row order of their
+/// concatenated feature windows.
+fn healthy_kurtosis(recs: &[RecordingFeatures]) -> Vec<f32> {
+    recs.iter()
         .flat_map(|r| r.kurtosis.iter().copied())
-        .collect();
-    let samples = recs.iter().map(|r| r.window_samples).min().unwrap_or(0);
-    (values, samples)
+        .collect()
 }
 
 /// Score the zero-shot model, the adapted model and the rule on a labelled set (featurised

@@ -22,9 +22,13 @@ impl FeatureWindow {
     }
 
     /// The classifier channel's excess kurtosis and the samples it was measured over (None
-    /// if this window lacks that channel or it was flat).
+    /// if this window lacks that channel, or it was flat, clipped or dropped out: a kurtosis
+    /// that measures the sensor, not the machine).
     pub fn classifier_kurtosis(&self, rig: &RigConfig) -> Option<(f32, usize)> {
         let c = rig.classifier_channel()?;
-        Some((*self.excess_kurtosis.get(&c.name)?, self.samples))
+        let q = &self.quality;
+        let spoilt = [&q.clipped, &q.dropout].iter().any(|l| l.contains(&c.name));
+        let k = *self.excess_kurtosis.get(&c.name)?;
+        (!spoilt).then_some((k, self.samples))
     }
 }

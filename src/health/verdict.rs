@@ -1,6 +1,6 @@
 //! One window's verdict: the single mapping from what a window says -- the classifier's
-//! probabilities and novelty, the machine's healthy baseline, the fault-family evidence and
-//! the data quality -- to the window's state under a `[health]` policy. The daemon
+//! probabilities and novelty, the machine's healthy baseline, the fault-family evidence, the
+//! impulsiveness and the data quality -- to the window's state under a `[health]` policy. The daemon
 //! (`daemon::analyze`) and every offline score (`train::score`, so `evaluate` and `adapt`)
 //! call [`judge`] through [`super::HealthStateMachine::observe`], so a score is what the
 //! daemon would say.
@@ -28,9 +28,9 @@
 //!    else the classifier's most probable fault class.
 //! 4. **Doubt** (no evidence either way): a novel window (novelty above the model's or the
 //!    policy's threshold) or one whose top probability is below `min_confidence` is
-//!    `unknown`, unless it is clearly a fault -- beyond the machine's healthy baseline, or a
-//!    fault class of at least `novel_alarm_confidence` -- which keeps its class as an alarm
-//!    flagged `alarm_despite`.
+//!    `unknown`, unless it is clearly a fault -- a fault class beyond the machine's healthy
+//!    baseline, impulsive, or of at least `novel_alarm_confidence` -- which keeps its class
+//!    as an alarm flagged `alarm_despite`.
 
 use super::{HealthPolicy, UnknownReason, UNKNOWN};
 use crate::analysis::{WindowAnalysis, WindowError};
@@ -134,7 +134,7 @@ pub struct WindowVerdict {
     /// The window keeps its class although it would be `unknown` for this reason.
     pub alarm_despite: Option<UnknownReason>,
     pub basis: Basis,
-    /// The classifier's class when the evidence overruled it.
+    /// The classifier's class when the evidence or the impulsiveness overruled it.
     pub overruled: Option<String>,
 }
 
@@ -238,11 +238,11 @@ fn follow<'a>(ev: &FamilyEvidence, model_class: &'a str, z: f32) -> Option<(&'a 
     ev.strongest(z).map(|(family, _)| (family, Basis::Evidence))
 }
 
-/// The fault an impulsive window is named by: the family whose bins stand highest, however
-/// weakly, else the classifier's most probable fault class (None: the model has no fault
-/// class and there is no evidence).
+/// The fault an impulsive window is named by: the family whose bins stand highest, when one
+/// stands above the machine's healthy level at all, else the classifier's most probable fault
+/// class (None: the model has no fault class and there is no evidence).
 fn impulsive_fault<'a>(w: &WindowInput<'a>) -> Option<&'a str> {
-    if let Some((family, _)) = w.evidence.and_then(|e| e.strongest(f32::MIN)) {
+    if let Some((family, _)) = w.evidence.and_then(|e| e.strongest(f32::MIN_POSITIVE)) {
         return Some(family);
     }
     w.labels

@@ -43,14 +43,6 @@ pub struct Alignment {
     pub healthy_kurtosis: Option<ImpulseBaseline>,
 }
 
-/// The healthy windows' classifier-channel excess kurtosis, one per row of the feature
-/// windows, and the samples per window.
-#[derive(Debug, Clone, Copy)]
-pub struct HealthyKurtosis<'a> {
-    pub values: &'a [f32],
-    pub window_samples: usize,
-}
-
 /// Per-feature mean of the scale-free log ratios of `windows` (rows = windows).
 pub fn log_mean(windows: ArrayView2<f32>, floor: f32) -> Array1<f32> {
     let l = Preprocess::log_ratio(windows, floor);
@@ -59,14 +51,15 @@ pub fn log_mean(windows: ArrayView2<f32>, floor: f32) -> Array1<f32> {
 }
 
 /// A copy of `model` whose reference levels are those of the measured healthy `windows`
-/// (and, given their `kurtosis`, whose impulsiveness baseline is theirs).
+/// (and, given their classifier-channel excess `kurtosis`, one per row of `windows`, whose
+/// impulsiveness baseline is theirs).
 /// The model must carry the simulated healthy reference (`healthy_reference` in its
 /// metadata, written by `rigmon train`); an aligned model is aligned again from its original
 /// offsets, so aligning twice with the same data gives the same file.
 pub fn align_to_healthy(
     model: &TrainedModel,
     windows: ArrayView2<f32>,
-    kurtosis: Option<HealthyKurtosis>,
+    kurtosis: Option<&[f32]>,
     records: &[String],
 ) -> Result<TrainedModel> {
     let sim = &model.meta.healthy_reference;
@@ -116,7 +109,7 @@ pub fn align_to_healthy(
         largest_shift: big,
         baseline_threshold: baseline.threshold,
         baseline_inv_spread: baseline.inv_spread,
-        healthy_kurtosis: kurtosis.and_then(|k| ImpulseBaseline::fit(k.values, k.window_samples)),
+        healthy_kurtosis: kurtosis.and_then(ImpulseBaseline::fit),
     };
     out.baseline = Some(baseline);
     out.meta.trained_mean = trained.to_vec();
@@ -166,11 +159,8 @@ mod tests {
         let real_h = Array2::from_shape_fn((6, 4), |(i, j)| {
             [1.0f32, 2.0, 9.0, 0.1][j] * (1.0 + 0.01 * i as f32)
         });
-        let kurtosis = HealthyKurtosis {
-            values: &[-0.3, -0.2, -0.25, -0.3, -0.2, -0.25],
-            window_samples: 12_000,
-        };
-        let a = align_to_healthy(&m, real_h.view(), Some(kurtosis), &["97.mat".into()]).unwrap();
+        let kurtosis = [-0.3, -0.2, -0.25, -0.3, -0.2, -0.25];
+        let a = align_to_healthy(&m, real_h.view(), Some(&kurtosis), &["97.mat".into()]).unwrap();
         // Standardised real healthy == standardised simulated healthy, feature by feature.
         let zr = a.pre.apply(real_h.view()).mean_axis(Axis(0)).unwrap();
         let zs = m.pre.apply(sim_h.view()).mean_axis(Axis(0)).unwrap();

@@ -23,8 +23,6 @@ pub struct RecordingFeatures {
     /// The classifier channel's excess kurtosis per window (row order of `windows`; NaN where
     /// the window had none).
     pub kurtosis: Vec<f32>,
-    /// Samples per window (`features.window_s` x the recording's sample rate).
-    pub window_samples: usize,
 }
 
 /// SHA-256 over `label <TAB> file-sha256` lines in manifest order: identifies training data.

@@ -64,7 +64,6 @@ pub fn featurise(entry: &ManifestEntry, rig: &RigConfig) -> Result<RecordingFeat
         rpm: rpm / kept as f64,
         windows: Array2::from_shape_vec((kept, n), data)?,
         kurtosis,
-        window_samples: wins.first().map_or(0, |w| w.samples),
     })
 }
 

@@ -2,8 +2,8 @@
 //! through the structure at no kinematic rate -- here impacts at random (Poisson) times,
 //! ringing down through a 2.9 kHz resonance, so the envelope order spectrum holds no
 //! fault-family line -- must still be an alarm once the model is aligned to the machine's
-//! healthy recording, and a second healthy recording of the same machine must not be. The
-//! signals are made here, from this description alone (not rigmon's simulator): white sensor
+//! healthy recording; a second healthy recording of the same machine must not be, nor one
+//! with a single knock (huge in the two windows holding it). The signals are made here, from this description alone (not rigmon's simulator): white sensor
 //! noise, a 1x and a 2x line at a stated speed, on the CWRU fan-end rig's three channels (its
 //! shipped model is the one that carries a simulated healthy reference to align). Scored by
 //! `rigmon evaluate` (the daemon's verdict), with the impulsiveness on (default `[health]`)
@@ -25,26 +25,39 @@ const RPM: f64 = 1797.0;
 /// White sensor noise, g RMS.
 const NOISE_RMS: f64 = 0.03;
 
+/// One impact ringing down through the 2.9 kHz resonance, `a` g at its peak, from sample `i0`.
+fn ring(x: &mut [f64], i0: usize, a: f64) {
+    let (w, zeta) = (2.0 * std::f64::consts::PI * 2900.0, 0.03);
+    for (k, v) in x.iter_mut().skip(i0).take(400).enumerate() {
+        let dt = k as f64 / FS;
+        *v += a * (-zeta * w * dt).exp() * (w * dt).cos();
+    }
+}
+
 /// `seconds` of the fan-end rig's channels as CSV (g); `impacts_per_s` random impacts of
-/// `peak` g on the FE channel (0: healthy).
-fn write_record(path: &Path, seed: u64, seconds: f64, impacts_per_s: f64, peak: f64) {
+/// `peak` g on the FE channel (0: none) and one knock of `knock.1` g at `knock.0` s.
+fn write_record(
+    path: &Path,
+    seed: u64,
+    seconds: f64,
+    (impacts_per_s, peak): (f64, f64),
+    knock: Option<(f64, f64)>,
+) {
     let mut rng = rand::rngs::StdRng::seed_from_u64(seed);
     let n = (seconds * FS) as usize;
     let noise = Normal::new(0.0, NOISE_RMS).unwrap();
     let mut fan_end: Vec<f64> = (0..n).map(|_| noise.sample(&mut rng)).collect();
     if impacts_per_s > 0.0 {
         let gap = Exp::new(impacts_per_s).unwrap();
-        let (w, zeta) = (2.0 * std::f64::consts::PI * 2900.0, 0.03);
         let mut t = gap.sample(&mut rng);
         while t < seconds {
-            let i0 = (t * FS).ceil() as usize;
             let a = peak * (0.8 + 0.4 * rng.random::<f64>());
-            for (k, v) in fan_end.iter_mut().skip(i0).take(400).enumerate() {
-                let dt = k as f64 / FS;
-                *v += a * (-zeta * w * dt).exp() * (w * dt).cos();
-            }
+            ring(&mut fan_end, (t * FS).ceil() as usize, a);
             t += gap.sample(&mut rng);
         }
+    }
+    if let Some((t, a)) = knock {
+        ring(&mut fan_end, (t * FS) as usize, a);
     }
     let mut out = String::from("time,DE,FE,BA\n");
     for (i, v) in fan_end.iter().enumerate() {
@@ -77,14 +90,19 @@ fn record<'a>(v: &'a Value, name: &str) -> &'a Value {
 fn random_impacts_without_a_fault_line_are_an_alarm_and_healthy_stays_healthy() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
-    write_record(&d.join("healthy-a.csv"), 1, 12.0, 0.0, 0.0);
-    write_record(&d.join("healthy-b.csv"), 2, 12.0, 0.0, 0.0);
-    // one impact every 2 s on average, ten times the noise RMS at its peak: 2 % of the
-    // signal's power, so the envelope barely rises, but a window holding one is impulsive
-    write_record(&d.join("impacts.csv"), 3, 12.0, 0.5, 0.3);
+    write_record(&d.join("healthy-a.csv"), 1, 12.0, (0.0, 0.0), None);
+    write_record(&d.join("healthy-b.csv"), 2, 12.0, (0.0, 0.0), None);
+    // one knock, a hundred times the noise RMS: huge in the two windows holding it, and no
+    // reason for an alarm
+    write_record(&d.join("knock.csv"), 4, 12.0, (0.0, 0.0), Some((6.2, 3.0)));
+    // two impacts a second on average, under seven times the noise RMS at their peak: 4 % of
+    // the signal's power, so the envelope barely rises, but the windows are impulsive
+    write_record(&d.join("impacts.csv"), 3, 12.0, (2.0, 0.2), None);
     let rows = format!("path,label,rpm\nhealthy-a.csv,healthy,{RPM}\n");
     std::fs::write(d.join("healthy.csv"), rows).unwrap();
-    let rows = format!("path,label,rpm\nhealthy-b.csv,healthy,{RPM}\nimpacts.csv,ball,{RPM}\n");
+    let rows = format!(
+        "path,label,rpm\nhealthy-b.csv,healthy,{RPM}\nknock.csv,healthy,{RPM}\nimpacts.csv,ball,{RPM}\n"
+    );
     std::fs::write(d.join("score.csv"), rows).unwrap();
     let s = |p: &Path| p.display().to_string();
     let rig = s(&manifest_dir().join("config/cwru-fe.toml"));
@@ -129,10 +147,12 @@ fn random_impacts_without_a_fault_line_are_an_alarm_and_healthy_stays_healthy() 
             );
         }
     }
-    // healthy stays healthy, impulsiveness on or off
-    let h = record(&on, "healthy-b");
-    assert_eq!(h["state"], "healthy", "{on}");
-    assert_eq!(h["impulsive_windows"], 0, "{on}");
+    // healthy stays healthy, impulsiveness on or off, and one knock raises no alarm
+    for name in ["healthy-b", "knock"] {
+        let h = record(&on, name);
+        assert_eq!(h["state"], "healthy", "{name}: {on}");
+        assert_eq!(h["impulsive_windows"], 0, "{name}: {on}");
+    }
     assert_eq!(on["false_alarms"], 0, "{on}");
     // the impacts are an alarm, and the impulsiveness is what decides windows of it
     let i = record(&on, "impacts");

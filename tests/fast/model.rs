@@ -77,7 +77,6 @@ fn recordings(
                 rpm: 600.0,
                 windows: Array2::from_shape_vec((windows, 100), data).unwrap(),
                 kurtosis: vec![0.0; windows],
-                window_samples: 10_000,
             });
         }
     }
