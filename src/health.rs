@@ -8,8 +8,7 @@
 //! so a distance-to-training-set test calls them novel; answering `unknown` there would hide
 //! the alarm, so a window beyond the machine's healthy baseline, a confident fault, an
 //! impulsive one, or a fault the spectrum's fault-family bins support keeps its class,
-//! flagged `alarm_despite`. The
-//! *smoothed state* changes only when one state wins at least `k` of the last `n` window
+//! flagged `alarm_despite`. The *smoothed state* changes only when one state wins at least `k` of the last `n` window
 //! states (k-of-n voting) and has kept winning for `dwell_s` seconds of signal (dwell time).
 //! Going to `unknown` uses `unknown_dwell_s` (default 0: stop claiming a state as soon as the
 //! votes say the data cannot be trusted). Before the first vote is won the smoothed state is
@@ -103,8 +102,9 @@ pub const DEFAULT_EVIDENCE_Z: f32 = 3.0;
 
 /// Default `impulse_z` (see [`HealthPolicy::impulse_z`]): five standard deviations, stricter
 /// than `evidence_z` because the sample kurtosis has a heavy upper tail and one machine's
-/// kurtosis drifts with load (its windows are no independent draws); set from that reasoning,
-/// not from the recordings it was first checked on (docs/diagnosis.md).
+/// kurtosis drifts with load (its windows are no independent draws). Chosen after reading the
+/// shared records' kurtosis (97, the CWRU fan end, HIT-SM Normal) and not tried at other
+/// values (docs/diagnosis.md).
 pub const DEFAULT_IMPULSE_Z: f32 = 5.0;
 
 impl Default for HealthPolicy {
@@ -203,8 +203,8 @@ pub struct Smoothed {
     /// The fault-family evidence the verdict used: accumulated over the last `vote_n`
     /// windows that had one (None: the model gives none).
     pub evidence: Option<FamilyEvidence>,
-    /// The impulsiveness the verdict used: the mean over the last `vote_n` windows that had
-    /// one (None: the model carries no kurtosis baseline).
+    /// The impulsiveness the verdict used: the capped mean over the last `vote_n` places
+    /// ([`ImpulseHistory`]; None: the model carries no kurtosis baseline).
     pub impulse: Option<Impulse>,
     /// The smoothed state after this window.
     pub state: String,

@@ -24,8 +24,8 @@
 //!    whose raw signal stands `impulse_z` standard deviations above both the machine's
 //!    healthy windows and Gaussian noise is an alarm (`basis` `impulsive`): a defect's
 //!    impacts without a clean fault-family line (a small ball defect rolling in and out of
-//!    the load zone). It is named by the family whose bins stand highest, however weakly,
-//!    else the classifier's most probable fault class.
+//!    the load zone). It is named by the family whose bins stand highest when one stands
+//!    above the machine's healthy level, else the classifier's most probable fault class.
 //! 4. **Doubt** (no evidence either way): a novel window (novelty above the model's or the
 //!    policy's threshold) or one whose top probability is below `min_confidence` is
 //!    `unknown`, unless it is clearly a fault -- a fault class beyond the machine's healthy
