@@ -666,3 +666,94 @@ fn vocabulary_imports_nothing_from_the_crate() {
         "the import reader sees no use of crate::vocabulary"
     );
 }
+
+/// The README's code block under "How the code is laid out": the lines naming a module as
+/// `  name/` or `  name.rs` at the start of the line.
+fn readme_layout() -> BTreeSet<String> {
+    let readme =
+        std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("README.md")).unwrap();
+    let section = readme
+        .split("## How the code is laid out")
+        .nth(1)
+        .expect("README.md has a section `## How the code is laid out`");
+    let block = section
+        .split("```")
+        .nth(1)
+        .expect("the layout section holds a code block");
+    block
+        .lines()
+        .filter_map(|l| {
+            let l = l.strip_prefix("  ")?;
+            let word = l.split_whitespace().next()?;
+            let name = word
+                .strip_suffix('/')
+                .or_else(|| word.strip_suffix(".rs"))?;
+            Some(name.to_string())
+        })
+        .collect()
+}
+
+/// Docs that cannot drift: every top-level module under src/ (a file or a folder) is named
+/// in the README's layout block, and the block names nothing that is not there.
+#[test]
+fn the_readme_layout_names_every_module() {
+    let src = Path::new(env!("CARGO_MANIFEST_DIR")).join("src");
+    let mut modules = BTreeSet::new();
+    for entry in std::fs::read_dir(&src).unwrap() {
+        let path = entry.unwrap().path();
+        let name = path.file_stem().unwrap().to_string_lossy().to_string();
+        if path.is_dir() || path.extension().is_some_and(|e| e == "rs") {
+            modules.insert(name);
+        }
+    }
+    let layout = readme_layout();
+    let missing: Vec<_> = modules.difference(&layout).collect();
+    let stale: Vec<_> = layout.difference(&modules).collect();
+    assert!(
+        missing.is_empty() && stale.is_empty(),
+        "README.md's layout block (section `How the code is laid out`) is out of date: \
+         not named {missing:?}; named but not in src/ {stale:?}. Add or remove the lines."
+    );
+}
+
+/// Docs that cannot drift: every subcommand `rigmon --help` lists is in the README's tour
+/// (a `rigmon NAME` in its table).
+#[test]
+fn the_readme_tour_names_every_subcommand() {
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_rigmon"))
+        .arg("--help")
+        .output()
+        .expect("rigmon --help runs");
+    let help = String::from_utf8_lossy(&out.stdout);
+    let commands: Vec<String> = help
+        .split("Commands:")
+        .nth(1)
+        .expect("rigmon --help lists `Commands:`")
+        .lines()
+        .skip(1)
+        .take_while(|l| l.starts_with("  "))
+        .filter_map(|l| l.split_whitespace().next().map(str::to_string))
+        .filter(|c| c != "help")
+        .collect();
+    assert!(
+        commands.len() > 10,
+        "too few subcommands parsed: {commands:?}"
+    );
+    let readme =
+        std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("README.md")).unwrap();
+    let tour = readme
+        .split("## A quick tour")
+        .nth(1)
+        .expect("README.md has a section `## A quick tour`")
+        .split("\n## ")
+        .next()
+        .unwrap();
+    let missing: Vec<_> = commands
+        .iter()
+        .filter(|c| !tour.contains(&format!("`rigmon {c}")))
+        .collect();
+    assert!(
+        missing.is_empty(),
+        "README.md's quick tour names no `rigmon NAME ...` row for {missing:?}: add one per subcommand"
+    );
+}
