@@ -25,7 +25,7 @@ use crate::model::impulsiveness::{window_cap, Impulse, ImpulseHistory};
 use anyhow::{bail, Result};
 use serde::{Deserialize, Serialize};
 use std::collections::VecDeque;
-pub use verdict::{judge, Basis, WindowInput, WindowVerdict};
+pub use verdict::{judge, Basis, WindowInput, WindowVerdict, UNNAMED_FAULT};
 
 /// The state name used when no class can be trusted.
 pub const UNKNOWN: &str = "unknown";
@@ -308,14 +308,19 @@ impl HealthStateMachine {
     ///
     /// The window's fault-family evidence and impulsiveness are first accumulated with the
     /// last windows' ([`EvidenceHistory`], [`ImpulseHistory`]) and the verdict judges the
-    /// accumulated values; a window whose quality forbids a verdict adds none.
+    /// accumulated values. A window whose quality forbids a verdict adds no evidence; one
+    /// whose speed alone is in doubt ([`verdict::speed_only`]) adds its impulsiveness (the
+    /// kurtosis needs no speed) and is named, if it is an alarm, by its own evidence at the
+    /// speed it was analysed at (not accumulated: another speed's bins).
     pub fn observe(&mut self, t_end: f64, w: &WindowInput) -> Smoothed {
         let evidence = match (w.evidence, w.quality) {
             (Some(e), None) => Some(self.evidence.push(e)),
+            (own, Some(q)) if verdict::speed_only(q) => own,
             _ => None,
         };
-        let impulse = match (w.impulse, w.quality) {
-            (Some(i), None) => {
+        let sound = w.quality.is_none_or(verdict::speed_only);
+        let impulse = match w.impulse {
+            Some(i) if sound => {
                 let p = &self.policy;
                 Some(
                     self.impulse
@@ -475,6 +480,7 @@ mod tests {
                         beyond_baseline: None,
                         evidence: None,
                         impulse: None,
+                        rule: None,
                     },
                 )
             })
@@ -620,6 +626,7 @@ mod tests {
                 beyond_baseline: None,
                 evidence: None,
                 impulse: None,
+                rule: None,
             },
         );
         assert_eq!(s.window_state, "unknown");
@@ -643,6 +650,7 @@ mod tests {
                     beyond_baseline: beyond,
                     evidence: None,
                     impulse: None,
+                    rule: None,
                 },
             ));
         }
@@ -693,6 +701,48 @@ mod tests {
         );
     }
 
+    /// Feed `n` windows whose speed is uncertain, each with excess kurtosis `k` over 12 000
+    /// samples against a healthy baseline near Gaussian; returns every answer.
+    fn uncertain_run(k: f32, n: usize) -> Vec<Smoothed> {
+        use crate::model::impulsiveness::ImpulseBaseline;
+        let labels = labels();
+        let b = ImpulseBaseline::fit(&[0.01, -0.02, 0.03, 0.0, -0.01]).unwrap();
+        let mut sm = HealthStateMachine::new(HealthPolicy::default(), &labels).unwrap();
+        let p = probs_for("healthy");
+        (0..n)
+            .map(|i| {
+                sm.observe(
+                    1.0 + 0.5 * i as f64,
+                    &WindowInput {
+                        labels: &labels,
+                        probs: &p,
+                        novelty: 0.1,
+                        model_novelty_threshold: 1.0,
+                        quality: Some(QualityFlag::SpeedUncertain),
+                        beyond_baseline: None,
+                        evidence: None,
+                        impulse: Some(b.impulse(k, 12_000)),
+                        rule: None,
+                    },
+                )
+            })
+            .collect()
+    }
+
+    #[test]
+    fn a_record_of_impulsive_windows_without_a_speed_ends_in_an_alarm() {
+        // excess kurtosis 35 (issue 34's inner race at 1000-1400 rpm), every window's speed
+        // uncertain: the impulsiveness accumulates and the state reaches a fault
+        let out = uncertain_run(35.0, 8);
+        let last = out.last().unwrap();
+        assert_eq!(last.state, "outer_race", "{:?}", states(&out));
+        assert_eq!(last.window.basis, Basis::Impulsive);
+        assert_eq!(last.window.alarm_despite, Some(UnknownReason::BadQuality));
+        // Gaussian-like windows with an uncertain speed: never an alarm, unknown
+        let out = uncertain_run(0.05, 8);
+        assert!(out.iter().all(|s| s.state == UNKNOWN), "{:?}", states(&out));
+    }
+
     #[test]
     fn invalid_policies_are_rejected_with_the_key() {
         let e = HealthStateMachine::new(
@@ -727,6 +777,7 @@ mod tests {
                     beyond_baseline: None,
                     evidence: None,
                     impulse: None,
+                    rule: None,
                 },
             );
         }

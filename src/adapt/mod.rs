@@ -128,6 +128,9 @@ pub struct AdaptOutcome {
     pub self_check: check::SelfCheck,
     /// Wall and CPU seconds per step, with the load average.
     pub timings: Vec<StepTime>,
+    /// What the checks let through with a warning (a healthy recording without a speed).
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub warnings: Vec<String>,
     pub total_s: f64,
     pub total_cpu_s: f64,
 }
@@ -155,17 +158,17 @@ fn file_bar(progress: bool, n: usize, what: &str) -> ProgressBar {
         .with_message(what.to_string())
 }
 
-/// Calibrate the rig on the measured recordings, as `rigmon calibrate` does; writes the
+/// Calibrate the rig on the measured rows whose speed was read, as `rigmon calibrate` does; writes the
 /// calibrated rig file and the calibration report into `dir`. Returns the calibrated rig and
 /// a summary for the adapt report.
 fn calibrate_step(
     rig_path: &Path,
     rig: &RigConfig,
-    measured_csv: &Path,
+    measured: &[crate::manifest::ManifestEntry],
     seconds: f64,
     dir: &Path,
 ) -> Result<(RigConfig, serde_json::Value)> {
-    let mut ops = measured::load(rig, &[measured_csv.to_path_buf()], seconds)?;
+    let mut ops = measured::load_entries(rig, measured, seconds)?;
     if ops.len() == 1 {
         ops = measured::split_single(&ops[0], rig)?;
     }
@@ -251,9 +254,12 @@ fn train_seed(
 /// Align models to the machine's healthy measured recordings (reference levels and the
 /// healthy-baseline gate; their feature windows from the checks); models are kept as
 /// trained when none is labelled healthy.
+/// Healthy recordings without a speed (`speed_free`: name, windows' kurtosis) add their
+/// kurtosis to the speed-free part of the baseline, not to the spectral reference.
 fn align_step(
     models: Vec<TrainedModel>,
     healthy: &[RecordingFeatures],
+    speed_free: &[(String, Vec<f32>)],
 ) -> Result<(Vec<TrainedModel>, Option<serde_json::Value>)> {
     if healthy.is_empty() {
         tracing::warn!(
@@ -263,8 +269,12 @@ fn align_step(
     }
     let views: Vec<_> = healthy.iter().map(|r| r.windows.view()).collect();
     let windows = ndarray::concatenate(ndarray::Axis(0), &views)?;
-    let names: Vec<String> = healthy.iter().map(|r| r.path_text.clone()).collect();
-    let kurtosis = healthy_kurtosis(healthy);
+    let mut names: Vec<String> = healthy.iter().map(|r| r.path_text.clone()).collect();
+    let mut kurtosis = healthy_kurtosis(healthy);
+    for (name, k) in speed_free {
+        names.push(format!("{name} (kurtosis only: no speed)"));
+        kurtosis.extend_from_slice(k);
+    }
     let aligned = models
         .iter()
         .map(|m| align_to_healthy(m, windows.view(), Some(&kurtosis), &names))
@@ -496,7 +506,13 @@ fn calibrate_and_zero_shot(
             })
         });
         let t = Instant::now();
-        let c = calibrate_step(&o.rig, rig, &o.measured, pre.calibration_seconds, &o.out);
+        let c = calibrate_step(
+            &o.rig,
+            rig,
+            &pre.calibrated,
+            pre.calibration_seconds,
+            &o.out,
+        );
         let cal_s = t.elapsed().as_secs_f64();
         (
             (c, cal_s),
@@ -574,7 +590,7 @@ pub fn adapt(o: &AdaptOptions) -> Result<AdaptOutcome> {
 
     steps.set_message("aligning the model to the machine's healthy recordings");
     let (seeds, chosen_seed) = (trained.seeds.clone(), trained.chosen_seed);
-    let (models, alignment) = align_step(trained.models, &pre.healthy)?;
+    let (models, alignment) = align_step(trained.models, &pre.healthy, &pre.speed_free)?;
     let trained = Trained { models, ..trained };
     let (after, before, before_name) = write_models(trained, rig, o)?;
     clock.lap("align and write");
@@ -588,8 +604,6 @@ pub fn adapt(o: &AdaptOptions) -> Result<AdaptOutcome> {
     if !o.keep_datasets {
         let _ = std::fs::remove_dir_all(&work);
     }
-    let total_s = clock.steps.iter().map(|t| t.wall_s).sum();
-    let total_cpu_s = clock.steps.iter().map(|t| t.cpu_s).sum();
     let outcome = AdaptOutcome {
         rig: o.rig.display().to_string(),
         rig_id: rig.machine.id.clone(),
@@ -616,9 +630,10 @@ pub fn adapt(o: &AdaptOptions) -> Result<AdaptOutcome> {
         measured_scores,
         holdout_scores,
         self_check,
+        total_s: clock.steps.iter().map(|t| t.wall_s).sum(),
+        total_cpu_s: clock.steps.iter().map(|t| t.cpu_s).sum(),
         timings: clock.steps,
-        total_s,
-        total_cpu_s,
+        warnings: pre.warnings.clone(),
     };
     report::write(&o.out, &outcome)?;
     Ok(outcome)

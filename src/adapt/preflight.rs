@@ -6,6 +6,12 @@
 //! [`super::plan::check_speeds`]) and one simulated recording of the plan at its slowest
 //! speed, featurised as training will featurise it. What it loads is kept for the later
 //! steps (labelled recordings featurised once, the measured recordings with their speeds).
+//!
+//! A healthy recording whose speed cannot be read (no shaft line, no hint) is no reason to
+//! stop (issue 34): it is left out of calibration and of the spectral reference (its orders
+//! are unknown), its windows' kurtosis joins the machine's speed-free healthy baseline, the
+//! plan takes its speeds from the other recordings, and a warning says so. A faulty
+//! recording, or a machine none of whose recordings gives a speed, is still refused.
 
 use super::plan::{self, MeasuredRange};
 use super::AdaptOptions;
@@ -33,8 +39,16 @@ pub struct LabelledSet {
 pub struct Checked {
     pub rig: RigConfig,
     pub measured: LabelledSet,
-    /// The measured recordings labelled healthy, featurised (the model is aligned to them).
+    /// The measured recordings labelled healthy whose speed was read, featurised (the model
+    /// is aligned to them).
     pub healthy: Vec<RecordingFeatures>,
+    /// Healthy recordings whose speed could not be read: (name, their windows' excess
+    /// kurtosis), the speed-free part of the healthy baseline only.
+    pub speed_free: Vec<(String, Vec<f32>)>,
+    /// The measured rows calibration reads (every row whose speed was read).
+    pub calibrated: Vec<ManifestEntry>,
+    /// What the checks let through with a warning (also printed as it happens).
+    pub warnings: Vec<String>,
     /// The measured recordings over their spans: (name, label, speed rpm, recording).
     pub recordings: Vec<(String, String, f64, Recording)>,
     pub holdout: Option<LabelledSet>,
@@ -199,6 +213,55 @@ fn check_classes(plan: &Plan, range: &MeasuredRange) -> Result<()> {
     Ok(())
 }
 
+/// A measured row's speed, as [`measured_speed`] reads it.
+type Loaded<'a> = (&'a ManifestEntry, (f64, f64, Recording));
+/// A healthy row without a speed: its name and its windows' excess kurtosis.
+type SpeedFree = (String, Vec<f32>);
+
+/// Every measured row's speed ([`measured_speed`]). A healthy row whose speed cannot be read
+/// is set aside with a warning (its windows' kurtosis kept: [`SpeedFree`]); any other row
+/// without a speed, or no row with one, is refused.
+fn speeds<'a>(
+    measured: &'a LabelledSet,
+    rig: &RigConfig,
+    seconds: f64,
+) -> Result<(Vec<Loaded<'a>>, Vec<SpeedFree>, Vec<String>)> {
+    let (mut loaded, mut speed_free, mut warnings) = (Vec::new(), Vec::new(), Vec::new());
+    let mut first_error = None;
+    for (e, scored) in measured.entries.iter().zip(&measured.scored) {
+        match measured_speed(e, rig, seconds) {
+            Ok(x) => loaded.push((e, x)),
+            Err(err) if Condition::is_healthy(&e.label) => {
+                let kurtosis: Vec<f32> = scored
+                    .windows
+                    .iter()
+                    .filter_map(|w| w.kurtosis.map(|(k, _)| k))
+                    .collect();
+                let w = format!(
+                    "{}:{}: {err:#}. Going on without its speed: it is left out of calibration and of the spectral healthy reference, its {} windows' kurtosis joins the speed-free healthy baseline, and the plan's speeds come from the other recordings",
+                    measured.manifest.display(),
+                    e.line,
+                    kurtosis.len()
+                );
+                tracing::warn!("{w}");
+                eprintln!("warning: {w}");
+                warnings.push(w);
+                speed_free.push((e.display_name(), kurtosis));
+                first_error.get_or_insert(err);
+            }
+            Err(err) => return Err(err),
+        }
+    }
+    if loaded.is_empty() {
+        let err = first_error.unwrap_or_else(|| anyhow::anyhow!("no measured recording"));
+        return Err(err.context(format!(
+            "{}: the speed of none of the measured recordings can be read; state it (labels.csv `rpm`, [speed] source = \"fixed\") for at least one",
+            measured.manifest.display()
+        )));
+    }
+    Ok((loaded, speed_free, warnings))
+}
+
 /// Run every check; returns what they loaded.
 pub fn check(o: &AdaptOptions) -> Result<Checked> {
     if o.seeds == 0 {
@@ -207,22 +270,19 @@ pub fn check(o: &AdaptOptions) -> Result<Checked> {
     let rig = RigConfig::load(&o.rig)?;
     crate::sim::rig_simulation(&rig)?;
     let measured = labelled_set(&o.measured, &rig, "measured")?;
-    let healthy_rows: Vec<ManifestEntry> = measured
-        .entries
+    let holdout = match &o.holdout {
+        Some(h) => Some(labelled_set(h, &rig, "held-out")?),
+        None => None,
+    };
+    let (loaded, speed_free, warnings) = speeds(&measured, &rig, o.seconds)?;
+    let read: Vec<ManifestEntry> = loaded.iter().map(|(e, _)| (*e).clone()).collect();
+    let healthy_rows: Vec<ManifestEntry> = read
         .iter()
         .filter(|e| Condition::is_healthy(&e.label))
         .cloned()
         .collect();
     let healthy = featurise_all(&healthy_rows, &rig, &ProgressBar::hidden())
         .with_context(|| format!("healthy recordings of {}", o.measured.display()))?;
-    let holdout = match &o.holdout {
-        Some(h) => Some(labelled_set(h, &rig, "held-out")?),
-        None => None,
-    };
-    let mut loaded = Vec::new();
-    for e in &measured.entries {
-        loaded.push((e, measured_speed(e, &rig, o.seconds)?));
-    }
     // one span for every recording: the longest any of them needed for its speed
     let calibration_seconds = loaded
         .iter()
@@ -254,8 +314,11 @@ pub fn check(o: &AdaptOptions) -> Result<Checked> {
     dry_run(&plan, &rig)?;
     Ok(Checked {
         rig,
-        measured,
         healthy,
+        speed_free,
+        calibrated: read,
+        warnings,
+        measured,
         recordings,
         holdout,
         range,

@@ -104,7 +104,16 @@ fn set_md(title: &str, s: &SetScores) -> String {
 }
 
 /// The self-check section: loud when the adapted model misses a labelled fault.
-fn self_check_md(c: &super::check::SelfCheck) -> String {
+/// The self-check, then what the checks let through with a warning.
+fn self_check_md(c: &super::check::SelfCheck, warnings: &[String]) -> String {
+    let mut out = self_check_only(c);
+    for w in warnings {
+        let _ = writeln!(out, "Warning: {w}\n");
+    }
+    out
+}
+
+fn self_check_only(c: &super::check::SelfCheck) -> String {
     if c.passed() {
         return format!(
             "## Self-check: passed\n\nThe adapted model misses none of the {} labelled faults among the {} labelled recordings it was given (measured and held out); written as `{}`.\n\n",
@@ -175,7 +184,7 @@ Measured data calibrated the simulator, shaped the plan and is scored below; it 
         o.measured_range.sample_rates_hz,
         o.measured_range.labels
     );
-    m += &self_check_md(&o.self_check);
+    m += &self_check_md(&o.self_check, &o.warnings);
     let c = &o.calibration;
     let _ = write!(
         m,

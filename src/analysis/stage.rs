@@ -70,6 +70,10 @@ pub struct WindowAnalysis {
     /// Broadband velocity RMS of the classifier channel, mm/s (None for a unit that is not
     /// an acceleration or a window with non-finite samples).
     pub velocity_mm_s: Option<f64>,
+    /// The classifier channel's excess kurtosis and the samples it was measured over: needs
+    /// no speed, so a window without one has it too (None: lost, non-finite, flat, clipped or
+    /// dropped-out samples).
+    pub classifier_kurtosis: Option<(f32, usize)>,
 }
 
 /// Windows -> features, speed, quality and velocity, for one set of channels.
@@ -91,6 +95,7 @@ pub struct AnalysisStage {
     /// Pass non-finite samples to the pipeline, which then refuses the window (whole
     /// recordings: a NaN in a training file is an error to fix, not a flag).
     strict: bool,
+    sample_rate: f64,
 }
 
 impl AnalysisStage {
@@ -122,6 +127,7 @@ impl AnalysisStage {
             names,
             classifier,
             strict: false,
+            sample_rate,
         })
     }
 
@@ -216,9 +222,6 @@ impl AnalysisStage {
                     .map_err(WindowError::Features)
             }
         };
-        let velocity_mm_s = self
-            .classifier
-            .and_then(|k| self.velocity.mm_per_s(view.channels[k], self.units[k]?));
         WindowAnalysis {
             t_start: view.t_start,
             t_end: view.t_end,
@@ -229,9 +232,39 @@ impl AnalysisStage {
             speed_source: self.speed.source_name(),
             speed_confidence,
             speed_rival_rpm,
-            features,
             fault_bands,
-            velocity_mm_s,
+            velocity_mm_s: self
+                .classifier
+                .and_then(|k| self.velocity.mm_per_s(view.channels[k], self.units[k]?)),
+            classifier_kurtosis: self.classifier_kurtosis(&features, classifier_nan),
+            features,
+        }
+    }
+
+    /// The classifier channel's excess kurtosis: the feature pipeline's when the window has
+    /// features, else a scan of the sanitised samples (a window without a speed); None for
+    /// lost, non-finite, flat, clipped or dropped-out samples.
+    fn classifier_kurtosis(
+        &self,
+        features: &Result<FeatureWindow, WindowError>,
+        classifier_nan: bool,
+    ) -> Option<(f32, usize)> {
+        let k = self.classifier?;
+        let name = &self.names[k];
+        match features {
+            Ok(fw) => {
+                let q = &fw.quality;
+                let spoilt = [&q.clipped, &q.dropout].iter().any(|l| l.contains(name));
+                let kurtosis = *fw.excess_kurtosis.get(name)?;
+                (!spoilt).then_some((kurtosis, fw.samples))
+            }
+            Err(_) if classifier_nan => None,
+            Err(_) => {
+                let x = &self.scratch[k];
+                let s = crate::dsp::quality::scan(x, self.sample_rate);
+                let sound = s.non_finite.is_none() && !(s.flat || s.clipped || s.dropout);
+                sound.then_some((s.excess_kurtosis, x.len()))
+            }
         }
     }
 }

@@ -61,6 +61,31 @@ pub fn load(rig: &RigConfig, inputs: &[PathBuf], max_seconds: f64) -> Result<Vec
             files.push((p.clone(), None, ImportOptions::default(), None));
         }
     }
+    load_files(rig, files, max_seconds)
+}
+
+/// [`load`] on manifest rows already read (`rigmon adapt` leaves out a healthy row whose
+/// speed cannot be read).
+pub fn load_entries(
+    rig: &RigConfig,
+    entries: &[crate::manifest::ManifestEntry],
+    max_seconds: f64,
+) -> Result<Vec<Measured>> {
+    let files = entries
+        .iter()
+        .map(|e| {
+            (
+                e.path.clone(),
+                Some(e.label.clone()),
+                e.import_options(),
+                e.span,
+            )
+        })
+        .collect();
+    load_files(rig, files, max_seconds)
+}
+
+fn load_files(rig: &RigConfig, files: Vec<ToLoad>, max_seconds: f64) -> Result<Vec<Measured>> {
     if files.is_empty() {
         bail!("no measured recordings given; pass --measured <labels.csv> or recording files");
     }

@@ -12,11 +12,12 @@ use crate::dsp::quality::Quality;
 use crate::health::message::{
     FaultBands, HealthMessage, ModelInfo, QualityReport, WindowTimes, SCHEMA, SCHEMA_VERSION,
 };
-use crate::health::verdict::{novelty_threshold, quality_problem};
+use crate::health::verdict::{novelty_threshold, quality_problem, speed_only};
 use crate::health::{HealthPolicy, HealthStateMachine, Smoothed, UnknownReason, WindowInput};
 use crate::model::evidence::{BaselineSpread, FamilyBins, FamilyEvidence};
 use crate::model::impulsiveness::{Impulse, ImpulseBaseline};
 use crate::model::onnx::OnnxClassifier;
+use crate::model::rule::{EnvelopeRule, RuleReading, RuleSettings};
 use crate::vocabulary::QualityFlag;
 use anyhow::{Context, Result};
 use std::collections::BTreeMap;
@@ -47,6 +48,8 @@ pub struct Analyzer {
     spread: Option<BaselineSpread>,
     /// The aligned model's healthy kurtosis (None: the model gives no impulsiveness).
     impulse_baseline: Option<ImpulseBaseline>,
+    /// The rule baseline at the rig's bearing (its reading is one input of the verdict).
+    rule: EnvelopeRule,
     sample_rate: f64,
     start_time_ns: u64,
     seq: u64,
@@ -104,6 +107,7 @@ impl Analyzer {
             classifier,
             fault_orders: rig.bearing.fault_orders(),
             family_bins: FamilyBins::for_rig(rig),
+            rule: EnvelopeRule::for_rig(rig, RuleSettings::default()),
             sample_rate,
             start_time_ns,
             seq: 0,
@@ -165,6 +169,7 @@ impl Analyzer {
                 beyond_baseline: c.beyond_baseline,
                 evidence: c.evidence,
                 impulse: c.impulse,
+                rule: c.rule,
             },
         );
         let health = self.message(view, c, features.as_ref(), labels, smoothed, threshold);
@@ -182,7 +187,11 @@ impl Analyzer {
             baseline_distance: None,
             beyond_baseline: None,
             evidence: None,
-            impulse: None,
+            impulse: self
+                .impulse_baseline
+                .zip(analysis.classifier_kurtosis)
+                .map(|(b, (k, n))| b.impulse(k, n)),
+            rule: analysis.fault_bands.as_ref().map(|b| self.rule.reading(b)),
             rpm: None,
             speed_source: analysis.speed_source.to_string(),
             speed_confidence: analysis.speed_confidence,
@@ -217,7 +226,14 @@ impl Analyzer {
                 c.rpm = Some(fw.rpm).filter(|r| r.is_finite());
                 c.speed_source = fw.speed_source.clone();
                 Self::dsp_quality(&fw.quality, &mut c.quality);
-                if c.problem.is_none() {
+                // a window whose speed alone is in doubt is classified at the speed it was
+                // analysed at: the verdict names a speed-free alarm by it, nothing more
+                let finite = || {
+                    fw.classifier_features(&self.rig)
+                        .iter()
+                        .all(|v| v.is_finite())
+                };
+                if c.problem.is_none() || c.problem.is_some_and(speed_only) && finite() {
                     self.infer(view, &fw, &mut c);
                 }
                 c.features = Some(fw);
@@ -270,10 +286,6 @@ impl Analyzer {
                     .spread
                     .zip(p.baseline_deviation.as_deref())
                     .map(|(spread, dev)| self.family_bins.evidence(dev, spread, fw.rpm));
-                c.impulse = self
-                    .impulse_baseline
-                    .zip(fw.classifier_kurtosis(&self.rig))
-                    .map(|(b, (k, n))| b.impulse(k, n));
                 c.probs = p.probs;
                 c.novelty = p.novelty;
                 c.baseline_distance = p.baseline_distance;
@@ -333,11 +345,12 @@ impl Analyzer {
                 .zip(c.probs.iter().copied())
                 .collect::<BTreeMap<_, _>>(),
             window_state: smoothed.window_state,
-            unknown_reason: smoothed.window.unknown_reason.or(if c.probs.is_empty() {
-                Some(UnknownReason::BadQuality)
-            } else {
-                None
-            }),
+            // a speed-free alarm has a class without probabilities (no speed, no classifier)
+            unknown_reason: smoothed
+                .window
+                .unknown_reason
+                .or((c.probs.is_empty() && smoothed.window.class.is_none())
+                    .then_some(UnknownReason::BadQuality)),
             alarm_despite: smoothed.window.alarm_despite,
             decision: smoothed.window.basis,
             overruled: smoothed.window.overruled,
@@ -441,8 +454,10 @@ struct Classified {
     beyond_baseline: Option<bool>,
     /// Fault-family evidence against the machine's healthy baseline (aligned models).
     evidence: Option<FamilyEvidence>,
-    /// Impulsiveness against the machine's healthy baseline (aligned models).
+    /// Impulsiveness against the machine's healthy baseline (aligned models; needs no speed).
     impulse: Option<Impulse>,
+    /// The rule's band ratios (None without band ratios).
+    rule: Option<RuleReading>,
     rpm: Option<f64>,
     speed_source: String,
     speed_confidence: Option<f64>,

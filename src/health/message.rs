@@ -38,7 +38,8 @@ pub struct HealthMessage {
     /// Where the speed came from (tacho, edges, fixed, recording, estimate).
     pub speed_source: String,
     /// For a speed read from the vibration: how sure the tracker is (0-1; below 0.5 the
-    /// window carries the `speed_uncertain` flag and is not classified).
+    /// window carries the `speed_uncertain` flag: its class comes from the speed-free
+    /// evidence alone, an impulsive window an alarm, any other `unknown`).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub speed_confidence: Option<f64>,
     /// Half or twice the speed, when the vibration supports it nearly as well, rpm.

@@ -1,24 +1,37 @@
 //! One window's verdict: the single mapping from what a window says -- the classifier's
 //! probabilities and novelty, the machine's healthy baseline, the fault-family evidence, the
-//! impulsiveness and the data quality -- to the window's state under a `[health]` policy. The daemon
-//! (`daemon::analyze`) and every offline score (`train::score`, so `evaluate` and `adapt`)
-//! call [`judge`] through [`super::HealthStateMachine::observe`], so a score is what the
-//! daemon would say.
+//! rule's band ratios, the impulsiveness and the data quality -- to the window's state under a
+//! `[health]` policy. The daemon (`daemon::analyze`) and every offline score
+//! (`train::score`, so `evaluate` and `adapt`) call [`judge`] through
+//! [`super::HealthStateMachine::observe`], so a score is what the daemon would say.
 //!
 //! In order:
 //! 1. **Quality.** A window whose classifier channel cannot be trusted ([`quality_problem`]:
-//!    lost or non-finite samples, clipping, a flat or dropped-out sensor, no speed, a lost
-//!    tacho, a speed the recipe cannot resolve, failed features or inference) is `unknown`
-//!    (`bad_quality`), whatever the classifier says.
+//!    lost or non-finite samples, clipping, a flat or dropped-out sensor, failed features or
+//!    inference) is `unknown` (`bad_quality`), whatever the classifier says. A window whose
+//!    samples are sound but whose *speed* is not (no speed, a lost tacho, a speed the recipe
+//!    cannot resolve, a speed the vibration does not settle: [`speed_only`]) is judged on the
+//!    speed-free evidence alone: impulsive beyond the machine's healthy windows and Gaussian
+//!    noise (step 3's test) it is an alarm (`basis` `impulsive`, `alarm_despite`
+//!    `bad_quality`), named by a fault family standing `evidence_z` above healthy at the
+//!    speed the window was analysed at, else the classifier's most probable fault class at
+//!    that speed, else [`UNNAMED_FAULT`]; otherwise `unknown` (`bad_quality`). Alarms never
+//!    wait for a speed, and a healthy window with an uncertain speed stays quiet.
 //! 2. **Evidence** (aligned models that output `baseline_deviation`; [`FamilyEvidence`],
-//!    accumulated over the last windows by the state machine): the classifier's fault class
-//!    is *confirmed* when its family's bins stand at least `evidence_z` standard deviations
-//!    above the machine's healthy level; a class the evidence does not support -- `healthy`
-//!    included -- is *overruled* by the family whose bins stand highest beyond `evidence_z`,
-//!    named even when the model lacks that class. Among supported families the evidence does
-//!    not choose (they share bins: an inner-race fault's 1x sidebands fall into the outer
-//!    race's bins), so a supported class stands, novel or not. A confirmed or evidence-decided window is an alarm even when it is novel or doubtful
-//!    (flagged `alarm_despite`): the decision follows the spectrum, not the network's guess.
+//!    accumulated over the last windows by the state machine): first, where the rule
+//!    ([`RuleReading`]) names one race, sees nothing of the class the network named
+//!    (`healthy` or the other race) and that race's family stands at least `evidence_z` above
+//!    the machine's healthy level and no lower than the network's family, the rule's race
+//!    wins (`evidence`, the network's class `overruled`): the spectrum read two independent
+//!    ways against the network. Otherwise the classifier's fault class is *confirmed* when
+//!    its family's bins stand at least `evidence_z` standard deviations above the machine's
+//!    healthy level; a class the evidence does not support -- `healthy` included -- is
+//!    *overruled* by the family whose bins stand highest beyond `evidence_z`, named even when
+//!    the model lacks that class. Among supported families the evidence alone does not choose
+//!    (they share bins: an inner-race fault's 1x sidebands fall into the outer race's bins),
+//!    so a supported class stands, novel or not. A confirmed or evidence-decided window is
+//!    an alarm even when it is novel or doubtful (flagged `alarm_despite`): the decision
+//!    follows the spectrum, not the network's guess.
 //! 3. **Impulsiveness** (aligned models carrying the healthy windows' kurtosis;
 //!    [`Impulse`], the mean over the last windows): a window the classifier calls healthy
 //!    whose raw signal stands `impulse_z` standard deviations above both the machine's
@@ -36,6 +49,7 @@ use super::{HealthPolicy, UnknownReason, UNKNOWN};
 use crate::analysis::{WindowAnalysis, WindowError};
 use crate::model::evidence::FamilyEvidence;
 use crate::model::impulsiveness::Impulse;
+use crate::model::rule::RuleReading;
 use crate::vocabulary::Condition;
 use crate::vocabulary::QualityFlag;
 use serde::{Deserialize, Serialize};
@@ -56,9 +70,7 @@ pub fn quality_problem(a: &WindowAnalysis, classifier: &str) -> Option<QualityFl
         Err(WindowError::Features(_)) => return Some(QualityFlag::FeaturesFailed),
         Ok(fw) => fw,
     };
-    if a.tacho_lost {
-        return Some(QualityFlag::TachoLost);
-    }
+    // the samples first: a speed problem alone leaves the speed-free evidence standing
     let q = &fw.quality;
     let on_classifier = |list: &[String]| list.iter().any(|c| c == classifier);
     for (flag, list) in [
@@ -71,11 +83,32 @@ pub fn quality_problem(a: &WindowAnalysis, classifier: &str) -> Option<QualityFl
             return Some(flag);
         }
     }
+    if a.tacho_lost {
+        return Some(QualityFlag::TachoLost);
+    }
     if q.speed_out_of_range {
         return Some(QualityFlag::SpeedOutOfRange);
     }
     q.speed_uncertain.then_some(QualityFlag::SpeedUncertain)
 }
+
+/// Whether a quality problem is about the speed only, the samples themselves sound (no
+/// speed, a lost tacho, a speed out of the recipe's range, a speed the vibration does not
+/// settle): the speed-free evidence (the impulsiveness) still judges such a window.
+pub fn speed_only(flag: QualityFlag) -> bool {
+    matches!(
+        flag,
+        QualityFlag::NoSpeed
+            | QualityFlag::TachoLost
+            | QualityFlag::SpeedOutOfRange
+            | QualityFlag::SpeedUncertain
+    )
+}
+
+/// The class of an alarm no family, no classifier and no evidence can name (a window without
+/// a speed, impulsive far beyond the machine's healthy windows, on a model without fault
+/// classes or with no features to classify).
+pub const UNNAMED_FAULT: &str = "fault";
 
 /// What one window says, before the verdict.
 #[derive(Debug, Clone, PartialEq)]
@@ -94,6 +127,8 @@ pub struct WindowInput<'a> {
     pub evidence: Option<FamilyEvidence>,
     /// Impulsiveness against the machine's healthy baseline (None: not available).
     pub impulse: Option<Impulse>,
+    /// The rule's band ratios in this window (None: no band ratios).
+    pub rule: Option<RuleReading>,
 }
 
 /// What decided a window's class.
@@ -155,6 +190,9 @@ pub fn novelty_threshold(policy: &HealthPolicy, model_threshold: f32) -> f32 {
 
 /// The verdict on one window under `policy` (see the module doc for the order of the rules).
 pub fn judge(w: &WindowInput, policy: &HealthPolicy) -> WindowVerdict {
+    if let Some(flag) = w.quality {
+        return without_speed(w, policy, flag);
+    }
     let (top, top_p) =
         w.probs
             .iter()
@@ -167,15 +205,8 @@ pub fn judge(w: &WindowInput, policy: &HealthPolicy) -> WindowVerdict {
                     best
                 }
             });
-    let model_class = w.labels.get(top);
-    let (Some(model_class), None, true) = (model_class, w.quality, top_p.is_finite()) else {
-        return WindowVerdict {
-            class: None,
-            unknown_reason: Some(UnknownReason::BadQuality),
-            alarm_despite: None,
-            basis: Basis::Model,
-            overruled: None,
-        };
+    let (Some(model_class), true) = (w.labels.get(top), top_p.is_finite()) else {
+        return bad_quality();
     };
     let threshold = novelty_threshold(policy, w.model_novelty_threshold);
     let novel = w.novelty > threshold; // NaN: no novelty score, not novel
@@ -194,13 +225,15 @@ pub fn judge(w: &WindowInput, policy: &HealthPolicy) -> WindowVerdict {
         overruled,
     };
     let evidence = w.evidence.as_ref();
-    if let Some((class, basis)) = evidence.and_then(|e| follow(e, model_class, policy.evidence_z)) {
+    if let Some((class, basis)) =
+        evidence.and_then(|e| follow(e, model_class, policy.evidence_z, w.rule))
+    {
         let overruled = (basis == Basis::Evidence).then(|| model_class.clone());
         return decided(class, basis, overruled);
     }
     let impulsive = w.impulse.is_some_and(|i| i.z() >= policy.impulse_z);
     if impulsive && Condition::is_healthy(model_class) {
-        if let Some(fault) = impulsive_fault(w) {
+        if let Some(fault) = impulsive_fault(w, f32::MIN_POSITIVE) {
             return decided(fault, Basis::Impulsive, Some(model_class.clone()));
         }
     }
@@ -224,10 +257,49 @@ pub fn judge(w: &WindowInput, policy: &HealthPolicy) -> WindowVerdict {
     }
 }
 
-/// What the fault-family evidence decides (step 2): the classifier's class when its family
-/// stands at least `z` (`confirmed`), else the family standing highest beyond `z`
+fn bad_quality() -> WindowVerdict {
+    WindowVerdict {
+        class: None,
+        unknown_reason: Some(UnknownReason::BadQuality),
+        alarm_despite: None,
+        basis: Basis::Model,
+        overruled: None,
+    }
+}
+
+/// Step 1: a window whose data forbid a classification. When only its speed is in doubt
+/// ([`speed_only`]) and it is impulsive beyond the machine's healthy windows and Gaussian
+/// noise, it is an alarm all the same, named by what can name it at the speed it was
+/// analysed at (a family `evidence_z` above healthy, else the classifier's likeliest fault,
+/// else [`UNNAMED_FAULT`]); otherwise `unknown`.
+fn without_speed(w: &WindowInput, policy: &HealthPolicy, flag: QualityFlag) -> WindowVerdict {
+    let impulsive = w.impulse.is_some_and(|i| i.z() >= policy.impulse_z);
+    if !(speed_only(flag) && impulsive) {
+        return bad_quality();
+    }
+    let name = impulsive_fault(w, policy.evidence_z).unwrap_or(UNNAMED_FAULT);
+    WindowVerdict {
+        class: Some(name.to_string()),
+        unknown_reason: None,
+        alarm_despite: Some(UnknownReason::BadQuality),
+        basis: Basis::Impulsive,
+        overruled: None,
+    }
+}
+
+/// What the fault-family evidence decides (step 2): the rule's race where the rule and the
+/// families agree against the network ([`rule_wins`]); else the classifier's class when its
+/// family stands at least `z` (`confirmed`), else the family standing highest beyond `z`
 /// (`evidence`); None when no family does.
-fn follow<'a>(ev: &FamilyEvidence, model_class: &'a str, z: f32) -> Option<(&'a str, Basis)> {
+fn follow<'a>(
+    ev: &FamilyEvidence,
+    model_class: &'a str,
+    z: f32,
+    rule: Option<RuleReading>,
+) -> Option<(&'a str, Basis)> {
+    if let Some(race) = rule.and_then(|r| rule_wins(&r, ev, model_class, z)) {
+        return Some((race, Basis::Evidence));
+    }
     // The evidence refuses a class it does not support; it does not choose among supported
     // families: in 0.5-order bins the families share bins (an inner-race fault's 1x
     // sidebands, BPFI -+ 1x, -+ 2x, fall into the outer race's bins on common geometries),
@@ -238,11 +310,31 @@ fn follow<'a>(ev: &FamilyEvidence, model_class: &'a str, z: f32) -> Option<(&'a 
     ev.strongest(z).map(|(family, _)| (family, Basis::Evidence))
 }
 
+/// The race the rule names where it and the fault families agree against the network: the
+/// rule calls a race other than the network's class, sees no sign of the network's class
+/// (`healthy`, or the other race below the rule's threshold), and that race's family stands
+/// at least `z` above the machine's healthy level and no lower than the network's family.
+/// None otherwise (and never against a class the rule cannot see, such as ball).
+fn rule_wins(
+    rule: &RuleReading,
+    ev: &FamilyEvidence,
+    model_class: &str,
+    z: f32,
+) -> Option<&'static str> {
+    let race = rule.calls()?;
+    if race == model_class || rule.sees(model_class) {
+        return None;
+    }
+    let theirs = ev.of(race)?;
+    let ours = ev.of(model_class).unwrap_or(f32::NEG_INFINITY);
+    (theirs >= z && theirs >= ours).then_some(race)
+}
+
 /// The fault an impulsive window is named by: the family whose bins stand highest, when one
-/// stands above the machine's healthy level at all, else the classifier's most probable fault
-/// class (None: the model has no fault class and there is no evidence).
-fn impulsive_fault<'a>(w: &WindowInput<'a>) -> Option<&'a str> {
-    if let Some((family, _)) = w.evidence.and_then(|e| e.strongest(f32::MIN_POSITIVE)) {
+/// stands at least `min_z` above the machine's healthy level, else the classifier's most
+/// probable fault class (None: the model has no fault class and there is no evidence).
+fn impulsive_fault<'a>(w: &WindowInput<'a>, min_z: f32) -> Option<&'a str> {
+    if let Some((family, _)) = w.evidence.and_then(|e| e.strongest(min_z)) {
         return Some(family);
     }
     w.labels
@@ -277,6 +369,7 @@ mod tests {
             beyond_baseline: Some(false),
             evidence: None,
             impulse: None,
+            rule: None,
         }
     }
 
@@ -368,6 +461,142 @@ mod tests {
             (v.state(), v.alarm_despite),
             ("outer_race", Some(UnknownReason::Novelty))
         );
+    }
+
+    fn imp(z: f32) -> Option<Impulse> {
+        Some(Impulse {
+            beyond_healthy: z,
+            beyond_gaussian: z,
+        })
+    }
+
+    #[test]
+    fn a_window_without_a_speed_is_judged_on_the_speed_free_evidence() {
+        let l = labels();
+        let p = HealthPolicy::default();
+        // speed uncertain, impulsive far beyond healthy and Gaussian noise: an alarm, not
+        // unknown, flagged as decided despite the quality
+        let w = WindowInput {
+            quality: Some(QualityFlag::SpeedUncertain),
+            impulse: imp(9.0),
+            ..input(&l, &[0.6, 0.1, 0.3])
+        };
+        let v = judge(&w, &p);
+        assert_eq!((v.state(), v.basis), ("inner_race", Basis::Impulsive));
+        assert_eq!(v.alarm_despite, Some(UnknownReason::BadQuality));
+        assert_eq!(v.unknown_reason, None);
+        // named by a family standing evidence_z above healthy at the analysed speed ...
+        let w2 = WindowInput {
+            evidence: ev(p.evidence_z + 1.0, 0.5, 0.0),
+            ..w.clone()
+        };
+        assert_eq!(judge(&w2, &p).state(), "outer_race");
+        // ... but not by one merely above the healthy level (the speed may be wrong)
+        let w2 = WindowInput {
+            evidence: ev(1.0, 0.5, 0.0),
+            ..w.clone()
+        };
+        assert_eq!(judge(&w2, &p).state(), "inner_race");
+        // no speed at all, no classifier run, nothing to name it: the generic fault
+        let w3 = WindowInput {
+            quality: Some(QualityFlag::NoSpeed),
+            impulse: imp(9.0),
+            ..input(&l, &[])
+        };
+        assert_eq!(judge(&w3, &p).state(), UNNAMED_FAULT);
+        // a healthy window with an uncertain speed stays quiet: unknown, no alarm
+        let quiet = WindowInput {
+            impulse: imp(1.0),
+            ..w.clone()
+        };
+        let v = judge(&quiet, &p);
+        assert_eq!(
+            (v.state(), v.unknown_reason),
+            (UNKNOWN, Some(UnknownReason::BadQuality))
+        );
+        // sample problems still forbid any verdict, impulsive or not (clipping makes peaks)
+        for q in [
+            QualityFlag::Clipping,
+            QualityFlag::Dropout,
+            QualityFlag::Nan,
+        ] {
+            let bad = WindowInput {
+                quality: Some(q),
+                ..w.clone()
+            };
+            assert_eq!(judge(&bad, &p).state(), UNKNOWN, "{q:?}");
+        }
+        // switched off with the impulsiveness
+        let off = HealthPolicy {
+            impulse_z: f32::INFINITY,
+            ..HealthPolicy::default()
+        };
+        assert_eq!(judge(&w, &off).state(), UNKNOWN);
+    }
+
+    #[test]
+    fn the_rule_and_the_families_agreeing_against_the_network_win() {
+        let l = labels();
+        let p = HealthPolicy::default();
+        let rule = |o: f64, i: f64| {
+            Some(RuleReading {
+                outer_race: o,
+                inner_race: i,
+                threshold: 3.0,
+            })
+        };
+        // an outer race the network calls inner race: the rule sees BPFO at 6x its median
+        // and nothing at BPFI, the outer family stands 7 sd above healthy, the inner 4 (it
+        // shares bins): the outer race wins
+        let w = WindowInput {
+            evidence: ev(7.0, 4.0, 0.0),
+            rule: rule(6.0, 1.3),
+            ..input(&l, &[0.05, 0.15, 0.8])
+        };
+        let v = judge(&w, &p);
+        assert_eq!((v.state(), v.basis), ("outer_race", Basis::Evidence));
+        assert_eq!(v.overruled.as_deref(), Some("inner_race"));
+        // without the rule the supported network class stands (the evidence alone does not
+        // choose between supported families)
+        let alone = WindowInput {
+            rule: None,
+            ..w.clone()
+        };
+        assert_eq!(judge(&alone, &p).state(), "inner_race");
+        // the rule also sees the network's race (BPFI at 3.5x): the network stands
+        let both = WindowInput {
+            rule: rule(6.0, 3.5),
+            ..w.clone()
+        };
+        assert_eq!(judge(&both, &p).state(), "inner_race");
+        // the families do not agree with the rule (outer below evidence_z, or below the
+        // network's family): the network stands
+        for e in [ev(2.0, 4.0, 0.0), ev(5.0, 6.0, 0.0)] {
+            let w = WindowInput {
+                evidence: e,
+                ..w.clone()
+            };
+            assert_eq!(judge(&w, &p).state(), "inner_race", "{e:?}");
+        }
+        // a network calling healthy: the rule's race wins where its family is supported,
+        // though another family stands higher
+        let w = WindowInput {
+            evidence: ev(4.0, 0.0, 6.0),
+            rule: rule(5.0, 1.0),
+            ..input(&l, &[0.9, 0.05, 0.05])
+        };
+        assert_eq!(judge(&w, &p).state(), "outer_race");
+        // never against a class the rule cannot see (ball)
+        let l4: Vec<String> = ["healthy", "outer_race", "inner_race", "ball"]
+            .iter()
+            .map(|s| s.to_string())
+            .collect();
+        let w = WindowInput {
+            evidence: ev(7.0, 0.0, 5.0),
+            rule: rule(6.0, 1.0),
+            ..input(&l4, &[0.0, 0.1, 0.0, 0.9])
+        };
+        assert_eq!(judge(&w, &p).state(), "ball");
     }
 
     #[test]

@@ -10,7 +10,11 @@
 //! median (an exact tie goes to `outer_race`). The rule has no ball class: a ball fault it
 //! sees is called a race fault (an alarm, not a miss; unseen, it is a miss). A recording
 //! takes the majority of its windows through the same scoring code as the ONNX classifier.
-//! The rule is an independent baseline: the daemon's decision never uses it.
+//! The rule is scored as an independent baseline; the daemon's verdict reads it in one place
+//! only ([`RuleReading`], `crate::health::verdict` step 2): where the rule names one race, sees
+//! nothing of the race (or health) the network named, and the fault-family evidence against
+//! the machine's healthy baseline supports the rule's race at least as strongly, the rule's
+//! race wins (issue 34: the model never below the rule).
 
 use crate::analysis::WindowAnalysis;
 use crate::bearing::FaultOrders;
@@ -66,6 +70,43 @@ pub struct RuleVerdict {
 impl RuleVerdict {
     pub fn label(&self) -> &'static str {
         RULE_LABELS[self.class]
+    }
+}
+
+/// What the rule reads in one window, for the verdict: the race families' band ratios (the
+/// larger of the fundamental's and the second harmonic's) and the threshold.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct RuleReading {
+    pub outer_race: f64,
+    pub inner_race: f64,
+    pub threshold: f64,
+}
+
+impl RuleReading {
+    /// The race the rule calls (None: healthy, or no finite ratio); an exact tie goes to the
+    /// outer race, as [`EnvelopeRule::judge_bands`] decides.
+    pub fn calls(&self) -> Option<&'static str> {
+        let (o, i) = (self.outer_race, self.inner_race);
+        if !(o.max(i) >= self.threshold) {
+            return None;
+        }
+        Some(if o >= i {
+            Condition::OuterRace.as_str()
+        } else {
+            Condition::InnerRace.as_str()
+        })
+    }
+
+    /// Whether the rule sees any sign of the class `label`: a race whose band stands at the
+    /// threshold, `healthy` when it calls no race. Classes the rule cannot see (ball, a
+    /// dataset's own labels) count as seen: the rule says nothing against them.
+    pub fn sees(&self, label: &str) -> bool {
+        match Condition::parse(label) {
+            Some(Condition::OuterRace) => self.outer_race >= self.threshold,
+            Some(Condition::InnerRace) => self.inner_race >= self.threshold,
+            Some(Condition::Healthy) => self.calls().is_none(),
+            Some(Condition::Ball) | None => true,
+        }
     }
 }
 
@@ -127,6 +168,15 @@ impl EnvelopeRule {
             ratios,
             rpm: 0.0,
             t_start: 0.0,
+        }
+    }
+
+    /// What the rule reads in one window's band ratios ([`RuleReading`]).
+    pub fn reading(&self, bands: &FaultBandRatios) -> RuleReading {
+        RuleReading {
+            outer_race: bands.outer_race(),
+            inner_race: bands.inner_race(),
+            threshold: self.settings.threshold,
         }
     }
 
@@ -305,6 +355,32 @@ mod tests {
         );
         p[at(orders().bpfo)] = 420.0; // the same at BPFO: a tie goes to the outer race
         assert_eq!(rule.judge(step, &p).label(), "outer_race");
+    }
+
+    #[test]
+    fn a_reading_names_one_race_and_says_what_it_sees() {
+        let r = |o: f64, i: f64| RuleReading {
+            outer_race: o,
+            inner_race: i,
+            threshold: 3.0,
+        };
+        // an outer race: BPFO at 6x the median, BPFI at 1.2x
+        let or = r(6.0, 1.2);
+        assert_eq!(or.calls(), Some("outer_race"));
+        assert!(or.sees("outer_race") && !or.sees("inner_race") && !or.sees("healthy"));
+        assert!(
+            or.sees("ball"),
+            "the rule says nothing against a ball fault"
+        );
+        // both races above: the rule calls the higher one and sees both
+        let both = r(4.0, 5.0);
+        assert_eq!(both.calls(), Some("inner_race"));
+        assert!(both.sees("outer_race") && both.sees("inner_race"));
+        // nothing above: healthy
+        let h = r(2.9, 1.0);
+        assert_eq!(h.calls(), None);
+        assert!(h.sees("healthy") && !h.sees("outer_race"));
+        assert_eq!(r(f64::NAN, f64::NAN).calls(), None);
     }
 
     #[test]

@@ -15,7 +15,7 @@
 use crate::config::RigConfig;
 use crate::dsp::fault_band_ratios::FaultBandRatios;
 use crate::evaluate::{DaemonOutcome, RecordOutcome};
-use crate::health::verdict::quality_problem;
+use crate::health::verdict::{quality_problem, speed_only};
 use crate::health::{Basis, HealthPolicy, HealthStateMachine, WindowInput};
 use crate::importers;
 use crate::manifest::ManifestEntry;
@@ -42,8 +42,8 @@ pub struct ScoredWindow {
     pub quality: Option<QualityFlag>,
     /// The classifier channel's band ratios at the fault orders (what the rule judges).
     pub fault_bands: Option<FaultBandRatios>,
-    /// The classifier channel's excess kurtosis and the samples it was measured over (None
-    /// without features).
+    /// The classifier channel's excess kurtosis and the samples it was measured over (a
+    /// window without a speed has it too; None for spoilt samples).
     pub kurtosis: Option<(f32, usize)>,
 }
 
@@ -91,14 +91,11 @@ pub fn analyze_entry(entry: &ManifestEntry, rig: &RigConfig) -> Result<ScoredRec
         .filter(|a| entry.keeps_window(a.t_start, a.t_end))
         .map(|a| {
             let quality = quality_problem(&a, &classifier);
-            let (rpm, features, kurtosis) = match &a.features {
-                Ok(fw) => (
-                    fw.rpm,
-                    fw.classifier_features(rig).to_vec(),
-                    fw.classifier_kurtosis(rig),
-                ),
-                Err(_) => (f64::NAN, Vec::new(), None),
+            let (rpm, features) = match &a.features {
+                Ok(fw) => (fw.rpm, fw.classifier_features(rig).to_vec()),
+                Err(_) => (f64::NAN, Vec::new()),
             };
+            let kurtosis = a.classifier_kurtosis;
             ScoredWindow {
                 t_start: a.t_start,
                 t_end: a.t_end,
@@ -204,10 +201,21 @@ struct RecordRun {
     daemon: DaemonOutcome,
 }
 
+/// Whether the classifier runs on a window: sound data, or sound samples whose speed alone is
+/// in doubt (classified at the speed it was analysed at, to name a speed-free alarm).
+fn classified(w: &ScoredWindow) -> bool {
+    match w.quality {
+        None => true,
+        Some(q) => {
+            speed_only(q) && !w.features.is_empty() && w.features.iter().all(|v| v.is_finite())
+        }
+    }
+}
+
 fn run_record(
     clf: &OnnxClassifier,
     r: &ScoredRecording,
-    bins: &FamilyBins,
+    (bins, rule): (&FamilyBins, &EnvelopeRule),
     spread: Option<BaselineSpread>,
     policy: &HealthPolicy,
 ) -> Result<RecordRun> {
@@ -222,11 +230,12 @@ fn run_record(
     };
     for w in &r.windows {
         let p =
-            match w.quality {
-                None => Some(clf.predict(&w.features).with_context(|| {
+            if classified(w) {
+                Some(clf.predict(&w.features).with_context(|| {
                     format!("{}: window at t = {:.3} s", r.path_text, w.t_start)
-                })?),
-                Some(_) => None,
+                })?)
+            } else {
+                None
             };
         let evidence = p.as_ref().and_then(|p| {
             let dev = p.baseline_deviation.as_deref()?;
@@ -246,6 +255,7 @@ fn run_record(
                     .kurtosis
                     .zip(impulse_baseline)
                     .map(|((k, n), b)| b.impulse(k, n)),
+                rule: w.fault_bands.as_ref().map(|b| rule.reading(b)),
             },
         );
         let d = &mut run.daemon;
@@ -286,6 +296,7 @@ pub fn model_outcomes_with(
     let meta = clf.meta();
     let used = finetune_hashes(meta);
     let (bins, spread) = (FamilyBins::for_rig(rig), BaselineSpread::of(meta));
+    let rule = EnvelopeRule::for_rig(rig, crate::model::rule::RuleSettings::default());
     let mut excluded = Vec::new();
     let mut runs = Vec::new();
     for r in recs {
@@ -293,7 +304,7 @@ pub fn model_outcomes_with(
             excluded.push(r.path_text.clone());
             continue;
         }
-        runs.push((r, run_record(clf, r, &bins, spread, policy)?));
+        runs.push((r, run_record(clf, r, (&bins, &rule), spread, policy)?));
     }
     let labels = scored_labels(
         &meta.labels,

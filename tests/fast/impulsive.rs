@@ -15,13 +15,13 @@ use serde_json::Value;
 use std::fmt::Write as _;
 use std::path::Path;
 
-fn manifest_dir() -> &'static Path {
+pub(crate) fn manifest_dir() -> &'static Path {
     Path::new(env!("CARGO_MANIFEST_DIR"))
 }
 use crate::common::rigmon;
 
 const FS: f64 = 12_000.0;
-const RPM: f64 = 1797.0;
+pub(crate) const RPM: f64 = 1797.0;
 /// White sensor noise, g RMS.
 const NOISE_RMS: f64 = 0.03;
 
@@ -40,8 +40,20 @@ fn write_record(
     path: &Path,
     seed: u64,
     seconds: f64,
+    impacts: (f64, f64),
+    knock: Option<(f64, f64)>,
+) {
+    write_record_lines(path, seed, seconds, impacts, knock, 1.0)
+}
+
+/// [`write_record`] with the shaft lines scaled by `lines` (0: a machine without any).
+pub(crate) fn write_record_lines(
+    path: &Path,
+    seed: u64,
+    seconds: f64,
     (impacts_per_s, peak): (f64, f64),
     knock: Option<(f64, f64)>,
+    lines: f64,
 ) {
     let mut rng = rand::rngs::StdRng::seed_from_u64(seed);
     let n = (seconds * FS) as usize;
@@ -63,8 +75,9 @@ fn write_record(
     for (i, v) in fan_end.iter().enumerate() {
         let t = i as f64 / FS;
         let rev = RPM / 60.0 * t;
-        let shaft = 0.01 * (2.0 * std::f64::consts::PI * rev).cos()
-            + 0.004 * (4.0 * std::f64::consts::PI * rev).cos();
+        let shaft = lines
+            * (0.01 * (2.0 * std::f64::consts::PI * rev).cos()
+                + 0.004 * (4.0 * std::f64::consts::PI * rev).cos());
         writeln!(
             out,
             "{t:.6},{:.6},{:.6},{:.6}",
@@ -77,7 +90,7 @@ fn write_record(
     std::fs::write(path, out).unwrap();
 }
 
-fn record<'a>(v: &'a Value, name: &str) -> &'a Value {
+pub(crate) fn record<'a>(v: &'a Value, name: &str) -> &'a Value {
     v["records"]
         .as_array()
         .unwrap()

@@ -1207,6 +1207,7 @@ fn aligned_model_evidence_decides_where_the_network_guesses() {
                     beyond_baseline: p.beyond_baseline,
                     evidence: Some(ev),
                     impulse: None,
+                    rule: None,
                 },
                 &policy,
             );

@@ -1,7 +1,9 @@
 //! Issue 23, the heavy half: `calibrate` and `adapt` on a machine with only an accelerometer
 //! (`[speed] estimate`, simulated WAVs that carry no revolution times). The derived plan takes
 //! its speeds from the measured recordings' estimated speed (never 0 rpm), and the adapted
-//! model is scored on recordings it never saw, beside the rule.
+//! model is scored on recordings it never saw, beside the rule. A second healthy recording of
+//! the same machine without any shaft line (its speed cannot be read) does not stop adapt
+//! (issue 34, item 5): it is set aside with a warning and gives the speed-free baseline.
 
 use crate::estimate_rig::{machine, ok};
 use serde_json::Value;
@@ -34,6 +36,36 @@ fn calibrate_and_adapt_work_from_the_vibration_alone() {
     );
     machine(dir, &["healthy", "outer_race", "inner_race"], 900.0, 6.0);
     std::fs::write(dir.join("healthy.csv"), "path,label\nhealthy.wav,healthy\n").unwrap();
+    // the same machine without its shaft lines: the rotor's own unbalance is invisible at
+    // 900 rpm, so the vibration gives no speed
+    std::fs::write(
+        dir.join("rig-no-lines.toml"),
+        crate::estimate_rig::rig_text(false),
+    )
+    .unwrap();
+    ok(
+        dir,
+        &[
+            "simulate",
+            "--rig",
+            "rig-no-lines.toml",
+            "--fault",
+            "healthy",
+            "--rpm",
+            "900",
+            "--seconds",
+            "6",
+            "--seed",
+            "4",
+            "-o",
+            "quiet.wav",
+        ],
+    );
+    std::fs::write(
+        dir.join("healthy-and-quiet.csv"),
+        "path,label\nhealthy.wav,healthy\nquiet.wav,healthy\n",
+    )
+    .unwrap();
     std::fs::write(
         dir.join("scored.csv"),
         "path,label\nouter_race.wav,outer_race\ninner_race.wav,inner_race\n",
@@ -65,7 +97,7 @@ fn calibrate_and_adapt_work_from_the_vibration_alone() {
             "--rig",
             "rig.toml",
             "--measured",
-            "healthy.csv",
+            "healthy-and-quiet.csv",
             "--holdout",
             "scored.csv",
             "-o",
@@ -95,6 +127,14 @@ fn calibrate_and_adapt_work_from_the_vibration_alone() {
         "the plan's speeds must come from the machine's (900 rpm, rig range 500-1500): {speeds:?}"
     );
     assert!(dir.join("adapted/model.onnx").is_file(), "{report}");
+    // the record without a speed went on with a warning, into the speed-free baseline only
+    let warnings = report["warnings"].to_string();
+    assert!(
+        warnings.contains("quiet.wav") && warnings.contains("speed-free"),
+        "{report}"
+    );
+    let records = report["alignment"]["records"].to_string();
+    assert!(records.contains("quiet.wav (kurtosis only"), "{report}");
     let after = &report["holdout_scores"]["after"];
     assert_eq!(after["missed_alarms"], 0, "{report}");
 }
