@@ -1,7 +1,8 @@
 //! `rigmon historian --config <historian.toml>`: the fleet historian service (under systemd
 //! or by hand). The database is named by `PG*` variables or `[database] url`; the password
-//! comes from a file, never from the command line. `--check` connects, applies the
-//! migrations and exits.
+//! comes from a file, never from the command line. `--check` refuses a Zenoh setup that
+//! could receive nothing (an access-control list in the historian's own config), connects,
+//! applies the migrations and exits.
 
 use crate::historian::config::HistorianConfig;
 use crate::historian::service::{self, RunOptions};
@@ -30,6 +31,7 @@ pub fn run(args: Args) -> Result<()> {
     let mut config = HistorianConfig::load(&args.config)?;
     config.zenoh = args.zenoh.apply(config.zenoh.clone());
     config.validate()?;
+    config.zenoh_config()?;
     if args.check {
         let target = config.database.resolve()?;
         let (version, points) = database::block_on(async {

@@ -2,19 +2,21 @@
 //! stored windows from any machine on the Zenoh mesh, without SQL: a `get` with a
 //! `_time=[..]` selector that historians answer. One line per window (time, point, state,
 //! probabilities, speed, velocity and zone, quality), or the JSON, or a trend PNG of one point.
+//! It ends by `--timeout` whatever happens: nothing reachable (nothing listening, credentials
+//! refused), reachable but no historian answering, or the historian refusing, each said so.
 
 use crate::health::iso20816::ZoneConfig;
 use crate::health::message::HealthMessage;
 use crate::historian::trend_png;
 use crate::publish::time_range::{now_ns, parse_duration, TimeRange, PARAMETER};
-use crate::publish::zenoh::{ZenohArgs, ZenohSettings};
+use crate::publish::zenoh::{connected_nodes, error_text, ZenohArgs, ZenohSettings};
 use crate::vocabulary::ZenohMode;
 use anyhow::{anyhow, bail, Result};
 use serde::Deserialize;
 use std::collections::BTreeMap;
 use std::io::Write;
 use std::path::PathBuf;
-use std::time::{Duration, UNIX_EPOCH};
+use std::time::{Duration, Instant, UNIX_EPOCH};
 use zenoh::query::ConsolidationMode;
 use zenoh::Wait;
 
@@ -36,7 +38,7 @@ pub struct Args {
     /// Draw the trend of the (single) matching point to this PNG.
     #[arg(long, value_name = "PNG")]
     pub png: Option<PathBuf>,
-    /// Seconds to wait for the historian's answer.
+    /// Seconds this command may take: connecting, then waiting for the historian's answer.
     #[arg(long, default_value_t = 30.0)]
     pub timeout: f64,
     #[command(flatten)]
@@ -73,6 +75,11 @@ pub fn health_key(k: &str) -> String {
 }
 
 pub fn run(args: Args) -> Result<()> {
+    if !(args.timeout > 0.0 && args.timeout.is_finite()) {
+        bail!("--timeout {}: a positive number of seconds", args.timeout);
+    }
+    let started = Instant::now();
+    let timeout = Duration::from_secs_f64(args.timeout);
     let now = now_ns();
     let range = TimeRange {
         from_ns: Some(
@@ -95,14 +102,17 @@ pub fn run(args: Args) -> Result<()> {
         ..Default::default()
     };
     let settings = args.zenoh.apply(local);
-    let session = settings.open()?;
+    let session = settings.open_within(timeout)?;
     let selector = format!("{key}?{PARAMETER}={}", range.to_selector_value());
+    let left = timeout
+        .saturating_sub(started.elapsed())
+        .max(Duration::from_millis(100));
     let replies = session
         .get(selector.clone())
         .consolidation(ConsolidationMode::None)
-        .timeout(Duration::from_secs_f64(args.timeout))
+        .timeout(left)
         .wait()
-        .map_err(|e| anyhow!("zenoh get {selector}: {e}"))?;
+        .map_err(|e| anyhow!("zenoh get {selector}: {}", error_text(&e)))?;
     let mut by_point: BTreeMap<String, BTreeMap<u64, (Vec<u8>, Reply)>> = BTreeMap::new();
     let mut refusals = Vec::new();
     while let Ok(r) = replies.recv() {
@@ -117,26 +127,39 @@ pub fn run(args: Args) -> Result<()> {
                     .or_default()
                     .insert(reply.health.window.end_ns, (bytes, reply));
             }
-            Err(e) => refusals.push(String::from_utf8_lossy(&e.payload().to_bytes()).into_owned()),
+            Err(e) => refusals.push(error_text(&String::from_utf8_lossy(
+                &e.payload().to_bytes(),
+            ))),
         }
     }
+    let nodes = connected_nodes(&session);
     let _ = session.close().wait();
     if !refusals.is_empty() {
         bail!("the historian refused: {}", refusals.join("; "));
     }
     if by_point.is_empty() {
-        bail!(
-            "no history for {key} in {}: is a historian running and reachable (zenoh {} connect {:?})?",
-            range.to_selector_value(),
-            settings.mode,
-            settings.connect
-        );
+        let what = format!("no history for {key} in {}", range.to_selector_value());
+        return Err(nothing(&what, nodes, &settings, args.timeout));
     }
     print(&by_point, args.json)?;
     if let Some(png) = &args.png {
         draw(&by_point, png)?;
     }
     Ok(())
+}
+
+/// Why nothing came back: nothing reachable, or reachable but no historian answering.
+fn nothing(what: &str, nodes: usize, settings: &ZenohSettings, timeout: f64) -> anyhow::Error {
+    if nodes == 0 {
+        return anyhow!(
+            "{what}: nothing reachable {} (no zenoh router or peer connected within {timeout:.1} s; is one running there, and are --user/--password-file right?)",
+            settings.reach()
+        );
+    }
+    anyhow!(
+        "{what}: {nodes} zenoh node(s) reachable {}, but no historian answered within {timeout:.1} s (is `rigmon historian` running on this mesh, and does it hold windows of these points in this range? With [zenoh.acl], is its user among the `historians`?)",
+        settings.reach()
+    )
 }
 
 fn print(by_point: &BTreeMap<String, BTreeMap<u64, (Vec<u8>, Reply)>>, json: bool) -> Result<()> {

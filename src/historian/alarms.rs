@@ -31,7 +31,8 @@ pub struct Alarm {
 pub struct Filter {
     pub since: Option<SystemTime>,
     pub unacked_only: bool,
-    /// SQL LIKE pattern on `<machine>/<asset>/<point>` (`*` may be used for `%`).
+    /// Pattern on `<machine>/<asset>/<point>`: `*` matches anything, every other character
+    /// itself (`%`, `_` and `\\` too: they are escaped for SQL LIKE).
     pub point: Option<String>,
     pub limit: i64,
 }
@@ -59,7 +60,7 @@ fn alarm(r: &Row) -> Alarm {
 /// Events, newest first.
 pub async fn list(client: &Client, f: &Filter) -> Result<Vec<Alarm>> {
     let since = f.since.unwrap_or(SystemTime::UNIX_EPOCH);
-    let pattern = f.point.as_deref().unwrap_or("%").replace('*', "%");
+    let pattern = f.point.as_deref().map_or("%".to_string(), like_pattern);
     let sql = format!(
         "{SELECT} WHERE e.time >= $1 AND t.key LIKE $2 AND ($3 = false OR e.acked_at IS NULL)
          ORDER BY e.time DESC, e.event_id DESC LIMIT $4"
@@ -68,6 +69,15 @@ pub async fn list(client: &Client, f: &Filter) -> Result<Vec<Alarm>> {
         .query(&sql, &[&since, &pattern, &f.unacked_only, &f.limit])
         .await?;
     Ok(rows.iter().map(alarm).collect())
+}
+
+/// A `*` pattern as SQL LIKE: the LIKE wildcards `%` and `_` (and the escape `\\`) in names
+/// match only themselves.
+pub fn like_pattern(p: &str) -> String {
+    p.replace('\\', "\\\\")
+        .replace('%', "\\%")
+        .replace('_', "\\_")
+        .replace('*', "%")
 }
 
 /// Acknowledge event `id` as `user` with `comment`.
@@ -124,4 +134,16 @@ pub fn line(a: &Alarm) -> String {
         a.to_state,
         a.confidence * 100.0
     )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn point_patterns_escape_like_wildcards() {
+        assert_eq!(like_pattern("lut-rig/*"), "lut-rig/%");
+        assert_eq!(like_pattern("pump_1/*"), "pump\\_1/%");
+        assert_eq!(like_pattern("100%/a\\b"), "100\\%/a\\\\b");
+    }
 }

@@ -1,6 +1,7 @@
 //! The bounded buffer between Zenoh and the database: first-in first-out, `[buffer]
-//! memory_messages` in memory, then the spill on disk ([`super::spill`], up to
-//! `spill_max_mb`), then dropping (counted, published in the historian's status). Once
+//! memory_messages` and at most `memory_mb` (message bytes: key and payload) in memory, then
+//! the spill on disk ([`super::spill`], up to `spill_max_mb`), then dropping (counted,
+//! published in the historian's status). Once
 //! anything is spilled, newer messages queue behind it on disk until the spill is read back,
 //! so the order never changes. A batch is only removed for good when the writer says it was
 //! committed ([`Buffer::commit`]).
@@ -27,6 +28,8 @@ pub struct Batch {
 
 struct Inner {
     memory: VecDeque<Incoming>,
+    /// Bytes of the messages in `memory`.
+    memory_bytes: u64,
     spill: Option<Spill>,
     /// True while the spill holds messages: newer ones queue behind them.
     spilling: bool,
@@ -46,6 +49,7 @@ pub struct BufferCounters {
 pub struct Buffer {
     inner: Mutex<Inner>,
     memory_cap: usize,
+    memory_max_bytes: u64,
     spill_max_bytes: u64,
     pub counters: BufferCounters,
     pub notify: tokio::sync::Notify,
@@ -55,14 +59,20 @@ pub struct Buffer {
 #[derive(Debug, Clone, Copy, Default)]
 pub struct Level {
     pub memory: u64,
+    pub memory_bytes: u64,
     pub spilled: u64,
     pub spill_bytes: u64,
+    /// Damaged stretches of the spill skipped (each lost at least one message), their bytes.
+    pub damaged: u64,
+    pub damaged_bytes: u64,
 }
 
 impl Buffer {
-    /// A buffer with its spill in `spill_dir` (None: no spill, drop when memory is full).
+    /// A buffer of at most `memory_cap` messages and `memory_max_bytes` in memory, with its
+    /// spill in `spill_dir` (None: no spill, drop when memory is full).
     pub fn open(
         memory_cap: usize,
+        memory_max_bytes: u64,
         spill_dir: Option<&Path>,
         spill_max_bytes: u64,
     ) -> anyhow::Result<Buffer> {
@@ -77,11 +87,13 @@ impl Buffer {
         Ok(Buffer {
             inner: Mutex::new(Inner {
                 memory: VecDeque::new(),
+                memory_bytes: 0,
                 spill,
                 spilling,
                 in_flight: false,
             }),
             memory_cap,
+            memory_max_bytes,
             spill_max_bytes,
             counters: BufferCounters::default(),
             notify: tokio::sync::Notify::new(),
@@ -93,7 +105,12 @@ impl Buffer {
         let Ok(mut g) = self.inner.lock() else {
             return;
         };
-        if !g.spilling && g.memory.len() < self.memory_cap {
+        let size = m.size();
+        if !g.spilling
+            && g.memory.len() < self.memory_cap
+            && g.memory_bytes + size <= self.memory_max_bytes
+        {
+            g.memory_bytes += size;
             g.memory.push_back(m);
         } else if let Some(s) = g
             .spill
@@ -129,8 +146,11 @@ impl Buffer {
             .lock()
             .map(|g| Level {
                 memory: g.memory.len() as u64,
+                memory_bytes: g.memory_bytes,
                 spilled: g.spill.as_ref().map_or(0, |s| s.records()),
                 spill_bytes: g.spill.as_ref().map_or(0, |s| s.bytes()),
+                damaged: g.spill.as_ref().map_or(0, |s| s.damage().0),
+                damaged_bytes: g.spill.as_ref().map_or(0, |s| s.damage().1),
             })
             .unwrap_or_default()
     }
@@ -143,7 +163,8 @@ impl Buffer {
         g.in_flight = true;
         if !g.memory.is_empty() {
             let n = g.memory.len().min(max);
-            let messages = g.memory.drain(..n).collect();
+            let messages: Vec<Incoming> = g.memory.drain(..n).collect();
+            g.memory_bytes -= messages.iter().map(Incoming::size).sum::<u64>();
             return Batch {
                 messages,
                 origin: Origin::Memory,
@@ -196,6 +217,7 @@ impl Buffer {
         let mut g = self.inner.lock().expect("buffer lock");
         let mut rest: Vec<Incoming> = pending;
         rest.extend(g.memory.drain(..));
+        g.memory_bytes = 0;
         let Some(s) = g.spill.as_mut() else {
             return rest.len() as u64;
         };
@@ -228,11 +250,11 @@ mod tests {
     #[test]
     fn memory_then_spill_then_drop_in_order() {
         let d = tempfile::tempdir().unwrap();
-        let b = Buffer::open(2, Some(d.path()), 30).unwrap();
+        let b = Buffer::open(2, 1 << 20, Some(d.path()), 60).unwrap();
         for i in 0..6 {
             b.push(m(i));
         }
-        // 2 in memory; each spilled record is 4 + 3 + 1 + 1 = 9 bytes: 4 fit under 30 bytes.
+        // 2 in memory; each spilled record is 12 + 3 + 1 + 1 = 17 bytes: 4 fit under 60 bytes.
         let l = b.level();
         assert_eq!((l.memory, l.spilled), (2, 4));
         assert_eq!(b.counters.dropped.load(Ordering::Relaxed), 0);
@@ -255,5 +277,40 @@ mod tests {
             1,
             "back to memory once the spill is read back"
         );
+    }
+
+    /// Issue 38, F8: memory is bounded by bytes, not only by messages. Before, 30 messages
+    /// of 20 MB were all held in memory (681 MB) under `memory_messages = 20000`.
+    #[test]
+    fn memory_is_bounded_by_bytes_and_the_rest_spills() {
+        let d = tempfile::tempdir().unwrap();
+        let b = Buffer::open(20_000, 10 << 20, Some(d.path()), 1 << 40).unwrap();
+        let big = |i: u8| Incoming {
+            kind: Kind::Health,
+            key: "k".into(),
+            payload: vec![i; 2 << 20],
+            recovered: false,
+        };
+        for i in 0..30 {
+            b.push(big(i));
+        }
+        let l = b.level();
+        assert_eq!((l.memory, l.spilled), (4, 26), "4 x 2 MB fit under 10 MB");
+        assert!(l.memory_bytes <= 10 << 20, "{}", l.memory_bytes);
+        let batch = b.take(100);
+        assert_eq!(batch.messages.len(), 4);
+        assert_eq!(b.level().memory_bytes, 0);
+        b.commit(&batch);
+        let mut n = 4;
+        loop {
+            let batch = b.take(7);
+            if batch.messages.is_empty() {
+                break;
+            }
+            assert_eq!(batch.messages[0].payload[0], n as u8, "in order");
+            n += batch.messages.len();
+            b.commit(&batch);
+        }
+        assert_eq!(n, 30);
     }
 }

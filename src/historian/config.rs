@@ -27,6 +27,8 @@ pub struct HistorianConfig {
     #[serde(default = "client_zenoh")]
     pub zenoh: ZenohSettings,
     #[serde(default)]
+    pub intake: IntakeSettings,
+    #[serde(default)]
     pub buffer: BufferSettings,
     #[serde(default)]
     pub batch: BatchSettings,
@@ -41,6 +43,20 @@ pub struct HistorianConfig {
     pub status_every_s: f64,
 }
 
+/// `[intake]`: what a message must be to be taken at all (see `historian::admit`).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct IntakeSettings {
+    /// A window may end (and be published) at most this long after the historian's clock;
+    /// later ones are refused and counted (a daemon's clock ahead, a forged date).
+    #[serde(default = "default_max_future_s")]
+    pub max_future_s: f64,
+    /// Larger messages are refused and counted before they are buffered (a health message
+    /// is 1-4 KB).
+    #[serde(default = "default_max_message_kb")]
+    pub max_message_kb: f64,
+}
+
 /// `[buffer]`: what is held while the database is down or slow.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -48,6 +64,9 @@ pub struct BufferSettings {
     /// Messages held in memory before new ones go to the spill folder.
     #[serde(default = "default_memory_messages")]
     pub memory_messages: usize,
+    /// ...and at most this many MB of them (whichever is reached first).
+    #[serde(default = "default_memory_mb")]
+    pub memory_mb: f64,
     /// The spill folder (segment files; what is in it survives a historian restart).
     #[serde(default = "default_spill_dir")]
     pub spill_dir: PathBuf,
@@ -121,6 +140,15 @@ fn default_status_every() -> f64 {
 fn default_memory_messages() -> usize {
     20_000
 }
+fn default_memory_mb() -> f64 {
+    256.0
+}
+fn default_max_future_s() -> f64 {
+    300.0
+}
+fn default_max_message_kb() -> f64 {
+    1024.0
+}
 fn default_spill_dir() -> PathBuf {
     "spill".into()
 }
@@ -153,8 +181,17 @@ impl Default for BufferSettings {
     fn default() -> Self {
         BufferSettings {
             memory_messages: default_memory_messages(),
+            memory_mb: default_memory_mb(),
             spill_dir: default_spill_dir(),
             spill_max_mb: default_spill_max_mb(),
+        }
+    }
+}
+impl Default for IntakeSettings {
+    fn default() -> Self {
+        IntakeSettings {
+            max_future_s: default_max_future_s(),
+            max_message_kb: default_max_message_kb(),
         }
     }
 }
@@ -197,6 +234,7 @@ impl Default for HistorianConfig {
             default_site: default_site(),
             database: DatabaseSettings::default(),
             zenoh: client_zenoh(),
+            intake: IntakeSettings::default(),
             buffer: BufferSettings::default(),
             batch: BatchSettings::default(),
             retention: RetentionSettings::default(),
@@ -265,6 +303,25 @@ impl HistorianConfig {
         if self.buffer.memory_messages == 0 {
             bail!("buffer.memory_messages must be at least 1");
         }
+        let positive = |v: f64| v > 0.0 && v.is_finite();
+        if !positive(self.buffer.memory_mb) {
+            bail!(
+                "buffer.memory_mb = {}: must be a positive number of MB",
+                self.buffer.memory_mb
+            );
+        }
+        if !(self.intake.max_future_s >= 0.0 && self.intake.max_future_s <= 86_400.0) {
+            bail!(
+                "intake.max_future_s = {}: seconds a window may be ahead of this clock, 0 to 86400",
+                self.intake.max_future_s
+            );
+        }
+        if !(self.intake.max_message_kb >= 1.0 && self.intake.max_message_kb <= 65_536.0) {
+            bail!(
+                "intake.max_message_kb = {}: 1 to 65536 (a health message is 1-4 KB)",
+                self.intake.max_message_kb
+            );
+        }
         if !(self.buffer.spill_max_mb >= 0.0 && self.buffer.spill_max_mb.is_finite()) {
             bail!(
                 "buffer.spill_max_mb = {}: must be >= 0 (0 = no spill)",
@@ -277,7 +334,6 @@ impl HistorianConfig {
         if self.retention.windows_days == 0 || self.retention.minutes_days == 0 {
             bail!("retention.windows_days and retention.minutes_days must be at least 1 (days)");
         }
-        let positive = |v: f64| v > 0.0 && v.is_finite();
         if !positive(self.recovery.query_timeout_s) || !positive(self.status_every_s) {
             bail!(
                 "recovery.query_timeout_s and status_every_s must be positive numbers of seconds"
@@ -289,9 +345,37 @@ impl HistorianConfig {
         Ok(())
     }
 
+    /// The zenoh config this historian opens its session with, refused when it could receive
+    /// nothing (its own access-control list denies every incoming put).
+    pub fn zenoh_config(&self) -> Result<zenoh::Config> {
+        let c = self.zenoh.zenoh_config()?;
+        if let Some(why) = crate::publish::access::receives_nothing(&c, &self.zenoh.key_prefix) {
+            bail!("[zenoh]: this historian would store nothing: {why}");
+        }
+        Ok(c)
+    }
+
     /// The key this historian publishes its status on.
     pub fn status_key(&self) -> String {
         format!("{}/@historian/{}/status", self.zenoh.key_prefix, self.name)
+    }
+
+    /// Memory bytes the buffer may hold.
+    pub fn memory_max_bytes(&self) -> u64 {
+        (self.buffer.memory_mb * 1024.0 * 1024.0) as u64
+    }
+
+    /// Largest message taken, bytes.
+    pub fn max_message_bytes(&self) -> usize {
+        (self.intake.max_message_kb * 1024.0) as usize
+    }
+
+    /// The admission rules.
+    pub fn admission(&self) -> super::admit::Rules {
+        super::admit::Rules {
+            prefix: self.zenoh.key_prefix.clone(),
+            max_future_ns: (self.intake.max_future_s * 1e9) as u64,
+        }
     }
 
     /// Spill bytes allowed.

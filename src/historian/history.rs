@@ -16,6 +16,7 @@ use crate::health::{Basis, UnknownReason};
 use crate::model::evidence::FamilyEvidence;
 use crate::model::impulsiveness::Impulse;
 use crate::publish::time_range::{now_ns, TimeRange, PARAMETER as TIME};
+use crate::publish::zenoh::error_text;
 use crate::vocabulary::Condition;
 use anyhow::{anyhow, Result};
 use std::collections::BTreeMap;
@@ -203,10 +204,16 @@ async fn answer(
     let asked = query.key_expr();
     let mut ids = Vec::new();
     for p in &points {
-        let ke = zenoh::key_expr::KeyExpr::try_from(format!("{prefix}/{}/health", p.key))
-            .map_err(|e| anyhow!("point key {}: {e}", p.key))?;
-        if asked.intersects(&ke) {
-            ids.push(p.id);
+        // A stored key that is no valid key expression (written before admission checked
+        // names) is skipped, not allowed to break every query.
+        match zenoh::key_expr::KeyExpr::try_from(format!("{prefix}/{}/health", p.key)) {
+            Ok(ke) if asked.intersects(&ke) => ids.push(p.id),
+            Ok(_) => {}
+            Err(e) => tracing::debug!(
+                "point {:?} skipped in history answers: not a key ({})",
+                p.key,
+                error_text(&e)
+            ),
         }
     }
     Counters::add(&counters.queries_answered, 1);
@@ -231,7 +238,7 @@ async fn answer(
         query
             .reply(format!("{prefix}/{key}/health"), payload)
             .await
-            .map_err(|e| anyhow!("{e}"))?;
+            .map_err(|e| anyhow!("{}", error_text(&e)))?;
     }
     Counters::add(&counters.history_rows_sent, rows.len() as u64);
     Ok(())

@@ -28,3 +28,10 @@ pub struct Incoming {
     /// Fetched to fill a gap (not live).
     pub recovered: bool,
 }
+
+impl Incoming {
+    /// Bytes it holds (key and payload), as the buffer counts them.
+    pub fn size(&self) -> u64 {
+        (self.key.len() + self.payload.len()) as u64
+    }
+}

@@ -1,7 +1,9 @@
 //! Intake: two subscribers, `<prefix>/**/health` and `<prefix>/**/status`, whose callbacks
 //! hand each sample to the buffer as it is (parsing waits for the writer), so the Zenoh
-//! threads never wait for the database.
+//! threads never wait for the database. A sample larger than `[intake] max_message_kb` is
+//! refused here, before it is copied (counted as `too_large`, logged).
 
+use super::admit::Refusal;
 use super::buffer::{Buffer, Incoming, Kind};
 use super::status::Counters;
 use anyhow::{anyhow, Result};
@@ -13,6 +15,7 @@ pub async fn subscribe(
     prefix: &str,
     buffer: Arc<Buffer>,
     counters: Arc<Counters>,
+    max_bytes: usize,
 ) -> Result<Vec<zenoh::pubsub::Subscriber<()>>> {
     let mut subs = Vec::new();
     for (suffix, kind) in [("health", Kind::Health), ("status", Kind::Status)] {
@@ -26,6 +29,21 @@ pub async fn subscribe(
                     Kind::Status => &counters.received_status,
                 };
                 Counters::add(c, 1);
+                let size = s.payload().len();
+                if size > max_bytes {
+                    let n = counters
+                        .refused(Refusal::TooLarge)
+                        .fetch_add(1, std::sync::atomic::Ordering::Relaxed)
+                        + 1;
+                    if n <= 3 || n.is_power_of_two() {
+                        tracing::warn!(
+                            "message on {} refused ({n} so far): {size} bytes, more than [intake] max_message_kb = {} KB",
+                            s.key_expr(),
+                            max_bytes / 1024
+                        );
+                    }
+                    return;
+                }
                 buffer.push(Incoming {
                     kind,
                     key: s.key_expr().to_string(),

@@ -8,9 +8,11 @@
 //! over Zenoh ([`history`], `rigmon history`), alarms are listed and acknowledged
 //! ([`alarms`]), and [`trend_png`] draws a point's trend. [`service`] wires it together.
 //!
-//! Data flows one way: Zenoh -> [`intake`] -> [`buffer`] -> [`service`]'s write loop ->
+//! Data flows one way: Zenoh -> [`intake`] -> [`buffer`] -> [`service`]'s write loop
+//! ([`admit`]: every message checked against its key, its names, time and seq) ->
 //! [`writer`] -> PostgreSQL; [`history`] and [`alarms`] read it back.
 
+pub mod admit;
 pub mod alarms;
 pub mod buffer;
 pub mod config;

@@ -31,7 +31,7 @@ pub struct Gap {
 
 impl Gap {
     pub fn len(&self) -> u64 {
-        self.last + 1 - self.first
+        self.last.saturating_sub(self.first).saturating_add(1)
     }
 
     pub fn is_empty(&self) -> bool {
@@ -79,10 +79,10 @@ impl Tracker {
                 t.high = t.high.max(seq);
                 // Keep the daemon's own value (the database's is rounded to µs).
                 t.run_start_ns = run_start_ns;
-                if seq > before + 1 {
-                    gap(before + 1, seq - 1, true)
-                } else {
-                    None
+                // Checked: a seq near 2^64 (refused by admission anyway) must not wrap.
+                match before.checked_add(1) {
+                    Some(next) if seq > next => gap(next, seq - 1, true),
+                    _ => None,
                 }
             }
             // A late window of an older run: nothing to follow.
@@ -156,7 +156,7 @@ pub async fn recover(
         Err(e) => tracing::warn!("asking {selector} for missed windows failed: {e}"),
     }
     let found = got.len() as u64;
-    let missing = gap.len() - found;
+    let missing = gap.len().saturating_sub(found);
     if gap.counted {
         Counters::add(&counters.recovered, found);
         Counters::add(&counters.lost, missing);
@@ -227,5 +227,29 @@ mod tests {
         let g = t.observe("n/a/p", 7, 30).unwrap();
         assert_eq!((g.first, g.last, g.counted), (1, 29, false));
         assert_eq!(t.observe("o/a/p", 7, 1), None);
+    }
+
+    /// Issue 38, F2: a forged seq of 2^64-1 wrapped `high + 1` to 0, so every later window
+    /// opened a gap from 0 (161,765 windows re-requested in 10 s). The arithmetic is checked
+    /// now (and admission refuses such a seq before it reaches the tracker).
+    #[test]
+    fn a_seq_at_the_top_of_u64_opens_no_wrapped_gaps() {
+        let mut t = Tracker::default();
+        assert_eq!(t.observe("m/a/p", 1, 1), None);
+        let g = t.observe("m/a/p", 1, u64::MAX).unwrap();
+        assert_eq!((g.first, g.last), (2, u64::MAX - 1));
+        assert_eq!(g.len(), u64::MAX - 2);
+        for seq in 2..50 {
+            assert_eq!(t.observe("m/a/p", 1, seq), None, "seq {seq}");
+        }
+        assert_eq!(t.observe("m/a/p", 1, u64::MAX), None);
+        let whole = Gap {
+            key: "k".into(),
+            run_start_ns: 0,
+            first: 0,
+            last: u64::MAX,
+            counted: true,
+        };
+        assert_eq!(whole.len(), u64::MAX, "saturates, never wraps to 0");
     }
 }

@@ -167,6 +167,15 @@ fn band(v: &[f32], i: usize) -> Option<f32> {
     v.get(i).copied().and_then(finite)
 }
 
+/// When the state began: `state_since_s` into the run, at the latest the window's end.
+fn since(run_start_ns: u64, state_since_s: f64, end_ns: u64) -> SystemTime {
+    time_of(
+        run_start_ns
+            .saturating_add((state_since_s.max(0.0) * 1e9).round() as u64)
+            .min(end_ns),
+    )
+}
+
 fn clamp_i32(v: u32) -> i32 {
     i32::try_from(v).unwrap_or(i32::MAX)
 }
@@ -226,7 +235,7 @@ impl WindowRow {
             run_start_ns,
             seq: m.seq,
             publish_ns: m.publish_time_ns,
-            state_since: time_of(run_start_ns + (m.state_since_s.max(0.0) * 1e9).round() as u64),
+            state_since: since(run_start_ns, m.state_since_s, m.window.end_ns),
             state: m.state,
             state_changed: m.state_changed,
             confidence: m.confidence,

@@ -13,7 +13,7 @@ use super::recovery::{Gap, Tracker};
 use super::row::WindowRow;
 use super::status::{self, Counters, HistorianStatus, Phase};
 use super::writer::{is_connection_error, StatusRow, Writer};
-use super::{history, intake, point_config, recovery};
+use super::{admit, history, intake, point_config, recovery};
 use crate::daemon::notify::Notifier;
 use crate::daemon::signals;
 use crate::publish::time_range::now_ns;
@@ -48,10 +48,12 @@ struct Shared {
 
 /// Run until stopped; returns the last status.
 pub fn run(cfg: HistorianConfig, opts: RunOptions) -> Result<HistorianStatus> {
+    cfg.zenoh_config()?;
     let target = cfg.database.resolve()?;
     let spill_dir = (cfg.spill_max_bytes() > 0).then_some(cfg.buffer.spill_dir.as_path());
     let buffer = Arc::new(Buffer::open(
         cfg.buffer.memory_messages,
+        cfg.memory_max_bytes(),
         spill_dir,
         cfg.spill_max_bytes(),
     )?);
@@ -80,28 +82,25 @@ pub fn run(cfg: HistorianConfig, opts: RunOptions) -> Result<HistorianStatus> {
 async fn serve(sh: Arc<Shared>, opts: RunOptions) -> Result<HistorianStatus> {
     let cfg = &sh.cfg;
     let prefix = cfg.zenoh.key_prefix.clone();
-    let session = zenoh::open(cfg.zenoh.zenoh_config()?).await.map_err(|e| {
-        anyhow!(
-            "cannot open a zenoh session (mode {}, connect {:?}): {e}",
-            cfg.zenoh.mode,
-            cfg.zenoh.connect
-        )
-    })?;
-    let subscribers =
-        intake::subscribe(&session, &prefix, sh.buffer.clone(), sh.counters.clone()).await?;
+    let session = open_session(cfg).await?;
+    let (buffer, counters, max) = (
+        sh.buffer.clone(),
+        sh.counters.clone(),
+        cfg.max_message_bytes(),
+    );
+    let subscribers = intake::subscribe(&session, &prefix, buffer, counters, max).await?;
     let status_pub = session
         .declare_publisher(cfg.status_key())
         .await
         .map_err(|e| anyhow!("declaring {}: {e}", cfg.status_key()))?;
     let (gap_tx, gap_rx) = unbounded_channel::<Gap>();
-    let timeout = Duration::from_secs_f64(cfg.recovery.query_timeout_s);
     tokio::spawn(recovery::run(
         session.clone(),
         prefix.clone(),
         gap_rx,
         sh.buffer.clone(),
         sh.counters.clone(),
-        timeout,
+        Duration::from_secs_f64(cfg.recovery.query_timeout_s),
     ));
     let history_task = tokio::spawn(history::serve(
         session.clone(),
@@ -165,6 +164,16 @@ async fn serve(sh: Arc<Shared>, opts: RunOptions) -> Result<HistorianStatus> {
     Ok(last)
 }
 
+async fn open_session(cfg: &HistorianConfig) -> Result<zenoh::Session> {
+    zenoh::open(cfg.zenoh_config()?).await.map_err(|e| {
+        anyhow!(
+            "cannot open a zenoh session (mode {}, connect {:?}): {e}",
+            cfg.zenoh.mode,
+            cfg.zenoh.connect
+        )
+    })
+}
+
 /// The status now.
 fn snapshot(sh: &Shared, phase: Phase) -> HistorianStatus {
     let c = &sh.counters;
@@ -189,6 +198,13 @@ fn snapshot(sh: &Shared, phase: Phase) -> HistorianStatus {
             health: g(&c.received_health),
             status: g(&c.received_status),
             rejected: g(&c.rejected),
+            refused: status::Refused {
+                key: g(&c.refused_key),
+                name: g(&c.refused_name),
+                future: g(&c.refused_future),
+                seq: g(&c.refused_seq),
+                too_large: g(&c.refused_too_large),
+            },
         },
         rows: status::Rows {
             committed: g(&c.committed_rows),
@@ -203,6 +219,9 @@ fn snapshot(sh: &Shared, phase: Phase) -> HistorianStatus {
             spill_bytes: level.spill_bytes,
             spilled_total: g(&sh.buffer.counters.spilled_total),
             dropped: g(&sh.buffer.counters.dropped),
+            memory_bytes: level.memory_bytes,
+            spill_damaged: level.damaged,
+            spill_damaged_bytes: level.damaged_bytes,
         },
         recovery: status::Recovery {
             gaps: g(&c.gaps),
@@ -230,11 +249,13 @@ struct Pending {
     live_publish_ns: Vec<u64>,
 }
 
-/// Parse a batch: bad messages and expired rows are counted and left out; live windows
-/// go through the gap tracker.
+/// Parse a batch: bad messages, refused ones ([`admit`]) and expired rows are counted and
+/// left out; live windows go through the gap tracker.
 fn parse(sh: &Shared, batch: Batch, tracker: &mut Tracker, gaps: &UnboundedSender<Gap>) -> Pending {
+    let now = now_ns();
     let horizon =
-        now_ns().saturating_sub(u64::from(sh.cfg.retention.windows_days) * 86_400 * 1_000_000_000);
+        now.saturating_sub(u64::from(sh.cfg.retention.windows_days) * 86_400 * 1_000_000_000);
+    let rules = sh.cfg.admission();
     let mut p = Pending {
         rows: Vec::new(),
         statuses: Vec::new(),
@@ -248,6 +269,7 @@ fn parse(sh: &Shared, batch: Batch, tracker: &mut Tracker, gaps: &UnboundedSende
         match m.kind {
             Kind::Health => match WindowRow::parse(&m.payload, &sh.cfg.default_site) {
                 Ok(r) if r.end_ns < horizon => Counters::add(&sh.counters.expired, 1),
+                Ok(r) if refuse(sh, m, admit::window(&rules, &m.key, &r, now)) => {}
                 Ok(r) => {
                     if !m.recovered {
                         if let Some(g) = tracker.observe(&r.point.key(), r.run_start_ns, r.seq) {
@@ -261,6 +283,7 @@ fn parse(sh: &Shared, batch: Batch, tracker: &mut Tracker, gaps: &UnboundedSende
                 Err(e) => reject(sh, m, &e),
             },
             Kind::Status => match StatusRow::parse(&m.payload) {
+                Ok(s) if refuse(sh, m, admit::status(&rules, &m.key, &s, now)) => {}
                 Ok(s) => p.statuses.push(s),
                 Err(e) => reject(sh, m, &e),
             },
@@ -268,6 +291,22 @@ fn parse(sh: &Shared, batch: Batch, tracker: &mut Tracker, gaps: &UnboundedSende
     }
     p.batch = batch;
     p
+}
+
+/// True (counted by reason, logged) when admission refused the message.
+fn refuse(sh: &Shared, m: &Incoming, verdict: Result<(), admit::Refused>) -> bool {
+    let Err((why, text)) = verdict else {
+        return false;
+    };
+    let n = sh.counters.refused(why).fetch_add(1, Ordering::Relaxed) + 1;
+    if n <= 3 || n.is_power_of_two() {
+        tracing::warn!(
+            "message on {} refused ({}, {n} so far): {text}",
+            m.key,
+            why.as_str()
+        );
+    }
+    true
 }
 
 fn reject(sh: &Shared, m: &Incoming, e: &anyhow::Error) {

@@ -1,11 +1,20 @@
 //! The spill: messages the memory buffer has no room for, appended to segment files
 //! (`spill-0000000001.seg`, 16 MiB each) in the spill folder and read back in order once the
 //! database keeps up again. A segment is deleted only after everything in it was committed,
-//! so what is spilled survives a historian restart or crash (a torn last record is skipped).
-//! Record: `u32` length (LE), then kind (1 byte), key length (`u16` LE), key, payload.
+//! so what is spilled survives a historian restart or crash.
+//! Record: the marker `RSP2`, the body's length (`u32` LE) and CRC-32 (`u32` LE), then the
+//! body: kind (1 byte), key length (`u16` LE), key, payload. A damaged record (a torn tail, a
+//! flipped length, bad bytes) is skipped up to the next marker that starts a record whose
+//! CRC holds, so one bad length loses one message, not the rest of the segment; each damaged
+//! stretch is counted with its bytes ([`Spill::damage`], the historian status). Segments of
+//! the earlier format (no marker: length, kind, key length, key, payload) are still read; in
+//! them damage ends the segment, counted the same way.
 
 use super::incoming::{Incoming, Kind};
 use anyhow::{bail, Context, Result};
+use crc::{Crc, CRC_32_ISO_HDLC};
+use std::cell::RefCell;
+use std::collections::BTreeMap;
 use std::fs::{File, OpenOptions};
 use std::io::{Read, Seek, SeekFrom, Write};
 use std::path::{Path, PathBuf};
@@ -13,6 +22,11 @@ use std::path::{Path, PathBuf};
 const SEGMENT_BYTES: u64 = 16 * 1024 * 1024;
 /// Larger records are damage, not messages.
 const MAX_RECORD: u32 = 64 * 1024 * 1024;
+/// What starts a record.
+const MARKER: [u8; 4] = *b"RSP2";
+/// Marker, length, CRC.
+const HEADER: u64 = 12;
+const CRC32: Crc<u32> = Crc::<u32>::new(&CRC_32_ISO_HDLC);
 
 /// Where reading stands: segment number and byte offset.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -30,6 +44,8 @@ pub struct Spill {
     read: Cursor,
     /// Records written and not yet committed.
     records: u64,
+    /// Damaged stretches seen: (segment, offset) -> bytes skipped.
+    damaged: RefCell<BTreeMap<(u64, u64), u64>>,
 }
 
 fn segment_path(dir: &Path, n: u64) -> PathBuf {
@@ -72,6 +88,7 @@ impl Spill {
             writer: None,
             read,
             records: 0,
+            damaged: RefCell::default(),
         };
         spill.records = spill.count_records()?;
         Ok(spill)
@@ -107,6 +124,12 @@ impl Spill {
         self.records == 0
     }
 
+    /// Damaged stretches skipped so far (each lost at least one message) and their bytes.
+    pub fn damage(&self) -> (u64, u64) {
+        let d = self.damaged.borrow();
+        (d.len() as u64, d.values().sum())
+    }
+
     /// Append one message.
     pub fn append(&mut self, m: &Incoming) -> Result<()> {
         let key = m.key.as_bytes();
@@ -114,12 +137,19 @@ impl Spill {
             bail!("key too long to spill");
         }
         let len = 1 + 2 + key.len() + m.payload.len();
-        let mut rec = Vec::with_capacity(4 + len);
+        if len > MAX_RECORD as usize {
+            bail!("a message of {len} bytes is too large to spill");
+        }
+        let mut rec = Vec::with_capacity(HEADER as usize + len);
+        rec.extend_from_slice(&MARKER);
         rec.extend_from_slice(&(len as u32).to_le_bytes());
+        rec.extend_from_slice(&[0; 4]);
         rec.push(m.kind as u8);
         rec.extend_from_slice(&(key.len() as u16).to_le_bytes());
         rec.extend_from_slice(key);
         rec.extend_from_slice(&m.payload);
+        let crc = CRC32.checksum(&rec[HEADER as usize..]);
+        rec[8..12].copy_from_slice(&crc.to_le_bytes());
         let need_new = match self.segments.last() {
             None => true,
             Some(&(_, size)) => size + rec.len() as u64 > SEGMENT_BYTES || self.writer.is_none(),
@@ -145,67 +175,164 @@ impl Spill {
         Ok(())
     }
 
-    /// Read one record at `c`; None at the end (or a torn tail).
-    fn read_one(&self, c: Cursor) -> Result<Option<(Incoming, Cursor)>> {
-        let Some(&(_, size)) = self.segments.iter().find(|s| s.0 == c.segment) else {
-            return Ok(None);
-        };
-        if c.offset + 4 > size {
-            return Ok(self.next_segment(c.segment).and_then(|n| {
-                self.read_one(Cursor {
-                    segment: n,
-                    offset: 0,
-                })
-                .ok()
-                .flatten()
-            }));
+    /// Read one record at `c` or after it (damage skipped and noted); None at the end.
+    fn read_one(&self, mut c: Cursor) -> Result<Option<(Incoming, Cursor)>> {
+        loop {
+            let Some(&(_, size)) = self.segments.iter().find(|s| s.0 == c.segment) else {
+                return Ok(None);
+            };
+            let (found, skipped) = if c.offset < size {
+                self.record_in(c, size)?
+            } else {
+                (None, 0)
+            };
+            if skipped > 0 {
+                self.note_damage(c, skipped, found.is_some());
+            }
+            match found {
+                Some((m, used)) => {
+                    let next = Cursor {
+                        segment: c.segment,
+                        offset: c.offset + skipped + used,
+                    };
+                    return Ok(Some((m, next)));
+                }
+                None => match self.next_segment(c.segment) {
+                    Some(n) => {
+                        c = Cursor {
+                            segment: n,
+                            offset: 0,
+                        }
+                    }
+                    None => return Ok(None),
+                },
+            }
         }
+    }
+
+    /// The first intact record of segment `c.segment` at or after `c.offset`, with the bytes
+    /// it used, and the damaged bytes skipped before it.
+    fn record_in(&self, c: Cursor, size: u64) -> Result<(Option<(Incoming, u64)>, u64)> {
         let mut f = File::open(segment_path(&self.dir, c.segment))?;
-        f.seek(SeekFrom::Start(c.offset))?;
-        let mut len = [0u8; 4];
-        f.read_exact(&mut len)?;
-        let len = u32::from_le_bytes(len);
-        if !(3..=MAX_RECORD).contains(&len) || c.offset + 4 + u64::from(len) > size {
-            // A torn record (the historian died while writing it): skip the rest of the segment.
-            tracing::warn!(
-                "spill segment {} has a torn record at byte {}; skipping its rest",
-                c.segment,
-                c.offset
-            );
-            return Ok(self.next_segment(c.segment).and_then(|n| {
-                self.read_one(Cursor {
-                    segment: n,
-                    offset: 0,
-                })
-                .ok()
-                .flatten()
-            }));
+        let first = read_at(&mut f, 0, 4, size)?;
+        if first.len() == 4 && first[..] != MARKER {
+            // The earlier format: no marker to resync on.
+            let len = read_at(&mut f, c.offset, 4, size)?;
+            let n = len
+                .get(..4)
+                .map_or(0, |l| u32::from_le_bytes([l[0], l[1], l[2], l[3]]));
+            let rec = read_at(&mut f, c.offset, 4 + u64::from(n.min(MAX_RECORD)), size)?;
+            return Ok(match legacy_record(&rec) {
+                Some(r) => (Some(r), 0),
+                None => (None, size - c.offset),
+            });
         }
-        let mut rec = vec![0u8; len as usize];
-        f.read_exact(&mut rec)?;
-        let kind = Kind::from_u8(rec[0]);
-        let klen = u16::from_le_bytes([rec[1], rec[2]]) as usize;
-        let key = String::from_utf8_lossy(rec.get(3..3 + klen).unwrap_or_default()).into_owned();
-        let payload = rec.get(3 + klen..).unwrap_or_default().to_vec();
-        let next = Cursor {
-            segment: c.segment,
-            offset: c.offset + 4 + u64::from(len),
-        };
-        Ok(Some((
-            Incoming {
-                kind,
-                key,
-                payload,
-                recovered: false,
-            },
-            next,
-        )))
+        let head = read_at(&mut f, c.offset, HEADER, size)?;
+        if head.len() == HEADER as usize && head[..4] == MARKER {
+            let len = u32::from_le_bytes([head[4], head[5], head[6], head[7]]);
+            let rec = read_at(
+                &mut f,
+                c.offset,
+                HEADER + u64::from(len.min(MAX_RECORD)),
+                size,
+            )?;
+            if let Some(r) = record_at(&rec) {
+                return Ok((Some(r), 0));
+            }
+        }
+        let rest = read_at(&mut f, c.offset, size - c.offset, size)?;
+        Ok(next_record(&rest))
+    }
+
+    fn note_damage(&self, c: Cursor, skipped: u64, resynced: bool) {
+        let mut d = self.damaged.borrow_mut();
+        if d.insert((c.segment, c.offset), skipped).is_none() {
+            tracing::warn!(
+                "spill segment {} is damaged at byte {}: {skipped} bytes skipped (at least one message lost){}",
+                c.segment,
+                c.offset,
+                if resynced {
+                    "; reading on from the next intact record"
+                } else {
+                    ""
+                }
+            );
+        }
     }
 
     fn next_segment(&self, n: u64) -> Option<u64> {
         self.segments.iter().map(|s| s.0).find(|&s| s > n)
     }
+}
 
+/// Up to `n` bytes of a segment of `size` bytes from `offset`.
+fn read_at(f: &mut File, offset: u64, n: u64, size: u64) -> Result<Vec<u8>> {
+    let n = n.min(size.saturating_sub(offset));
+    f.seek(SeekFrom::Start(offset))?;
+    let mut b = Vec::with_capacity(n as usize);
+    Read::take(&mut *f, n).read_to_end(&mut b)?;
+    Ok(b)
+}
+
+/// A record body as a message.
+fn message(body: &[u8]) -> Option<Incoming> {
+    let kind = Kind::from_u8(*body.first()?);
+    let klen = u16::from_le_bytes([*body.get(1)?, *body.get(2)?]) as usize;
+    let key = std::str::from_utf8(body.get(3..3 + klen)?)
+        .ok()?
+        .to_string();
+    Some(Incoming {
+        kind,
+        key,
+        payload: body[3 + klen..].to_vec(),
+        recovered: false,
+    })
+}
+
+/// The record at the start of `b`, if intact: the message and the bytes it used.
+fn record_at(b: &[u8]) -> Option<(Incoming, u64)> {
+    if b.len() < HEADER as usize || b[..4] != MARKER {
+        return None;
+    }
+    let len = u32::from_le_bytes(b[4..8].try_into().ok()?);
+    let crc = u32::from_le_bytes(b[8..12].try_into().ok()?);
+    if !(3..=MAX_RECORD).contains(&len) {
+        return None;
+    }
+    let body = b.get(HEADER as usize..HEADER as usize + len as usize)?;
+    if CRC32.checksum(body) != crc {
+        return None;
+    }
+    Some((message(body)?, HEADER + u64::from(len)))
+}
+
+/// The first intact record in `b` and the bytes skipped before it (damage); None and all
+/// of `b` skipped when there is none.
+fn next_record(b: &[u8]) -> (Option<(Incoming, u64)>, u64) {
+    let mut at = 0;
+    while at < b.len() {
+        if let Some(r) = record_at(&b[at..]) {
+            return (Some(r), at as u64);
+        }
+        match b[at + 1..].windows(4).position(|w| w == MARKER) {
+            Some(i) => at += 1 + i,
+            None => break,
+        }
+    }
+    (None, b.len() as u64)
+}
+
+/// A record of the earlier format at the start of `b`, if whole.
+fn legacy_record(b: &[u8]) -> Option<(Incoming, u64)> {
+    let len = u32::from_le_bytes(b.get(..4)?.try_into().ok()?);
+    if !(3..=MAX_RECORD).contains(&len) {
+        return None;
+    }
+    let body = b.get(4..4 + len as usize)?;
+    Some((message(body)?, 4 + u64::from(len)))
+}
+
+impl Spill {
     /// Up to `max` records from the read position, and the cursor after them (not committed).
     pub fn peek(&self, max: usize) -> Result<(Vec<Incoming>, Cursor)> {
         let mut out = Vec::new();
@@ -309,5 +436,58 @@ mod tests {
             std::fs::read_dir(d.path()).unwrap().next().is_none(),
             "segments deleted"
         );
+    }
+
+    /// Issue 38, F10: one damaged length field lost the rest of its segment (98 of 100
+    /// messages), uncounted. Now the reader resyncs at the next intact record and counts the
+    /// damaged stretch.
+    #[test]
+    fn a_damaged_length_loses_one_message_and_is_counted() {
+        let d = tempfile::tempdir().unwrap();
+        let mut s = Spill::open(d.path()).unwrap();
+        let mut offsets = Vec::new();
+        for i in 0..100 {
+            offsets.push(s.segments.last().map_or(0, |x| x.1));
+            s.append(&msg(i)).unwrap();
+        }
+        drop(s);
+        // The length field of message 2 says 2^31 bytes.
+        let seg = segment_path(d.path(), 1);
+        let mut bytes = std::fs::read(&seg).unwrap();
+        let at = offsets[2] as usize + 4;
+        bytes[at..at + 4].copy_from_slice(&0x8000_0000u32.to_le_bytes());
+        std::fs::write(&seg, &bytes).unwrap();
+        let s = Spill::open(d.path()).unwrap();
+        let (all, _) = s.peek(1000).unwrap();
+        let got: Vec<usize> = all.iter().map(|m| m.payload.len() - 100).collect();
+        let want: Vec<usize> = (0..100).filter(|&i| i != 2).collect();
+        assert_eq!(got, want, "only message 2 is lost");
+        let (stretches, skipped) = s.damage();
+        assert_eq!(stretches, 1);
+        assert_eq!(
+            skipped,
+            offsets[3] - offsets[2],
+            "exactly message 2's bytes"
+        );
+        // A record of the earlier format (no marker) is still read.
+        let d2 = tempfile::tempdir().unwrap();
+        let mut old = Vec::new();
+        for i in 0..3u8 {
+            let key = b"rigmon/r/a/p/health";
+            let body_len = 3 + key.len() + 10;
+            old.extend_from_slice(&(body_len as u32).to_le_bytes());
+            old.push(1);
+            old.extend_from_slice(&(key.len() as u16).to_le_bytes());
+            old.extend_from_slice(key);
+            old.extend_from_slice(&[i; 10]);
+        }
+        std::fs::write(segment_path(d2.path(), 7), &old).unwrap();
+        let s = Spill::open(d2.path()).unwrap();
+        let (all, _) = s.peek(10).unwrap();
+        assert_eq!(
+            all.iter().map(|m| m.payload[0]).collect::<Vec<_>>(),
+            [0, 1, 2]
+        );
+        assert_eq!(s.damage(), (0, 0));
     }
 }

@@ -1,7 +1,8 @@
 //! The historian's status (`<prefix>/@historian/<name>/status`, JSON, schema
 //! `rigmon.historian.status` version 1; the `@` chunk keeps it out of `rigmon/**`): the
-//! database connection, what was received, committed, buffered, spilled, dropped, rejected,
-//! recovered and lost, and publish-to-committed latency. Also the systemd STATUS= line.
+//! database connection, what was received, refused (by reason), committed, buffered, spilled,
+//! dropped, damaged, rejected, recovered and lost, and publish-to-committed latency. Also the
+//! systemd STATUS= line.
 
 use super::latency::LatencySummary;
 use serde::{Deserialize, Serialize};
@@ -18,6 +19,12 @@ pub struct Counters {
     pub received_status: AtomicU64,
     /// Messages that are not health/status JSON (counted, skipped).
     pub rejected: AtomicU64,
+    /// Messages refused by admission ([`super::admit`]), by reason.
+    pub refused_key: AtomicU64,
+    pub refused_name: AtomicU64,
+    pub refused_future: AtomicU64,
+    pub refused_seq: AtomicU64,
+    pub refused_too_large: AtomicU64,
     /// Rows older than the windows retention (never written).
     pub expired: AtomicU64,
     pub committed_rows: AtomicU64,
@@ -51,6 +58,18 @@ impl Counters {
 
     pub fn get(c: &AtomicU64) -> u64 {
         c.load(Ordering::Relaxed)
+    }
+
+    /// The counter of one refusal reason.
+    pub fn refused(&self, r: super::admit::Refusal) -> &AtomicU64 {
+        use super::admit::Refusal as R;
+        match r {
+            R::Key => &self.refused_key,
+            R::Name => &self.refused_name,
+            R::Future => &self.refused_future,
+            R::Seq => &self.refused_seq,
+            R::TooLarge => &self.refused_too_large,
+        }
     }
 
     pub fn set_error(&self, e: Option<String>) {
@@ -103,7 +122,32 @@ pub struct DatabaseStatus {
 pub struct Received {
     pub health: u64,
     pub status: u64,
+    /// Not health/status JSON, or refused by the database row by row.
     pub rejected: u64,
+    /// Refused by admission, by reason (see `historian::admit`).
+    #[serde(default)]
+    pub refused: Refused,
+}
+
+/// Messages refused by admission, by reason.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize)]
+pub struct Refused {
+    /// Machine, asset or point not those of the key it arrived on.
+    pub key: u64,
+    /// A name that is no plain Zenoh key chunk.
+    pub name: u64,
+    /// Dated beyond now + `[intake] max_future_s`.
+    pub future: u64,
+    /// A `seq` no daemon can have reached (or beyond `int8`).
+    pub seq: u64,
+    /// Larger than `[intake] max_message_kb`.
+    pub too_large: u64,
+}
+
+impl Refused {
+    pub fn total(&self) -> u64 {
+        self.key + self.name + self.future + self.seq + self.too_large
+    }
 }
 
 #[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize)]
@@ -123,6 +167,15 @@ pub struct BufferStatus {
     pub spilled_total: u64,
     /// Messages dropped because memory and spill were full.
     pub dropped: u64,
+    /// Bytes held in memory (bounded by `[buffer] memory_mb`).
+    #[serde(default)]
+    pub memory_bytes: u64,
+    /// Damaged stretches of spill segments skipped on reading (each lost at least one
+    /// message), and their bytes.
+    #[serde(default)]
+    pub spill_damaged: u64,
+    #[serde(default)]
+    pub spill_damaged_bytes: u64,
 }
 
 #[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize)]
@@ -145,7 +198,7 @@ impl HistorianStatus {
     /// One line for `systemctl status`.
     pub fn systemd_line(&self) -> String {
         format!(
-            "{}: db {} | {} rows, {} dup | buffer {} mem {} spilled | {} dropped | recovered {} lost {} | p99 {:.2} s",
+            "{}: db {} | {} rows, {} dup | buffer {} mem {} spilled | {} dropped | {} refused, {} rejected, {} spill damaged | recovered {} lost {} | p99 {:.2} s",
             match self.phase {
                 Phase::Running => "running",
                 Phase::Stopping => "stopping",
@@ -157,6 +210,9 @@ impl HistorianStatus {
             self.buffer.memory,
             self.buffer.spilled,
             self.buffer.dropped,
+            self.received.refused.total(),
+            self.received.rejected,
+            self.buffer.spill_damaged,
             self.recovery.recovered,
             self.recovery.lost,
             self.latency.p99_s

@@ -280,6 +280,31 @@ impl ZenohSettings {
         })
     }
 
+    /// Open a session for a one-shot command (`rigmon history`): connecting gives up after
+    /// `within` instead of retrying forever, and the error says that nothing was reachable
+    /// (nothing listening, or the credentials refused) rather than hanging.
+    pub fn open_within(&self, within: Duration) -> Result<zenoh::Session> {
+        let mut c = self.zenoh_config()?;
+        if !self.connect.is_empty() {
+            let ms = within.as_millis().clamp(1, i64::MAX as u128).to_string();
+            for (key, value) in [
+                ("connect/timeout_ms", ms),
+                ("connect/exit_on_failure", "true".into()),
+            ] {
+                c.insert_json5(key, &value)
+                    .map_err(|e| anyhow!("zenoh config {key} = {value}: {}", error_text(&e)))?;
+            }
+        }
+        zenoh::open(c).wait().map_err(|e| {
+            anyhow!(
+                "nothing reachable {}: no zenoh router or peer accepted a connection within {:.1} s ({}); is one running and listening there, and are --user/--password-file right?",
+                self.reach(),
+                within.as_secs_f64(),
+                error_text(&e)
+            )
+        })
+    }
+
     /// Where a session with these settings looks for others, for messages: `at
     /// tcp/127.0.0.1:7448`, `on listen [...]`.
     pub fn reach(&self) -> String {
@@ -396,7 +421,7 @@ const CONNECT_GRACE: Duration = Duration::from_secs(2);
 const LIVELINESS_QUERY: Duration = Duration::from_secs(1);
 
 /// The zenoh peers and routers a session is connected to.
-fn connected_nodes(session: &zenoh::Session) -> usize {
+pub fn connected_nodes(session: &zenoh::Session) -> usize {
     let info = session.info();
     info.peers_zid().wait().count() + info.routers_zid().wait().count()
 }

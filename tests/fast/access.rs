@@ -362,3 +362,149 @@ fn tls_client_with_the_ca_receives_and_one_without_it_does_not() {
     assert!(got.is_empty(), "a client without the CA received {got:?}");
     alive(&mut dmn, &dlog);
 }
+
+/// A health message of `rigmon/r1/shaft/nde` (what a historian's reply carries).
+fn a_health_message() -> String {
+    serde_json::json!({
+        "schema": "rigmon.health", "schema_version": 1,
+        "rig": "r1", "asset": "shaft", "point": "nde", "seq": 7,
+        "window": {"start_s": 3.0, "end_s": 4.0, "start_ns": 1_700_000_003_000_000_000u64, "end_ns": 1_700_000_004_000_000_000u64},
+        "publish_time_ns": 1_700_000_004_010_000_000u64, "rpm": 588.0, "speed_source": "tacho",
+        "quality": {"ok": true, "flags": [], "clipped_samples": 0, "nan_samples": 0,
+                    "dropout_samples": 0, "flat_channels": [], "missing_tacho_pulses": 0},
+        "probabilities": {"healthy": 0.1, "outer_race": 0.9},
+        "window_state": "outer_race", "unknown_reason": null, "state": "outer_race",
+        "state_since_s": 4.0, "state_changed": false, "confidence": 0.9, "novelty": 0.2,
+        "novelty_threshold": 1.0,
+        "fault_bands": {"channel": "vertical", "orders": {}, "bpfo": [], "bpfi": [], "two_bsf": [], "floor": 0.0},
+        "velocity_rms_mm_s": null, "iso_zone": null,
+        "model": {"id": "m", "sha256": "ab", "labels": ["healthy", "outer_race"]},
+        "calibration_id": null, "software_version": "0.1.0"
+    })
+    .to_string()
+}
+
+/// `rigmon history` with extra arguments: exit code, stdout, stderr, seconds taken.
+fn history(args: &[&str]) -> (i32, String, String, f64) {
+    let t = Instant::now();
+    let out = Command::new(bin())
+        .args(["history", "rigmon/r1/shaft/nde", "--since", "100000h"])
+        .args(args)
+        .output()
+        .unwrap();
+    (
+        out.status.code().unwrap_or(-1),
+        String::from_utf8_lossy(&out.stdout).into_owned(),
+        String::from_utf8_lossy(&out.stderr).into_owned(),
+        t.elapsed().as_secs_f64(),
+    )
+}
+
+/// Issue 38, F6 and F13. With `[zenoh.acl]` on the node others connect to, an authorised
+/// reader's `rigmon history` got nothing ("is a historian running and reachable?"): the
+/// list let queries and replies through only one way. Now a user listed in `historians`
+/// answers history through it and `readers` receive the answers. A historian given the
+/// list in its own config passed `--check` and then stored nothing; now `--check` refuses
+/// it. And `rigmon history --timeout 2` with nothing listening, or with a password the node
+/// refuses, hung (a client retried forever); now it ends by its timeout saying so.
+#[test]
+fn history_passes_the_acl_and_ends_by_its_timeout() {
+    let tmp = tempfile::tempdir().unwrap();
+    let d = tmp.path();
+    std::fs::write(d.join("users"), "alice:alice-secret\nhist:hist-secret\n").unwrap();
+    for (f, pw) in [
+        ("alice.pw", "alice-secret\n"),
+        ("hist.pw", "hist-secret\n"),
+        ("wrong.pw", "guess\n"),
+    ] {
+        std::fs::write(d.join(f), pw).unwrap();
+    }
+    let ep = "tcp/127.0.0.1:7621";
+    let node_toml = format!(
+        "listen = [\"{ep}\"]\n[auth]\nusers_file = {:?}\n[acl]\nreaders = [\"alice\"]\nhistorians = [\"hist\"]\n",
+        d.join("users")
+    );
+    let node: ZenohSettings = toml::from_str(&node_toml).unwrap();
+    let node = node.open().unwrap();
+    let hist = ZenohSettings {
+        mode: rigmon::vocabulary::ZenohMode::Client,
+        connect: vec![ep.into()],
+        auth: AuthSettings {
+            user: Some("hist".into()),
+            password_file: Some(d.join("hist.pw")),
+            ..Default::default()
+        },
+        ..Default::default()
+    }
+    .open()
+    .unwrap();
+    let reply = a_health_message();
+    let _q = hist
+        .declare_queryable("rigmon/**/health")
+        .callback(move |q| {
+            if q.parameters().get("_time").is_some() {
+                let _ = q.reply("rigmon/r1/shaft/nde/health", reply.clone()).wait();
+            }
+        })
+        .wait()
+        .unwrap();
+    std::thread::sleep(Duration::from_millis(500));
+    let pw = |f: &str| d.join(f).to_string_lossy().into_owned();
+    let (rc, out, err, _) = history(&[
+        "--connect",
+        ep,
+        "--user",
+        "alice",
+        "--password-file",
+        &pw("alice.pw"),
+        "--json",
+        "--timeout",
+        "5",
+    ]);
+    assert_eq!(rc, 0, "alice's history through the ACL: {err}");
+    assert_eq!(out.lines().count(), 1, "{out}");
+    assert!(out.contains("\"rig\":\"r1\""), "{out}");
+
+    // Credentials refused, and nothing listening: ended by --timeout 2, saying so.
+    let (rc, _, err, took) = history(&[
+        "--connect",
+        ep,
+        "--user",
+        "alice",
+        "--password-file",
+        &pw("wrong.pw"),
+        "--timeout",
+        "2",
+    ]);
+    assert!(rc == 1 && took < 6.0, "rc {rc} after {took:.1} s: {err}");
+    assert!(
+        err.contains("nothing reachable at tcp/127.0.0.1:7621"),
+        "{err}"
+    );
+    let (rc, _, err, took) = history(&["--connect", "tcp/127.0.0.1:7622", "--timeout", "2"]);
+    assert!(rc == 1 && took < 6.0, "rc {rc} after {took:.1} s: {err}");
+    assert!(
+        err.contains("nothing reachable at tcp/127.0.0.1:7622"),
+        "{err}"
+    );
+    assert!(!err.contains(".rs:"), "no source paths: {err}");
+
+    // A historian whose own config holds the list would store nothing: refused at --check.
+    std::fs::write(
+        d.join("historian.toml"),
+        format!(
+            "[zenoh]\nmode = \"client\"\nconnect = [\"{ep}\"]\n[zenoh.auth]\nusers_file = \"users\"\nuser = \"hist\"\npassword_file = \"hist.pw\"\n[zenoh.acl]\nreaders = [\"hist\"]\n"
+        ),
+    )
+    .unwrap();
+    let out = Command::new(bin())
+        .args(["historian", "--check", "--config"])
+        .arg(d.join("historian.toml"))
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{err}");
+    assert!(err.contains("would store nothing"), "{err}");
+    drop(hist);
+    drop(node);
+}
