@@ -105,6 +105,11 @@ pub trait Source: Send {
     fn absent_channels(&self) -> Vec<String> {
         Vec::new()
     }
+    /// Its blocks are a series of periodic captures (snapshots): a jump of the sample clock
+    /// is the time between two captures, not lost samples ([`crate::recording::captures`]).
+    fn capture_series(&self) -> bool {
+        false
+    }
 }
 
 /// The `[source]` section of the daemon configuration, tagged by `type`.

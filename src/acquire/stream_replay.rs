@@ -186,6 +186,10 @@ impl Source for StreamReplay {
         self.absent.clone()
     }
 
+    fn capture_series(&self) -> bool {
+        crate::recording::captures::is_capture_series(&self.stream.info().metadata)
+    }
+
     fn run(
         mut self: Box<Self>,
         tx: BlockSender,

@@ -4,7 +4,8 @@
 //! features a served model is given. A window that cannot be computed (NaN samples, no
 //! speed) is an error naming the window; [`analyze_recording`] instead keeps every window as
 //! the daemon would see it (quality flags, no-speed and failed windows included), for scores
-//! that must say what the daemon says.
+//! that must say what the daemon says. A recording made of periodic captures is fed capture by
+//! capture at each one's time ([`crate::recording::captures`]): no window straddles two.
 
 use super::speed_source::SpeedSource;
 use super::stage::{AnalysisStage, WindowAnalysis};
@@ -13,7 +14,7 @@ use crate::config::RigConfig;
 use crate::dsp::features::FeatureWindow;
 use crate::dsp::speed::SpeedTrack;
 use crate::recording::stream::block_of;
-use crate::recording::Recording;
+use crate::recording::{captures, Recording};
 use anyhow::{bail, Context, Result};
 
 /// Samples per block fed to the windower (the result does not depend on it).
@@ -102,18 +103,40 @@ fn each_window(
         );
     }
     let mut windower = Windower::for_rig(&rig.speed, &rig.features, fs, channels.len())?;
-    let mut start = 0;
-    while start < rec.len() {
-        let end = (start + BLOCK).min(rec.len());
-        windower.push(&block_of(rec, start, end));
-        // Every window is complete once its last sample is in: none waits for a later block.
-        while let Some(view) = windower.window() {
-            let a = stage.analyze(&view);
-            drop(view);
-            windower.advance();
-            each(a)?;
+    let spans = captures::spans(rec).map_err(|e| anyhow::anyhow!("{what}: {e}"))?;
+    if captures::is_capture_series(&rec.metadata) {
+        windower = windower.capture_series();
+    }
+    let longest = spans.iter().map(|s| s.end - s.start).max().unwrap_or(0);
+    if longest < n {
+        bail!(
+            "{what}: its {} captures last at most {:.4} s each, shorter than one feature window ({} s); \
+             set features.window_s (and hop_s) to at most the capture's length in the rig file",
+            spans.len(),
+            longest as f64 / fs,
+            rig.features.window_s
+        );
+    }
+    for span in spans {
+        let mut start = span.start;
+        while start < span.end {
+            let end = (start + BLOCK).min(span.end);
+            let mut block = block_of(rec, start, end);
+            // Each capture at its own time: the time between captures is not signal.
+            let shift = span.clock as f64 / fs - span.start as f64 / fs;
+            block.first_sample = span.clock + (start - span.start) as u64;
+            block.tacho_edges.iter_mut().for_each(|t| *t += shift);
+            windower.push(&block);
+            // Every window is complete once its last sample is in: none waits for a later
+            // block.
+            while let Some(view) = windower.window() {
+                let a = stage.analyze(&view);
+                drop(view);
+                windower.advance();
+                each(a)?;
+            }
+            start = end;
         }
-        start = end;
     }
     Ok(())
 }

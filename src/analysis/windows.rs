@@ -2,7 +2,10 @@
 //! windows of `window_s` every `hop_s` (1 s / 0.5 s by default). Gaps on the sample clock
 //! shorter than a window are filled with NaN (so the window is flagged, not silently
 //! shifted); longer gaps restart the windowing. A sample clock that jumps backwards (a looping
-//! replay, a restarted device) is folded onto a monotonic pipeline clock.
+//! replay, a restarted device) is folded onto a monotonic pipeline clock. A series of periodic
+//! captures ([`Windower::capture_series`]) is the exception: there a forward jump is the time
+//! between two captures, not lost samples, so it starts a new capture (windows never straddle
+//! two captures) and is counted in `captures`, never in `samples_lost` or `gaps`.
 //!
 //! An analog tacho is turned into edge times as blocks arrive (a streaming Schmitt trigger),
 //! so every window sees tacho edges on the pipeline clock, whatever form the tacho came in.
@@ -58,6 +61,9 @@ pub struct WindowStats {
     /// Windowing restarted (gap longer than a window, or the clock went backwards).
     pub restarts: u64,
     pub windows: u64,
+    /// Captures started, in a series of periodic captures (0 for a continuous stream).
+    #[serde(default)]
+    pub captures: u64,
 }
 
 /// A complete window, borrowed from the buffers.
@@ -123,6 +129,8 @@ pub struct Windower {
     /// NaN-filled ranges (pipeline clock, [from, to)) still inside the buffers.
     holes: VecDeque<(u64, u64)>,
     stats: WindowStats,
+    /// The stream is a series of captures: a forward jump starts the next capture.
+    captures: bool,
 }
 
 impl Windower {
@@ -143,7 +151,15 @@ impl Windower {
             offset: 0,
             holes: VecDeque::new(),
             stats: WindowStats::default(),
+            captures: false,
         }
+    }
+
+    /// Read the stream as a series of periodic captures: a forward jump of the sample clock
+    /// is the time between two captures (a new capture, windowing restarted, nothing lost).
+    pub fn capture_series(mut self) -> Self {
+        self.captures = true;
+        self
     }
 
     /// The windower a rig asks for: windows and hop from `[features]`, the analog tacho's
@@ -186,11 +202,10 @@ impl Windower {
         let mut lost = 0;
         let pos = (block.first_sample as i128 + self.offset).max(0) as u64;
         let pos = match self.next {
-            None => {
-                self.start = pos;
-                pos
-            }
+            None => self.start_capture(pos),
             Some(next) if pos == next => pos,
+            // The next capture: no window may hold samples of two captures.
+            Some(next) if self.captures && pos > next => self.start_capture(pos),
             Some(next) if pos > next && pos - next < self.spec.len as u64 => {
                 // Short gap: NaN-fill so the affected windows carry a dropout flag.
                 let gap = pos - next;
@@ -250,6 +265,14 @@ impl Windower {
         }
         self.next = Some(pos + n as u64);
         lost
+    }
+
+    /// Start windowing afresh at `pos`: the first block, or the next capture of a series.
+    fn start_capture(&mut self, pos: u64) -> u64 {
+        self.stats.captures += u64::from(self.captures);
+        self.clear();
+        self.start = pos;
+        pos
     }
 
     fn clear(&mut self) {
@@ -443,6 +466,42 @@ rpm = 600.0"#,
             "edges follow the folded clock: {e:?}"
         );
         assert_eq!(w.stats().restarts, 2);
+    }
+
+    #[test]
+    fn captures_restart_the_windows_and_lose_nothing() {
+        let spec = WindowSpec::new(100.0, 0.5, 0.25).unwrap();
+        let mut w = Windower::new(spec, 2, None).capture_series();
+        w.push(&block(0, 80, 1.0));
+        let mut firsts = Vec::new();
+        while let Some(v) = w.window() {
+            firsts.push(v.first_sample);
+            w.advance();
+        }
+        // 10 s later, the next capture: a short jump would be NaN-filled in a stream.
+        assert_eq!(w.push(&block(1000, 80, 2.0)), 0);
+        while let Some(v) = w.window() {
+            assert!(
+                v.channels[0].iter().all(|&x| x == 2.0),
+                "straddles two captures"
+            );
+            assert_eq!(v.lost_samples, 0);
+            firsts.push(v.first_sample);
+            w.advance();
+        }
+        // And a capture 70 samples after the last one ended: shorter than a window.
+        w.push(&block(1150, 80, 3.0));
+        while let Some(v) = w.window() {
+            assert!(
+                v.channels[0].iter().all(|&x| x == 3.0),
+                "straddles two captures"
+            );
+            firsts.push(v.first_sample);
+            w.advance();
+        }
+        assert_eq!(firsts, vec![0, 25, 1000, 1025, 1150, 1175]);
+        let s = w.stats();
+        assert_eq!((s.samples_lost, s.gaps, s.captures), (0, 0, 3));
     }
 
     #[test]

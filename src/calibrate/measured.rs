@@ -149,6 +149,10 @@ pub fn split_needs_s(rec: &Recording, rig: &RigConfig) -> Result<Option<f64>> {
 
 /// Keep samples in [t0, t0 + seconds) of every channel and the analog tacho.
 pub fn cut(rec: &mut Recording, t0: f64, seconds: f64) {
+    // A series of captures: whole captures by their time, never a piece of one.
+    if crate::recording::captures::cut(rec, t0, seconds) {
+        return;
+    }
     let n = rec.len();
     let a = ((t0 * rec.sample_rate) as usize).min(n);
     let b = (a + (seconds * rec.sample_rate).clamp(0.0, n as f64) as usize).min(n);

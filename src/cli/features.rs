@@ -71,11 +71,13 @@ fn features(args: Args) -> Result<()> {
     if !args.json {
         writeln!(
             out,
-            "{:>8} {:>8} {:>8} {:>9}  {:<30} quality",
+            "{:>8} {:>8} {:>8} {:>9} {:>6} {:>9}  {:<30} quality",
             "t_start",
             "t_end",
             "rpm",
             "source",
+            "revs",
+            "res(ord)",
             format!("top bins ({classifier})")
         )?;
     }
@@ -106,11 +108,13 @@ fn features(args: Args) -> Result<()> {
             let flags = w.quality.flags();
             writeln!(
                 out,
-                "{:>8.3} {:>8.3} {:>8.1} {:>9}  {:<30} {}",
+                "{:>8.3} {:>8.3} {:>8.1} {:>9} {:>6.2} {:>9.3}  {:<30} {}",
                 w.t_start,
                 w.t_end,
                 w.rpm,
                 w.speed_source,
+                w.quality.revolutions,
+                w.quality.order_resolution,
                 top.join(" "),
                 if flags.is_empty() {
                     "ok".to_string()

@@ -107,8 +107,7 @@ fn inspect(args: Args) -> Result<()> {
         .unwrap_or((3.0 * fo.bpfi + 1.5).ceil())
         .min(rig.features.max_order);
     let lowpass = (0.0, rig.features.lowpass_hz.min(rec.sample_rate / 2.0));
-    let spec = whole_recording_band(&ch.samples, rec.sample_rate, &speed, lowpass, max_order)
-        .with_context(what)?;
+    let spec = spectrum(&rec, &ch.samples, &speed, lowpass, max_order).with_context(what)?;
     let settings = KurtogramSettings {
         levels: args.kurtogram_levels,
         max_hz: args.kurtogram_max_hz,
@@ -180,6 +179,7 @@ fn inspect(args: Args) -> Result<()> {
             speed.source(),
             spec.order_step
         )?;
+        write!(out, "{}", series_note(&rec, &spec))?;
         writeln!(
             out,
             "fault orders: FTF {:.4}  BPFO {:.4}  BPFI {:.4}  2xBSF {:.4}",
@@ -296,6 +296,65 @@ fn inspect(args: Args) -> Result<()> {
 }
 
 /// Shaft harmonics up to `max_order` and the first three harmonics of FTF, BPFO, BPFI, 2xBSF.
+/// A line saying a capture series' spectrum is the mean of its captures' (empty otherwise).
+fn series_note(rec: &crate::recording::Recording, spec: &WholeSpectrum) -> String {
+    if !crate::recording::captures::is_capture_series(&rec.metadata) {
+        return String::new();
+    }
+    format!(
+        "a series of captures: the RMS mean of each capture's spectrum, {:.1} revolutions each\n",
+        spec.revolutions
+    )
+}
+
+/// The envelope order spectrum of a channel over the whole recording; for a series of
+/// captures, the RMS mean of each capture's spectrum (a spectrum never spans two captures,
+/// and its resolution is one capture's: 1 / its revolutions).
+fn spectrum(
+    rec: &crate::recording::Recording,
+    samples: &[f32],
+    speed: &SpeedTrack,
+    band: (f64, f64),
+    max_order: f64,
+) -> Result<WholeSpectrum> {
+    use crate::recording::captures;
+    let fs = rec.sample_rate;
+    if !captures::is_capture_series(&rec.metadata) {
+        return whole_recording_band(samples, fs, speed, band, max_order);
+    }
+    let spans = captures::spans(rec).map_err(anyhow::Error::msg)?;
+    let shortest = spans.iter().map(|s| s.end - s.start).min().unwrap_or(0);
+    let mut mean: Option<WholeSpectrum> = None;
+    for s in &spans {
+        let one = whole_recording_band(
+            &samples[s.start..s.start + shortest],
+            fs,
+            speed,
+            band,
+            max_order,
+        )
+        .with_context(|| format!("the capture at {:.1} s", s.clock as f64 / fs))?;
+        match &mut mean {
+            None => {
+                let mut m = one;
+                m.amplitude.iter_mut().for_each(|a| *a *= *a);
+                mean = Some(m);
+            }
+            Some(m) => {
+                for (a, b) in m.amplitude.iter_mut().zip(&one.amplitude) {
+                    *a += b * b;
+                }
+                m.rpm += one.rpm;
+            }
+        }
+    }
+    let mut m = mean.context("no capture")?;
+    let n = spans.len() as f64;
+    m.amplitude.iter_mut().for_each(|a| *a = (*a / n).sqrt());
+    m.rpm /= n;
+    Ok(m)
+}
+
 fn fault_markers(rig: &RigConfig, max_order: f64) -> Vec<Marker> {
     let fo = rig.bearing.fault_orders();
     let mut markers = Vec::new();

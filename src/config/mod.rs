@@ -74,6 +74,12 @@ pub struct Acquisition {
     /// in Hz.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub mat_rate_variable: Option<String>,
+    /// A folder of periodic captures (snapshots) read as one recording: seconds from the
+    /// start of one capture to the start of the next. FEMTO-style CSV captures carry their
+    /// own clock and need it only where that clock jumps (else their median step is used);
+    /// WAV/MAT/CSV captures without a clock need it (`importers::snapshots`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub capture_interval_s: Option<f64>,
 }
 
 /// What a channel measures.
@@ -184,11 +190,7 @@ impl RigConfig {
         if self.machine.id.is_empty() || self.machine.id.contains(['/', '*', '$', '#', '?', ' ']) {
             bail!("machine.id = {:?}: must be non-empty and free of / * $ # ? and spaces (it becomes a Zenoh key)", self.machine.id);
         }
-        if let Some(fs) = self.acquisition.sample_rate_hz {
-            if !(fs.is_finite() && fs > 0.0) {
-                bail!("acquisition.sample_rate_hz = {fs}: must be a positive number");
-            }
-        }
+        self.check_acquisition()?;
         if self.acceleration_channels().next().is_none() {
             bail!("channels: no channel of kind \"acceleration\"; add at least one");
         }
@@ -247,6 +249,23 @@ impl RigConfig {
     /// The MAT layout keys (`mat_variable`, `mat_column`, `mat_rate_variable`): well-formed
     /// variable paths, columns from 1, no variable read twice, and once any channel names its
     /// variable, the classifier channel must too.
+    /// `[acquisition]`: a positive sample rate and capture interval, when given.
+    fn check_acquisition(&self) -> Result<()> {
+        if let Some(dt) = self.acquisition.capture_interval_s {
+            if !(dt.is_finite() && dt > 0.0) {
+                bail!(
+                    "acquisition.capture_interval_s = {dt}: must be a positive number of seconds"
+                );
+            }
+        }
+        if let Some(fs) = self.acquisition.sample_rate_hz {
+            if !(fs.is_finite() && fs > 0.0) {
+                bail!("acquisition.sample_rate_hz = {fs}: must be a positive number");
+            }
+        }
+        Ok(())
+    }
+
     fn validate_mat_keys(&self) -> Result<()> {
         if let Some(v) = &self.acquisition.mat_rate_variable {
             check_mat_path("acquisition.mat_rate_variable", v)?;

@@ -22,6 +22,8 @@ pub struct SourceInfo {
     pub nominal_rpm: Option<f64>,
     /// Its blocks carry an analog tacho.
     pub analog_tacho: bool,
+    /// Its blocks are a series of periodic captures ([`Source::capture_series`]).
+    pub capture_series: bool,
 }
 
 impl SourceInfo {
@@ -32,6 +34,7 @@ impl SourceInfo {
             absent: source.absent_channels(),
             nominal_rpm: source.nominal_rpm(),
             analog_tacho: source.analog_tacho(),
+            capture_series: source.capture_series(),
         }
     }
 }

@@ -181,6 +181,7 @@ impl Pipeline {
         self.pipe.samples_lost = ws.samples_lost;
         self.pipe.gaps = ws.gaps;
         self.pipe.restarts = ws.restarts;
+        self.pipe.captures = ws.captures;
         self.pipe.window_errors = self.analyzer.errors;
     }
 
@@ -394,11 +395,14 @@ fn analysis(
         source.nominal_rpm,
         start_ns,
     )?;
-    let windower = Windower::for_rig(
+    let mut windower = Windower::for_rig(
         &rig.speed,
         &rig.features,
         fs,
         rig.acceleration_channels().count(),
     )?;
+    if source.capture_series {
+        windower = windower.capture_series();
+    }
     Ok((analyzer, windower))
 }

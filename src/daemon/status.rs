@@ -132,6 +132,10 @@ pub struct PipelineStatus {
     pub samples_lost: u64,
     pub gaps: u64,
     pub restarts: u64,
+    /// Captures started, when the source is a series of periodic captures (the time between
+    /// them is neither lost nor a gap).
+    #[serde(default)]
+    pub captures: u64,
     /// Windows whose features or inference failed (counted, skipped).
     pub window_errors: u64,
     /// True while processing is behind real time (the source is dropping or the lag grows).

@@ -17,9 +17,16 @@ pub struct Summary {
     pub states: BTreeMap<String, u64>,
     /// Windows per window state.
     pub window_states: BTreeMap<String, u64>,
+    /// The finest and the coarsest order resolution of the windows' envelope order spectra
+    /// (1 / revolutions in a window), orders.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub order_resolution: Option<[f64; 2]>,
     pub final_state: Option<String>,
     pub samples_in: u64,
     pub samples_lost: u64,
+    /// Captures read, when the source is a series of periodic captures (0 otherwise).
+    #[serde(skip_serializing_if = "is_zero")]
+    pub captures: u64,
     pub source_samples_lost: u64,
     pub bad_frames: u64,
     pub window_errors: u64,
@@ -42,6 +49,10 @@ pub struct Summary {
     pub file_losses: Option<crate::recording::LossReport>,
 }
 
+fn is_zero(n: &u64) -> bool {
+    *n == 0
+}
+
 /// Windows counted per state while the daemon runs.
 #[derive(Debug, Clone, Default)]
 pub struct StateCounts {
@@ -49,6 +60,8 @@ pub struct StateCounts {
     pub states: BTreeMap<String, u64>,
     /// Per window state.
     pub window_states: BTreeMap<String, u64>,
+    /// The finest and the coarsest order resolution a window had (1 / its revolutions).
+    pub order_resolution: Option<[f64; 2]>,
 }
 
 impl StateCounts {
@@ -58,6 +71,11 @@ impl StateCounts {
             .window_states
             .entry(msg.window_state.clone())
             .or_default() += 1;
+        if let Some(r) = msg.order_resolution() {
+            let [lo, hi] = self.order_resolution.get_or_insert([r, r]);
+            *lo = lo.min(r);
+            *hi = hi.max(r);
+        }
     }
 }
 
@@ -77,9 +95,11 @@ impl Summary {
             windows: pipe.windows,
             states: counts.states,
             window_states: counts.window_states,
+            order_resolution: counts.order_resolution,
             final_state: last.state.clone(),
             samples_in: pipe.samples_in,
             samples_lost: pipe.samples_lost,
+            captures: pipe.captures,
             source_samples_lost: src.samples_lost,
             bad_frames: src.bad_frames,
             window_errors: pipe.window_errors,
@@ -125,6 +145,17 @@ impl Summary {
             self.zenoh_dropped,
             self.record_dropped
         );
+        if let Some([lo, hi]) = self.order_resolution {
+            s.push_str(&format!(
+                "\n  order resolution: {lo:.3}-{hi:.3} orders (1 / revolutions per window; lines closer than that are not told apart)"
+            ));
+        }
+        if self.captures > 0 {
+            s.push_str(&format!(
+                "\n  captures: {} (the time between them is not signal: neither lost nor a gap)",
+                self.captures
+            ));
+        }
         if self.reloads + self.reloads_rejected > 0 {
             s.push_str(&format!(
                 "\n  reloads: {} applied, {} rejected",

@@ -182,6 +182,7 @@ impl FeaturePipeline {
         quality.speed_out_of_range = info.revolutions < 1.0 / self.bin_width
             || self.max_order * info.f_max > top_hz
             || self.rpm_limits.is_some_and(|(lo, hi)| rpm < lo || rpm > hi);
+        quality.set_resolution(info.revolutions);
         let count = info.count;
         if self.angle.len() < count {
             self.angle.resize(count + count / 4, 0.0);

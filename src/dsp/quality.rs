@@ -42,9 +42,26 @@ pub struct Quality {
     /// is still classified; the health message names the rival speed).
     #[serde(skip_serializing_if = "std::ops::Not::not")]
     pub speed_ambiguous: bool,
+    /// Not a flag: the shaft revolutions the window held and the order resolution they give
+    /// (1 / revolutions, orders): a 0.1 s capture at 1800 rpm holds 3 revolutions, so lines
+    /// closer than 1/3 order blur into one (0 when the window was not order-tracked).
+    #[serde(skip_serializing_if = "is_zero")]
+    pub revolutions: f32,
+    #[serde(skip_serializing_if = "is_zero")]
+    pub order_resolution: f32,
+}
+
+fn is_zero(x: &f32) -> bool {
+    *x == 0.0
 }
 
 impl Quality {
+    /// Record the revolutions a window held and the order resolution they give.
+    pub fn set_resolution(&mut self, revolutions: f64) {
+        self.revolutions = revolutions as f32;
+        self.order_resolution = (1.0 / revolutions) as f32;
+    }
+
     /// True when no flag is raised.
     pub fn is_clean(&self) -> bool {
         self.flags().is_empty()

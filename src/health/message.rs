@@ -222,10 +222,23 @@ impl HealthMessage {
         } else {
             let _ = write!(s, "  {}", self.quality.flags.join(","));
         }
+        if let Some(r) = self.order_resolution() {
+            let _ = write!(s, "  res {r:.2} ord");
+        }
         if !self.model.foreign.is_empty() {
             s.push_str("  FOREIGN MODEL");
         }
         s
+    }
+
+    /// The order resolution the window's envelope order spectrum had (1 / revolutions in the
+    /// window), from the feature pipeline's report, when the window was order-tracked.
+    pub fn order_resolution(&self) -> Option<f64> {
+        self.quality
+            .dsp
+            .get("order_resolution")
+            .and_then(serde_json::Value::as_f64)
+            .filter(|r| *r > 0.0)
     }
 
     /// The Zenoh key suffix-free address `<rig>/<asset>/<point>`.

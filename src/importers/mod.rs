@@ -1,7 +1,9 @@
 //! Importers: read recordings from `.mat` (CWRU, MFPT or any layout the rig file maps, see
 //! [`mat_layout`]), WAV, CSV and rigmon MCAP into a [`Recording`](crate::recording::Recording).
 //!
-//! [`load`] picks the format by content (magic bytes) and then by extension. Every importer
+//! [`load`] picks the format by content (magic bytes) and then by extension; a folder is a
+//! series of periodic captures ([`snapshots`]), and so is a rigmon MCAP file written from one.
+//! Every importer
 //! maps the file's channels onto the rig file's channels, applies sensitivities, settles the
 //! sample rate by one rule ([`resolve_sample_rate`]) and refuses non-finite samples, naming the
 //! file, the channel and the sample index. Required data (the samples, whatever fixes the
@@ -14,13 +16,14 @@ pub mod mat5;
 pub(crate) mod mat_layout;
 pub mod memory;
 pub mod mfpt;
+pub mod snapshots;
 pub mod wav;
 
 use crate::config::{Acquisition, RigConfig};
 use crate::recording::mcap::file_writer::default_block_len;
 use crate::recording::mcap::{read_recording_with_losses, RecordingReader};
 use crate::recording::stream::{BlockStream, McapStream, MemoryStream};
-use crate::recording::{Losses, NominalSpeed, Recording, Tacho};
+use crate::recording::{captures, Losses, NominalSpeed, Recording, Tacho};
 use anyhow::{bail, Context, Result};
 use std::path::Path;
 
@@ -142,6 +145,11 @@ pub fn sniff(path: &Path) -> Result<(Format, u64)> {
 /// ([`load`]). Non-MCAP streams carry `rig_id` and `rig_config` like [`load`]'s recordings.
 pub fn open(path: &Path, rig: &RigConfig, opts: &ImportOptions) -> Result<Box<dyn BlockStream>> {
     check_options(opts)?;
+    if path.is_dir() {
+        let s = snapshots::open(path, rig, opts)?;
+        warn_notes(path, &s.info().provenance.notes);
+        return Ok(Box::new(s));
+    }
     let (format, _) = sniff(path)?;
     match format {
         Format::Mcap => {
@@ -150,6 +158,9 @@ pub fn open(path: &Path, rig: &RigConfig, opts: &ImportOptions) -> Result<Box<dy
             let mut notes = Vec::new();
             apply_overrides(&mut info.sample_rate, &mut info.rpm, opts, &mut notes);
             info.provenance.notes.extend(notes);
+            if captures::is_capture_series(&s.info().metadata) {
+                return Ok(Box::new(snapshots::stream::RecordedSeries(Box::new(s))));
+            }
             Ok(Box::new(s))
         }
         Format::Wav => {
@@ -204,8 +215,19 @@ pub fn load_with_losses(
     opts: &ImportOptions,
 ) -> Result<(Recording, Losses)> {
     check_options(opts)?;
+    if path.is_dir() {
+        let mut rec = snapshots::load(path, rig, opts)?;
+        carry_nominal_rpm(&mut rec, opts);
+        warn_notes(path, &rec.provenance.notes);
+        return Ok((rec, Losses::default()));
+    }
     let (format, size) = sniff(path)?;
     memory::check_whole_read(path, format, size, &memory::available())?;
+    if format == Format::Mcap {
+        if let Some(series) = snapshots::stream::recorded_series(path, opts)? {
+            return Ok(series);
+        }
+    }
     let mut rec = match format {
         Format::Mat => mat_layout::load(path, rig, opts)?,
         Format::Wav => wav::load(path, rig, opts)?,
@@ -243,13 +265,18 @@ pub fn load_with_losses(
     if opts.rpm.is_none() {
         check_stored_speed(&mut rec, rig);
     }
-    for note in rec.provenance.notes.iter() {
+    warn_notes(path, &rec.provenance.notes);
+    stamp_rig(&mut rec.metadata, rig);
+    Ok((rec, Losses::default()))
+}
+
+/// Log the provenance notes that warn.
+fn warn_notes(path: &Path, notes: &[String]) {
+    for note in notes {
         if let Some(w) = note.strip_prefix(WARNING) {
             tracing::warn!("{}: {w}", path.display());
         }
     }
-    stamp_rig(&mut rec.metadata, rig);
-    Ok((rec, Losses::default()))
 }
 
 /// Put a declared nominal speed on the recording as a hint (not as its speed) and say so.

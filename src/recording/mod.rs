@@ -4,9 +4,11 @@
 //!
 //! The MCAP layout that stores a recording on disk is in [`mcap`]; a block of samples
 //! as it streams from a source is a [`SampleBlock`] ([`block`]); what a reader could not
-//! deliver from a damaged or cut file is a [`Losses`] report ([`losses`]).
+//! deliver from a damaged or cut file is a [`Losses`] report ([`losses`]); a recording made of
+//! periodic captures says where each starts ([`captures`]).
 
 pub mod block;
+pub mod captures;
 pub mod losses;
 pub mod mcap;
 pub mod stream;

@@ -13,15 +13,8 @@ use rayon::prelude::*;
 
 /// Load one recording and compute its classifier features.
 pub fn featurise(entry: &ManifestEntry, rig: &RigConfig) -> Result<RecordingFeatures> {
-    let bytes = std::fs::read(&entry.path).with_context(|| {
-        format!(
-            "manifest line {}: cannot read {}",
-            entry.line,
-            entry.path.display()
-        )
-    })?;
-    let sha256 = crate::model::digest::sha256_hex(&bytes);
-    drop(bytes);
+    let sha256 = crate::model::digest::sha256_of_path(&entry.path)
+        .with_context(|| format!("manifest line {}", entry.line))?;
     let rec = importers::load(&entry.path, rig, &entry.import_options()).with_context(|| {
         format!(
             "manifest line {}: loading {}",

@@ -74,9 +74,8 @@ impl ScoredRecording {
 /// Load one manifest row and cut it into the daemon's windows (those inside its span).
 pub fn analyze_entry(entry: &ManifestEntry, rig: &RigConfig) -> Result<ScoredRecording> {
     let at = || format!("manifest line {}: {}", entry.line, entry.path.display());
-    let bytes = std::fs::read(&entry.path).with_context(|| format!("{}: cannot read", at()))?;
-    let sha256 = crate::model::digest::sha256_hex(&bytes);
-    drop(bytes);
+    let sha256 =
+        crate::model::digest::sha256_of_path(&entry.path).with_context(|| at().to_string())?;
     let rec = importers::load(&entry.path, rig, &entry.import_options())
         .with_context(|| format!("{}: loading", at()))?;
     let classifier = rig

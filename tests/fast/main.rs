@@ -28,4 +28,5 @@ mod novel_faults;
 mod opendaq;
 mod real_files;
 mod sim;
+mod snapshots;
 mod speed_free;
