@@ -27,6 +27,8 @@ enum Command {
     Features(cli::features::Args),
     /// Draw a recording's envelope order spectrum with fault-order markers (PNG).
     Inspect(cli::inspect::Args),
+    /// RMS per window over a recording's life and the RMS 3-sigma rule's alarm (PNG).
+    Trend(cli::trend::Args),
     /// Simulate the rig (rotor + ball bearing + defects) to MCAP or WAV.
     Simulate(cli::simulate::Args),
     /// Generate a labelled simulated dataset from a plan.
@@ -81,6 +83,7 @@ fn main() -> std::process::ExitCode {
         Command::Repair(a) => cli::repair::run(a),
         Command::Features(a) => cli::features::run(a),
         Command::Inspect(a) => cli::inspect::run(a),
+        Command::Trend(a) => cli::trend::run(a),
         Command::Simulate(a) => cli::simulate::run(a),
         Command::Dataset(a) => cli::dataset::run(a),
         Command::Calibrate(a) => cli::calibrate::run(a),

@@ -302,8 +302,11 @@ fn series_note(rec: &crate::recording::Recording, spec: &WholeSpectrum) -> Strin
         return String::new();
     }
     format!(
-        "a series of captures: the RMS mean of each capture's spectrum, {:.1} revolutions each\n",
-        spec.revolutions
+        "a series of captures: the RMS mean of each capture's spectrum, {:.1} revolutions each: \
+         resolution {:.3} orders (lines {:.4} apart are interpolated)\n",
+        spec.revolutions,
+        1.0 / spec.revolutions,
+        spec.order_step
     )
 }
 

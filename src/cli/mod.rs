@@ -24,4 +24,5 @@ pub mod replay;
 pub mod run;
 pub mod simulate;
 pub mod train;
+pub mod trend;
 pub mod watch;

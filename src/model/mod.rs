@@ -6,7 +6,8 @@
 //! ([`baseline`]), and the fault-family evidence ([`evidence`]) and the impulsiveness
 //! ([`impulsiveness`]) against that baseline. The
 //! envelope-order rule every model is compared
-//! with ([`rule`]), and its statistic under kurtogram-chosen envelope bands ([`band_ratios`]).
+//! with ([`rule`]), and its statistic under kurtogram-chosen envelope bands ([`band_ratios`]);
+//! the classic RMS 3-sigma early-warning rule ([`rms_rule`]).
 
 pub mod align;
 pub(crate) mod band_ratios;
@@ -22,6 +23,7 @@ pub mod mlp;
 pub mod novelty;
 pub mod onnx;
 pub mod preprocess;
+pub mod rms_rule;
 pub mod rule;
 
 pub use meta::ModelMeta;

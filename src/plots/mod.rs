@@ -3,6 +3,7 @@
 pub(crate) mod confusion;
 pub(crate) mod embedding;
 pub(crate) mod kurtogram;
+pub(crate) mod trend;
 
 use anyhow::{bail, Result};
 use std::sync::OnceLock;

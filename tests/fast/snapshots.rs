@@ -246,3 +246,35 @@ fn replay_and_import_take_the_folder_and_count_captures_not_losses() {
     assert_eq!(wins.len(), 8);
     assert!((wins[7].t_start - 70.0).abs() < 1e-6);
 }
+
+#[test]
+fn trend_draws_the_rms_and_the_rules_alarm_over_a_folder() {
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path().join("Bearing1_1");
+    femto_folder(&dir, 12, 99);
+    let png = tmp.path().join("trend.png");
+    let (d, p) = (dir.to_str().unwrap(), png.to_str().unwrap());
+    let args = [
+        "trend",
+        d,
+        "--rig",
+        "config/femto.toml",
+        "--baseline-fraction",
+        "0.25",
+    ];
+    let (ok, out, err) = rigmon_cmd(&[&args[..], &["--png", p, "--json"]].concat());
+    assert!(ok, "{err}");
+    let v: serde_json::Value = serde_json::from_str(out.trim()).unwrap();
+    // Levels 1..12 g: a baseline of 3 windows, mean + 3 sd of their RMS crossed for good later.
+    assert_eq!(v["windows"], 12);
+    assert_eq!(v["rule"]["baseline_windows"], 3);
+    let alarm = v["alarm_s"].as_f64().unwrap();
+    assert!(alarm > 20.0 && alarm < 110.0, "{v}");
+    assert!(
+        (v["lead_s"].as_f64().unwrap() - (110.1 - alarm)).abs() < 1e-6,
+        "{v}"
+    );
+    assert!(std::fs::metadata(&png).unwrap().len() > 1000);
+    let (ok, out, _) = rigmon_cmd(&args);
+    assert!(ok && out.contains("RMS 3-sigma rule: alarm at"), "{out}");
+}
