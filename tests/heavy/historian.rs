@@ -1309,3 +1309,209 @@ fn every_health_field_survives_the_historian_and_a_version_1_database_is_upgrade
     );
     drop(router);
 }
+
+/// Issue 38, F1, F2, F3, F11, F12: the historian trusted every field of every health
+/// message. One window dated 2400 became the point's state now (`fleet_now` said `healthy`
+/// while the daemon said otherwise) and made a partition for its day; seq 2^64-1 wrapped
+/// the gap tracker into a recovery storm; a machine named `c3*bad` broke `rigmon history`
+/// for every point ("point key ...: Invalid K... at <source path>"); any publisher could
+/// write for any machine. Now each is refused and counted by reason in the status, the
+/// rows of the honest windows are all there and nothing else is, and history, fleet_now
+/// and `rigmon alarms --point` (its `_` no LIKE wildcard) answer as they should.
+#[test]
+fn hostile_health_messages_are_refused_counted_and_break_nothing() {
+    let tmp = tempfile::tempdir().unwrap();
+    let d = tmp.path();
+    let pg = Postgres::start();
+    {
+        let (rt, c) = pg.client("postgres");
+        rt.block_on(c.batch_execute("CREATE DATABASE fleet"))
+            .unwrap();
+    }
+    let router_ep = format!("tcp/127.0.0.1:{}", free_port());
+    let router = ZenohSettings {
+        mode: rigmon::vocabulary::ZenohMode::Router,
+        listen: vec![router_ep.clone()],
+        ..Default::default()
+    }
+    .open()
+    .unwrap();
+    let client = ZenohSettings {
+        mode: rigmon::vocabulary::ZenohMode::Client,
+        connect: vec![router_ep.clone()],
+        ..Default::default()
+    }
+    .open()
+    .unwrap();
+    let status: Arc<Mutex<Option<HistorianStatus>>> = Arc::default();
+    let s2 = status.clone();
+    let _status_sub = client
+        .declare_subscriber("rigmon/@historian/test/status")
+        .callback(move |s| {
+            *s2.lock().unwrap() = serde_json::from_slice(&s.payload().to_bytes()).ok()
+        })
+        .wait()
+        .unwrap();
+    let st = || status.lock().unwrap().clone();
+    let _hist = historian(d, &pg, &router_ep);
+    wait_until(
+        "the historian's status with its database connected",
+        Duration::from_secs(60),
+        || st().is_some_and(|s| s.database.connected),
+    );
+    std::thread::sleep(Duration::from_secs(1));
+
+    let now_ns = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .unwrap()
+        .as_nanos() as u64;
+    let run_ns = now_ns - 60_000_000_000;
+    // A window of `rig` numbered `seq`, ending `end_s` into the run at `end_ns`.
+    let window = |rig: &str, seq: u64, end_ns: u64, end_s: f64| -> Vec<u8> {
+        let mut m = every_field_set(run_ns, seq.min(1_000));
+        m.rig = rig.into();
+        m.seq = seq;
+        m.window.end_s = end_s;
+        m.window.start_s = end_s - 1.0;
+        m.window.end_ns = end_ns;
+        m.window.start_ns = end_ns - 1_000_000_000;
+        m.publish_time_ns = now_ns;
+        serde_json::to_vec(&m).unwrap()
+    };
+    let at = |seq: u64| run_ns + (2 + seq) * 1_000_000_000;
+    let end_s = |seq: u64| 2.0 + seq as f64;
+    let put = |key: &str, payload: Vec<u8>| {
+        client.put(key, payload).wait().unwrap();
+        std::thread::sleep(Duration::from_millis(30));
+    };
+    let ok_key = "rigmon/h-ok/shaft/nde/health";
+    for seq in 1..=3 {
+        put(ok_key, window("h-ok", seq, at(seq), end_s(seq)));
+    }
+    put(ok_key, window("h*bad", 1, at(1), end_s(1))); // F3: refused (name)
+    put(
+        "rigmon/h-spoof/shaft/nde/health",
+        window("h-ok", 4, at(4), end_s(4)),
+    ); // F11 (key)
+    let mut y2400 = every_field_set(run_ns, 4);
+    y2400.rig = "h-ok".into();
+    y2400.state = "healthy".into();
+    y2400.window.end_ns = (430.0 * 365.25 * 86400e9) as u64;
+    y2400.window.start_ns = y2400.window.end_ns - 1_000_000_000;
+    put(ok_key, serde_json::to_vec(&y2400).unwrap()); // F1, F12 (future)
+    put(ok_key, vec![b' '; 2 << 20]); // F8: 2 MB, refused before it is buffered
+    for seq in 5..=6 {
+        put(ok_key, window("h-ok", seq, at(seq), end_s(seq)));
+    }
+    let seq_key = "rigmon/h-seq/shaft/nde/health";
+    for seq in [1, 2, 3, u64::MAX, 4, 5, 6, 7, 8] {
+        let k = if seq == u64::MAX { 3 } else { seq };
+        put(
+            seq_key,
+            window("h-seq", seq, at(k) + 500_000_000, end_s(k) + 0.5),
+        ); // F2 (seq)
+    }
+    put(
+        "rigmon/h-two/shaft/nde/health",
+        window("h-two", 1, at(1), end_s(1)),
+    );
+
+    let (rt, db) = pg.client("fleet");
+    let count = |sql: &str| -> i64 { rt.block_on(db.query_one(sql, &[])).unwrap().get(0) };
+    wait_until(
+        "the 14 honest windows in the database",
+        Duration::from_secs(30),
+        || count("SELECT count(*) FROM windows") >= 14,
+    );
+    wait_until(
+        "the refusals counted in the status",
+        Duration::from_secs(20),
+        || st().is_some_and(|s| s.received.refused.total() >= 5 && s.recovery.lost >= 1),
+    );
+    let s = st().unwrap();
+    let r = s.received.refused;
+    assert_eq!(
+        (r.key, r.name, r.future, r.seq, r.too_large),
+        (1, 1, 1, 1, 1),
+        "{s:?}"
+    );
+    assert_eq!(count("SELECT count(*) FROM windows"), 14);
+    assert_eq!(
+        count("SELECT count(*) FROM windows w JOIN points p USING (point_id) WHERE p.key = 'h-seq/shaft/nde'"),
+        8
+    );
+    assert_eq!(
+        count("SELECT count(*) FROM points WHERE key NOT IN ('h-ok/shaft/nde', 'h-seq/shaft/nde', 'h-two/shaft/nde')"),
+        0,
+        "no point for the refused names"
+    );
+    // F2: the one real gap (h-ok's seq 4) asked for once, no storm, no wrapped counter.
+    let rec = s.recovery;
+    assert!(
+        rec.gaps == 1 && rec.requested == 1 && rec.lost == 1,
+        "{rec:?}"
+    );
+    // F1: the state now is the newest honest window's; F12: no partition beyond today.
+    let now_row = rt
+        .block_on(db.query_one(
+            "SELECT state, time < now() + interval '1 day' FROM fleet_now WHERE machine = 'h-ok'",
+            &[],
+        ))
+        .unwrap();
+    assert_eq!(
+        (now_row.get::<_, String>(0), now_row.get::<_, bool>(1)),
+        ("inner_race".to_string(), true)
+    );
+    assert_eq!(
+        count(
+            "SELECT count(*) FROM pg_inherits i JOIN pg_class c ON c.oid = i.inhrelid
+             JOIN pg_class p ON p.oid = i.inhparent
+             WHERE p.relname = 'windows' AND c.relname > 'windows_p2100'"
+        ),
+        0
+    );
+
+    // F3: a bad key already in the database (an older historian stored it) breaks nothing.
+    rt.block_on(db.execute(
+        "UPDATE points SET key = 'h*two/shaft/nde' WHERE key = 'h-two/shaft/nde'",
+        &[],
+    ))
+    .unwrap();
+    for (key, n) in [("rigmon/h-ok/shaft/nde", 5), ("rigmon/**", 13)] {
+        let out = rigmon(
+            &[
+                "history",
+                key,
+                "--since",
+                "2h",
+                "--json",
+                "--timeout",
+                "10",
+                "--connect",
+                &router_ep,
+            ],
+            &[],
+        );
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(out.status.success(), "history {key}: {err}");
+        assert_eq!(
+            String::from_utf8_lossy(&out.stdout).lines().count(),
+            n,
+            "{key}"
+        );
+        assert!(!err.contains(".rs:"), "{err}");
+    }
+    // SQL: `_` in a point pattern is itself, not LIKE's any character.
+    let alarms = |pattern: &str| -> usize {
+        let out = rigmon(&["alarms", "--json", "--point", pattern], &pg.env("fleet"));
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        String::from_utf8_lossy(&out.stdout).lines().count()
+    };
+    assert_eq!(alarms("h-ok/*"), 1);
+    assert_eq!(alarms("h_ok/*"), 0);
+    drop(router);
+}
