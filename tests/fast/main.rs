@@ -27,5 +27,6 @@ mod model;
 mod novel_faults;
 mod opendaq;
 mod real_files;
+mod rule_agreement;
 mod sim;
 mod speed_free;
