@@ -19,8 +19,8 @@
 //!    wait for a speed, and a healthy window with an uncertain speed stays quiet.
 //! 2. **Evidence** (aligned models that output `baseline_deviation`; [`FamilyEvidence`],
 //!    accumulated over the last windows by the state machine): first, where the rule
-//!    ([`RuleReading`]) names one race, sees nothing of the class the network named
-//!    (`healthy` or the other race) and that race's family stands at least `evidence_z` above
+//!    ([`RuleReading`]) names one race and sees its fundamental, sees nothing of the class the
+//!    network named (`healthy`, or the other race's fundamental) and that race's family stands at least `evidence_z` above
 //!    the machine's healthy level and no lower than the network's family, the rule's race
 //!    wins (`evidence`, the network's class `overruled`): the spectrum read two independent
 //!    ways against the network. Otherwise the classifier's fault class is *confirmed* when
@@ -311,8 +311,9 @@ fn follow<'a>(
 }
 
 /// The race the rule names where it and the fault families agree against the network: the
-/// rule calls a race other than the network's class, sees no sign of the network's class
-/// (`healthy`, or the other race below the rule's threshold), and that race's family stands
+/// rule calls a race other than the network's class, sees it by its fundamental, sees no
+/// sign of the network's class (`healthy`, or the other race's fundamental below the rule's
+/// threshold: [`RuleReading::sees`]), and that race's family stands
 /// at least `z` above the machine's healthy level and no lower than the network's family.
 /// None otherwise (and never against a class the rule cannot see, such as ball).
 fn rule_wins(
@@ -322,7 +323,7 @@ fn rule_wins(
     z: f32,
 ) -> Option<&'static str> {
     let race = rule.calls()?;
-    if race == model_class || rule.sees(model_class) {
+    if race == model_class || !rule.sees(race) || rule.sees(model_class) {
         return None;
     }
     let theirs = ev.of(race)?;
@@ -538,10 +539,13 @@ mod tests {
     fn the_rule_and_the_families_agreeing_against_the_network_win() {
         let l = labels();
         let p = HealthPolicy::default();
+        // the races' ratios, each the fundamental's and the family's alike
         let rule = |o: f64, i: f64| {
             Some(RuleReading {
                 outer_race: o,
                 inner_race: i,
+                bpfo: o,
+                bpfi: i,
                 threshold: 3.0,
             })
         };
@@ -556,6 +560,19 @@ mod tests {
         let v = judge(&w, &p);
         assert_eq!((v.state(), v.basis), ("outer_race", Basis::Evidence));
         assert_eq!(v.overruled.as_deref(), Some("inner_race"));
+        // the rule calls the outer race by its second harmonic only (BPFO itself below 3x):
+        // no agreement, the network stands
+        let by_harmonic = WindowInput {
+            rule: Some(RuleReading {
+                outer_race: 6.0,
+                inner_race: 1.3,
+                bpfo: 2.0,
+                bpfi: 1.3,
+                threshold: 3.0,
+            }),
+            ..w.clone()
+        };
+        assert_eq!(judge(&by_harmonic, &p).state(), "inner_race");
         // without the rule the supported network class stands (the evidence alone does not
         // choose between supported families)
         let alone = WindowInput {

@@ -74,11 +74,14 @@ impl RuleVerdict {
 }
 
 /// What the rule reads in one window, for the verdict: the race families' band ratios (the
-/// larger of the fundamental's and the second harmonic's) and the threshold.
+/// larger of the fundamental's and the second harmonic's: what the rule calls by), the
+/// fundamentals' alone (what it sees a race by) and the threshold.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
 pub struct RuleReading {
     pub outer_race: f64,
     pub inner_race: f64,
+    pub bpfo: f64,
+    pub bpfi: f64,
     pub threshold: f64,
 }
 
@@ -97,13 +100,16 @@ impl RuleReading {
         })
     }
 
-    /// Whether the rule sees any sign of the class `label`: a race whose band stands at the
-    /// threshold, `healthy` when it calls no race. Classes the rule cannot see (ball, a
-    /// dataset's own labels) count as seen: the rule says nothing against them.
+    /// Whether the rule sees any sign of the class `label`: a race whose *fundamental* band
+    /// stands at the threshold (a second harmonic is no sign of its race: on the common
+    /// geometries, d/D near 0.2, BPFI is about 1.5 BPFO, so 3xBPFO falls in the 2xBPFI band and
+    /// an inner race's BPFI - 2x sideband in the BPFO band's neighbour), `healthy` when it
+    /// calls no race. Classes the rule cannot see (ball, a dataset's own labels) count as
+    /// seen: the rule says nothing against them.
     pub fn sees(&self, label: &str) -> bool {
         match Condition::parse(label) {
-            Some(Condition::OuterRace) => self.outer_race >= self.threshold,
-            Some(Condition::InnerRace) => self.inner_race >= self.threshold,
+            Some(Condition::OuterRace) => self.bpfo >= self.threshold,
+            Some(Condition::InnerRace) => self.bpfi >= self.threshold,
             Some(Condition::Healthy) => self.calls().is_none(),
             Some(Condition::Ball) | None => true,
         }
@@ -176,6 +182,8 @@ impl EnvelopeRule {
         RuleReading {
             outer_race: bands.outer_race(),
             inner_race: bands.inner_race(),
+            bpfo: bands.0[0],
+            bpfi: bands.0[2],
             threshold: self.settings.threshold,
         }
     }
@@ -359,28 +367,35 @@ mod tests {
 
     #[test]
     fn a_reading_names_one_race_and_says_what_it_sees() {
-        let r = |o: f64, i: f64| RuleReading {
+        // (fundamental, family) ratios of each race
+        let r = |(bpfo, o): (f64, f64), (bpfi, i): (f64, f64)| RuleReading {
             outer_race: o,
             inner_race: i,
+            bpfo,
+            bpfi,
             threshold: 3.0,
         };
         // an outer race: BPFO at 6x the median, BPFI at 1.2x
-        let or = r(6.0, 1.2);
+        let or = r((6.0, 6.0), (1.2, 1.2));
         assert_eq!(or.calls(), Some("outer_race"));
         assert!(or.sees("outer_race") && !or.sees("inner_race") && !or.sees("healthy"));
         assert!(
             or.sees("ball"),
             "the rule says nothing against a ball fault"
         );
-        // both races above: the rule calls the higher one and sees both
-        let both = r(4.0, 5.0);
+        // its third harmonic lifts the 2xBPFI band: still no sign of an inner race
+        let or3 = r((6.0, 6.0), (1.2, 3.5));
+        assert_eq!(or3.calls(), Some("outer_race"));
+        assert!(!or3.sees("inner_race"));
+        // both fundamentals above: the rule calls the higher family and sees both
+        let both = r((4.0, 4.0), (5.0, 5.0));
         assert_eq!(both.calls(), Some("inner_race"));
         assert!(both.sees("outer_race") && both.sees("inner_race"));
         // nothing above: healthy
-        let h = r(2.9, 1.0);
+        let h = r((2.9, 2.9), (1.0, 1.0));
         assert_eq!(h.calls(), None);
         assert!(h.sees("healthy") && !h.sees("outer_race"));
-        assert_eq!(r(f64::NAN, f64::NAN).calls(), None);
+        assert_eq!(r((f64::NAN, f64::NAN), (f64::NAN, f64::NAN)).calls(), None);
     }
 
     #[test]

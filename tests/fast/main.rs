@@ -27,6 +27,7 @@ mod model;
 mod novel_faults;
 mod opendaq;
 mod real_files;
+mod rule_agreement;
 mod sim;
 mod snapshots;
 mod speed_free;
