@@ -71,7 +71,7 @@ fn labelled_set(manifest: &Path, rig: &RigConfig, what: &str) -> Result<Labelled
         );
     }
     for e in &entries {
-        if !e.path.is_file() {
+        if !e.path.exists() {
             bail!(
                 "{}:{}: {} does not exist (paths are relative to the manifest's folder)",
                 manifest.display(),
