@@ -167,6 +167,9 @@ struct RowContext<'a> {
     rig: &'a RigConfig,
 }
 
+/// The rows read: the time column, each rig channel's samples (`None`: no column), the count.
+type Rows = (Vec<f64>, Vec<Option<Vec<f32>>>, usize);
+
 /// The next record and its line, or `None` at the end.
 type NextRecord<'a> = dyn FnMut(&mut ::csv::StringRecord) -> Result<Option<u64>> + 'a;
 
@@ -180,7 +183,7 @@ impl RowContext<'_> {
         next: &mut NextRecord,
         record: &mut ::csv::StringRecord,
         rows_hint: usize,
-    ) -> Result<(Vec<f64>, Vec<Option<Vec<f32>>>, usize)> {
+    ) -> Result<Rows> {
         let (p, names) = (self.path.display(), self.names);
         let mut time = Vec::new();
         if self.kinds.contains(&Col::Time) {
