@@ -79,21 +79,33 @@ fn main() -> std::process::ExitCode {
         .with_writer(std::io::stderr)
         .init();
     let result = match cli.command {
-        Command::Import(a) => cli::import::run(a),
-        Command::Repair(a) => cli::repair::run(a),
+        Command::Import(a) => cli::import::refuse_overwrite(&a).and_then(|()| cli::import::run(a)),
+        Command::Repair(a) => cli::repair::refuse_overwrite(&a).and_then(|()| cli::repair::run(a)),
         Command::Features(a) => cli::features::run(a),
-        Command::Inspect(a) => cli::inspect::run(a),
+        Command::Inspect(a) => {
+            cli::inspect::refuse_overwrite(&a).and_then(|()| cli::inspect::run(a))
+        }
         Command::Trend(a) => cli::trend::run(a),
-        Command::Simulate(a) => cli::simulate::run(a),
-        Command::Dataset(a) => cli::dataset::run(a),
-        Command::Calibrate(a) => cli::calibrate::run(a),
-        Command::Adapt(a) => cli::adapt::run(a),
-        Command::Train(a) => cli::train::run(a),
-        Command::Finetune(a) => cli::finetune::run(a),
-        Command::Evaluate(a) => cli::evaluate::run(a),
-        Command::Align(a) => cli::align::run(a),
+        Command::Simulate(a) => {
+            cli::simulate::refuse_overwrite(&a).and_then(|()| cli::simulate::run(a))
+        }
+        Command::Dataset(a) => {
+            cli::dataset::refuse_overwrite(&a).and_then(|()| cli::dataset::run(a))
+        }
+        Command::Calibrate(a) => {
+            cli::calibrate::refuse_overwrite(&a).and_then(|()| cli::calibrate::run(a))
+        }
+        Command::Adapt(a) => cli::adapt::refuse_overwrite(&a).and_then(|()| cli::adapt::run(a)),
+        Command::Train(a) => cli::train::refuse_overwrite(&a).and_then(|()| cli::train::run(a)),
+        Command::Finetune(a) => {
+            cli::finetune::refuse_overwrite(&a).and_then(|()| cli::finetune::run(a))
+        }
+        Command::Evaluate(a) => {
+            cli::evaluate::refuse_overwrite(&a).and_then(|()| cli::evaluate::run(a))
+        }
+        Command::Align(a) => cli::align::refuse_overwrite(&a).and_then(|()| cli::align::run(a)),
         Command::Model(a) => cli::model::run(a),
-        Command::Embed(a) => cli::embed::run(a),
+        Command::Embed(a) => cli::embed::refuse_overwrite(&a).and_then(|()| cli::embed::run(a)),
         Command::Run(a) => cli::run::run(a),
         Command::Replay(a) => cli::replay::run(a),
         Command::Watch(a) => cli::watch::run(a),

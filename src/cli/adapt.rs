@@ -63,6 +63,26 @@ pub struct Args {
     pub accept_regression: bool,
 }
 
+/// Refuse an output path that names one of the inputs (the same file, hard links included),
+/// before anything is read or written; `main` calls this before [`run`].
+pub fn refuse_overwrite(a: &Args) -> Result<()> {
+    let inputs: Vec<(&str, &std::path::Path)> = [
+        ("--rig", a.rig.as_path()),
+        ("--measured", a.measured.as_path()),
+    ]
+    .into_iter()
+    .chain(a.plan.iter().map(|p| ("--plan", p.as_path())))
+    .chain(
+        a.baseline_model
+            .iter()
+            .map(|p| ("--baseline-model", p.as_path())),
+    )
+    .chain(a.holdout.iter().map(|p| ("--holdout", p.as_path())))
+    .collect();
+    super::same_file::refuse_output_naming_input(&[("-o", &a.output)], &inputs)?;
+    Ok(())
+}
+
 pub fn run(a: Args) -> Result<()> {
     let o = AdaptOptions {
         rig: a.rig,

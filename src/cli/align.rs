@@ -33,6 +33,20 @@ pub struct Args {
     pub allow_foreign_model: bool,
 }
 
+/// Refuse an output path that names one of the inputs (the same file, hard links included),
+/// before anything is read or written; `main` calls this before [`run`].
+pub fn refuse_overwrite(args: &Args) -> Result<()> {
+    super::same_file::refuse_output_naming_input(
+        &[("-o", &args.output)],
+        &[
+            ("--model", &args.model),
+            ("--rig", &args.rig),
+            ("--healthy", &args.healthy),
+        ],
+    )?;
+    Ok(())
+}
+
 pub fn run(args: Args) -> Result<()> {
     let rig = RigConfig::load(&args.rig)?;
     OnnxClassifier::load(&args.model)?.check_identity(&rig, &args.rig, args.allow_foreign_model)?;

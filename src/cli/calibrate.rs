@@ -31,6 +31,19 @@ pub struct Args {
     pub json: bool,
 }
 
+/// Refuse an output path that names one of the inputs (the same file, hard links included),
+/// before anything is read or written; `main` calls this before [`run`].
+pub fn refuse_overwrite(a: &Args) -> Result<()> {
+    let inputs: Vec<(&str, &std::path::Path)> = std::iter::once(("--rig", a.rig.as_path()))
+        .chain(a.measured.iter().map(|p| ("--measured", p.as_path())))
+        .collect();
+    super::same_file::refuse_output_naming_input(
+        &[("-o", &a.output), ("--report", &a.report)],
+        &inputs,
+    )?;
+    Ok(())
+}
+
 pub fn run(a: Args) -> Result<()> {
     let rig = RigConfig::load(&a.rig)?;
     let mut ops = measured::load(&rig, &a.measured, a.seconds.unwrap_or(f64::INFINITY))?;

@@ -44,6 +44,16 @@ pub enum Calibrated {
     Spread,
 }
 
+/// Refuse an output path that names one of the inputs (the same file, hard links included),
+/// before anything is read or written; `main` calls this before [`run`].
+pub fn refuse_overwrite(args: &Args) -> Result<()> {
+    super::same_file::refuse_output_naming_input(
+        &[("-o", &args.output)],
+        &[("--rig", &args.rig), ("--plan", &args.plan)],
+    )?;
+    Ok(())
+}
+
 pub fn run(args: Args) -> Result<()> {
     let rig = RigConfig::load(&args.rig)?;
     let plan = Plan::load(&args.plan)?;

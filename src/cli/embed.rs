@@ -39,6 +39,16 @@ pub struct Args {
     pub seed: u64,
 }
 
+/// Refuse an output path that names one of the inputs (the same file, hard links included),
+/// before anything is read or written; `main` calls this before [`run`].
+pub fn refuse_overwrite(args: &Args) -> Result<()> {
+    let inputs: Vec<(&str, &std::path::Path)> = std::iter::once(("--rig", args.rig.as_path()))
+        .chain(args.inputs.iter().map(|p| ("", p.as_path())))
+        .collect();
+    super::same_file::refuse_output_naming_input(&[("--png", &args.png)], &inputs)?;
+    Ok(())
+}
+
 pub fn run(args: Args) -> Result<()> {
     let rig = RigConfig::load(&args.rig)?;
     let mut entries: Vec<ManifestEntry> = Vec::new();

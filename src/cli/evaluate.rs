@@ -69,6 +69,19 @@ fn draw(png: &Path, ev: &Evaluation, name: &str) -> Result<()> {
     crate::plots::confusion::draw(&windows, &ev.window_confusion, &title, &note)
 }
 
+/// Refuse an output path that names one of the inputs (the same file, hard links included),
+/// before anything is read or written; `main` calls this before [`run`].
+pub fn refuse_overwrite(args: &Args) -> Result<()> {
+    if let Some(png) = &args.png {
+        let mut inputs: Vec<(&str, &std::path::Path)> =
+            vec![("--rig", &args.rig), ("--manifest", &args.manifest)];
+        inputs.extend(args.model.iter().map(|p| ("--model", p.as_path())));
+        inputs.extend(args.health.iter().map(|p| ("--health", p.as_path())));
+        super::same_file::refuse_output_naming_input(&[("--png", png)], &inputs)?;
+    }
+    Ok(())
+}
+
 pub fn run(args: Args) -> Result<()> {
     if args.model.is_none() && args.baseline.is_none() {
         bail!("nothing to score: give --model <file.onnx>, --baseline rule, or both");

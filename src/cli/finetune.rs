@@ -43,6 +43,20 @@ pub struct Args {
     pub allow_foreign_model: bool,
 }
 
+/// Refuse an output path that names one of the inputs (the same file, hard links included),
+/// before anything is read or written; `main` calls this before [`run`].
+pub fn refuse_overwrite(args: &Args) -> Result<()> {
+    super::same_file::refuse_output_naming_input(
+        &[("-o", &args.output)],
+        &[
+            ("--model", &args.model),
+            ("--rig", &args.rig),
+            ("--manifest", &args.manifest),
+        ],
+    )?;
+    Ok(())
+}
+
 pub fn run(args: Args) -> Result<()> {
     let rig = RigConfig::load(&args.rig)?;
     let base = export::read(&args.model)?;

@@ -51,10 +51,19 @@ pub struct ImportSummary {
     pub losses: Option<LossReport>,
 }
 
+/// Refuse an output path that names one of the inputs (the same file, hard links included),
+/// before anything is read or written; `main` calls this before [`run`].
+pub fn refuse_overwrite(args: &Args) -> Result<()> {
+    super::same_file::refuse_output_naming_input(
+        &[("-o", &args.output)],
+        &[("", &args.file), ("--rig", &args.rig)],
+    )?;
+    Ok(())
+}
+
 pub fn run(args: Args) -> Result<()> {
     let rig = RigConfig::load(&args.rig)?;
     let opts = args.read.import_options();
-    refuse_same_file(&args.file, &args.output)?;
     let mut stream = importers::open(&args.file, &rig, &opts)?;
     let summary = match write_stream(stream.as_mut(), &args.output) {
         Ok(s) => s,
@@ -71,19 +80,6 @@ pub fn run(args: Args) -> Result<()> {
         println!("{}", serde_json::to_string(&summary)?);
     } else {
         println!("{}", summary_line(&summary));
-    }
-    Ok(())
-}
-
-/// Writing over the input would destroy it before it is read.
-fn refuse_same_file(input: &Path, output: &Path) -> Result<()> {
-    if let (Ok(a), Ok(b)) = (input.canonicalize(), output.canonicalize()) {
-        if a == b {
-            bail!(
-                "-o {}: that is the input file; write to another file",
-                output.display()
-            );
-        }
     }
     Ok(())
 }

@@ -63,6 +63,19 @@ pub struct Args {
     pub json: bool,
 }
 
+/// Refuse an output path that names one of the inputs (the same file, hard links included),
+/// before anything is read or written; `main` calls this before [`run`].
+pub fn refuse_overwrite(args: &Args) -> Result<()> {
+    let outputs: Vec<(&str, &std::path::Path)> = (args.png.iter().map(|p| ("--png", p.as_path())))
+        .chain(args.kurtogram.iter().map(|p| ("--kurtogram", p.as_path())))
+        .collect();
+    super::same_file::refuse_output_naming_input(
+        &outputs,
+        &[("", &args.recording), ("--rig", &args.rig)],
+    )?;
+    Ok(())
+}
+
 pub fn run(args: Args) -> Result<()> {
     match inspect(args) {
         // `rigmon inspect ... | head` is fine

@@ -22,6 +22,7 @@ pub(crate) mod read_args;
 pub mod repair;
 pub mod replay;
 pub mod run;
+pub mod same_file;
 pub mod simulate;
 pub mod train;
 pub mod trend;

@@ -5,7 +5,7 @@
 use crate::recording::mcap::repair::{repair, RepairReport};
 use crate::recording::mcap::RecordingReader;
 use crate::recording::LossReport;
-use anyhow::{bail, Result};
+use anyhow::Result;
 use serde::Serialize;
 use std::path::{Path, PathBuf};
 
@@ -31,15 +31,14 @@ struct Report {
     losses: Option<LossReport>,
 }
 
+/// Refuse an output path that names one of the inputs (the same file, hard links included),
+/// before anything is read or written; `main` calls this before [`run`].
+pub fn refuse_overwrite(args: &Args) -> Result<()> {
+    super::same_file::refuse_output_naming_input(&[("-o", &args.output)], &[("", &args.input)])?;
+    Ok(())
+}
+
 pub fn run(args: Args) -> Result<()> {
-    if let (Ok(a), Ok(b)) = (args.input.canonicalize(), args.output.canonicalize()) {
-        if a == b {
-            bail!(
-                "-o {}: that is the input file; write the repaired copy to another file",
-                args.output.display()
-            );
-        }
-    }
     let repaired = repair(&args.input, &args.output)?;
     let losses = rigmon_losses(&args.input);
     if args.json {

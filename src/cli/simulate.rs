@@ -65,6 +65,13 @@ pub struct Args {
     pub modes: bool,
 }
 
+/// Refuse an output path that names one of the inputs (the same file, hard links included),
+/// before anything is read or written; `main` calls this before [`run`].
+pub fn refuse_overwrite(args: &Args) -> Result<()> {
+    super::same_file::refuse_output_naming_input(&[("-o", &args.output)], &[("--rig", &args.rig)])?;
+    Ok(())
+}
+
 pub fn run(args: Args) -> Result<()> {
     let rig = RigConfig::load(&args.rig)?;
     let faults = Fault::parse_list(&args.fault)?;

@@ -148,6 +148,145 @@ fn cell(field: &str) -> &str {
     }
 }
 
+/// What a column is read into.
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Col {
+    Time,
+    /// Rig channel `k`.
+    Channel(usize),
+    /// Side data: not read.
+    Skip,
+}
+
+/// What reading the rows needs to know.
+struct RowContext<'a> {
+    path: &'a Path,
+    names: &'a [String],
+    kinds: &'a [Col],
+    delim: u8,
+    rig: &'a RigConfig,
+}
+
+/// The rows read: the time column, each rig channel's samples (`None`: no column), the count.
+type Rows = (Vec<f64>, Vec<Option<Vec<f32>>>, usize);
+
+/// The next record and its line, or `None` at the end.
+type NextRecord<'a> = dyn FnMut(&mut ::csv::StringRecord) -> Result<Option<u64>> + 'a;
+
+impl RowContext<'_> {
+    /// Every row: the time column (empty without one), each rig channel's samples (by rig
+    /// channel index; `None` for channels with no column) and the number of rows. Each cell is
+    /// looked at once (a wide header costs linear time); a time must be finite and a sample,
+    /// times its sensitivity, must fit an f32: both refused naming the line.
+    fn read_rows(
+        &self,
+        next: &mut NextRecord,
+        record: &mut ::csv::StringRecord,
+        rows_hint: usize,
+    ) -> Result<Rows> {
+        let (p, names) = (self.path.display(), self.names);
+        let mut time = Vec::new();
+        if self.kinds.contains(&Col::Time) {
+            time.reserve_exact(rows_hint);
+        }
+        let mut chans: Vec<Option<Vec<f32>>> = vec![None; self.rig.channels.len()];
+        for kind in self.kinds {
+            if let Col::Channel(k) = kind {
+                chans[*k] = Some(Vec::with_capacity(rows_hint));
+            }
+        }
+        let mut rows = 0;
+        while let Some(line) = next(record)? {
+            if record.len() > names.len() {
+                return Err(self.width_error(record, line));
+            }
+            for (c, field) in record.iter().enumerate() {
+                let kind = self.kinds[c];
+                if kind == Col::Skip {
+                    continue;
+                }
+                let v = self.number(cell(field), line, c)?;
+                match kind {
+                    Col::Time if v.is_finite() => time.push(v),
+                    Col::Time => bail!(
+                        "{p}: line {line}, column {} ({:?}): the time is {v}; times must be finite numbers (seconds)",
+                        c + 1,
+                        names[c]
+                    ),
+                    Col::Channel(k) => {
+                        let cfg = &self.rig.channels[k];
+                        let x = v * cfg.sensitivity;
+                        if x.is_finite() && x.abs() > f64::from(f32::MAX) {
+                            bail!(
+                                "{p}: line {line}, column {} ({:?}): {v:e} is beyond the range of the 32-bit floats \
+                                 recordings hold (+-3.4e38, after the channel's sensitivity); check the file's scaling",
+                                c + 1,
+                                names[c]
+                            );
+                        }
+                        chans[k].as_mut().expect("mapped").push(x as f32);
+                    }
+                    Col::Skip => {}
+                }
+            }
+            if record.len() < names.len() {
+                return Err(self.width_error(record, line));
+            }
+            rows += 1;
+        }
+        Ok((time, chans, rows))
+    }
+
+    /// A cell as a number, or an error naming the line and column (and a decimal comma).
+    fn number(&self, f: &str, line: u64, c: usize) -> Result<f64> {
+        f.parse().map_err(|_| {
+            let what = if f.contains('\n') {
+                "a quoted cell runs over several lines (a `\"` not closed?)".into()
+            } else if decimal_comma(f) {
+                format!("{f:?} is not a number: it looks written with a decimal comma; {DECIMAL_COMMA_HINT}")
+            } else {
+                format!("{f:?} is not a number")
+            };
+            anyhow::anyhow!(
+                "{}: line {line}, column {} ({:?}): {what}",
+                self.path.display(),
+                c + 1,
+                self.names[c]
+            )
+        })
+    }
+
+    /// The error for a row of another width than the header.
+    fn width_error(&self, record: &::csv::StringRecord, line: u64) -> anyhow::Error {
+        let (p, n, delim) = (self.path.display(), self.names.len(), self.delim);
+        if record.len() < n {
+            return anyhow::anyhow!(
+                "{p}: line {line}: {} values but the header names {n} columns (truncated file?)",
+                record.len()
+            );
+        }
+        // `0,5,1,25` under a header `time,x`: decimal commas split every number in two.
+        let commas = delim == b','
+            && record.len() == 2 * n
+            && record.iter().all(|f| {
+                !f.trim().is_empty() && f.trim().bytes().all(|b| b.is_ascii_digit() || b == b'-')
+            });
+        if commas {
+            return anyhow::anyhow!(
+                "{p}: line {line}: {} values but the header names {n} columns: the numbers \
+                 look written with decimal commas; {DECIMAL_COMMA_HINT}",
+                record.len()
+            );
+        }
+        anyhow::anyhow!(
+            "{p}: line {line}: {} values but the header names {n} columns; quote cells \
+             that contain the delimiter {:?}",
+            record.len(),
+            delim as char
+        )
+    }
+}
+
 /// Read a CSV file into a [`Recording`].
 pub fn load(path: &Path, rig: &RigConfig, opts: &ImportOptions) -> Result<Recording> {
     let p = path.display();
@@ -253,76 +392,36 @@ pub fn load(path: &Path, rig: &RigConfig, opts: &ImportOptions) -> Result<Record
             "{WARNING}line {}: column(s) {} name no rig channel (the rig's channels are {:?}, plus an optional \
              time column {:?}); skipped",
             header_no,
-            list.join(", "),
+            super::mat5::bounded(&list.join(", "), 1000),
             rig.channel_names(),
             TIME_COLUMNS
         ));
     }
-    // Parse rows.
-    let mut cols: Vec<Vec<f64>> = vec![Vec::new(); names.len()];
-    while let Some(line) = next(&mut record)? {
-        for (c, field) in record.iter().enumerate() {
-            if c >= names.len() {
-                // `0,5,1,25` under a header `time,x`: decimal commas split every number in two.
-                let commas = delim == b','
-                    && record.len() == 2 * names.len()
-                    && record.iter().all(|f| {
-                        !f.trim().is_empty()
-                            && f.trim().bytes().all(|b| b.is_ascii_digit() || b == b'-')
-                    });
-                if commas {
-                    bail!(
-                        "{p}: line {line}: {} values but the header names {} columns: the numbers \
-                         look written with decimal commas; {DECIMAL_COMMA_HINT}",
-                        record.len(),
-                        names.len()
-                    );
-                }
-                bail!(
-                    "{p}: line {line}: {} values but the header names {} columns; quote cells \
-                     that contain the delimiter {:?}",
-                    record.len(),
-                    names.len(),
-                    delim as char
-                );
-            }
-            if skipped.contains(&c) {
-                cols[c].push(0.0); // side data: not read
-                continue;
-            }
-            let f = cell(field);
-            let v: f64 = f.parse().map_err(|_| {
-                let what = if f.contains('\n') {
-                    "a quoted cell runs over several lines (a `\"` not closed?)".into()
-                } else if decimal_comma(f) {
-                    format!("{f:?} is not a number: it looks written with a decimal comma; {DECIMAL_COMMA_HINT}")
-                } else {
-                    format!("{f:?} is not a number")
-                };
-                anyhow::anyhow!(
-                    "{p}: line {line}, column {} ({:?}): {what}",
-                    c + 1,
-                    names[c]
-                )
-            })?;
-            cols[c].push(v);
-        }
-        if record.len() < names.len() {
-            bail!(
-                "{p}: line {line}: {} values but the header names {} columns (truncated file?)",
-                record.len(),
-                names.len()
-            );
-        }
-    }
-    let rows = cols[0].len();
+    // Parse rows: the time column as f64, mapped channels as scaled f32, other columns not
+    // kept; room for every line that can be a row, reserved once (see `memory::estimate`).
+    let rows_hint = text.lines().filter(|l| !skipped_line(l)).count();
+    let kinds: Vec<Col> = (0..names.len())
+        .map(|c| match map[c] {
+            Some(k) => Col::Channel(k),
+            None if time_col == Some(c) => Col::Time,
+            None => Col::Skip,
+        })
+        .collect();
+    let ctx = RowContext {
+        path,
+        names: &names,
+        kinds: &kinds,
+        delim,
+        rig,
+    };
+    let (time, mut chans, rows) = ctx.read_rows(&mut next, &mut record, rows_hint)?;
     if rows == 0 {
         bail!("{p}: the file has a header but no samples");
     }
     // Sample rate from the time column.
     let file_rate = match time_col {
         Some(tc) => {
-            let t = &cols[tc];
+            let t = &time;
             if rows < 2 {
                 bail!("{p}: the time column needs at least two rows to give a sample rate");
             }
@@ -355,12 +454,10 @@ pub fn load(path: &Path, rig: &RigConfig, opts: &ImportOptions) -> Result<Record
     let mut tacho = None;
     notes.push(note);
     for (k, cfg) in rig.channels.iter().enumerate() {
-        let Some(c) = map.iter().position(|m| *m == Some(k)) else {
+        let Some(samples) = chans[k].take() else {
             notes.push(format!("no column for rig channel {}", cfg.name));
             continue;
         };
-        let s = cfg.sensitivity;
-        let samples: Vec<f32> = cols[c].iter().map(|&x| (x * s) as f32).collect();
         match cfg.kind {
             ChannelKind::Acceleration => channels.push(Channel {
                 name: cfg.name.clone(),

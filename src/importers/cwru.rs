@@ -296,7 +296,7 @@ pub fn from_mat(
             name: cfg.name.clone(),
             axis: cfg.axis.clone(),
             unit: cfg.unit.to_string(),
-            samples: samples.iter().map(|&x| (x * k) as f32).collect(),
+            samples: super::scaled_f32(path, &cfg.name, samples, k)?,
         });
     }
     if let Some(c) = rig.classifier_channel() {

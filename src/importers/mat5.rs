@@ -283,16 +283,17 @@ impl MatFile {
         self.vars.iter().find(|v| v.name == name).map(|v| &v.value)
     }
 
-    /// "X097_DE_time (243938x1 double), X097RPM (1x1 double)", for messages.
+    /// "X097_DE_time (243938x1 double), X097RPM (1x1 double)", for messages (bounded: see
+    /// [`list_bounded`]).
     pub fn summary(&self) -> String {
         if self.vars.is_empty() {
             return "no variables".into();
         }
-        self.vars
-            .iter()
-            .map(|v| format!("{} ({})", v.name, v.value.describe()))
-            .collect::<Vec<_>>()
-            .join(", ")
+        list_bounded(
+            self.vars
+                .iter()
+                .map(|v| format!("{} ({})", shown(&v.name), v.value.describe())),
+        )
     }
 }
 
@@ -307,13 +308,84 @@ pub struct MatError {
 
 impl fmt::Display for MatError {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        write!(f, "MAT file at byte {}: {}", self.offset, self.msg)
+        write!(
+            f,
+            "MAT file at byte {}: {}",
+            self.offset,
+            bounded(&self.msg, 2000)
+        )
     }
 }
 
 impl std::error::Error for MatError {}
 
 type R<T> = Result<T, MatError>;
+
+/// A name from the file as messages show it: control characters (terminal escapes) escaped,
+/// at most 64 characters ("...(N characters)" beyond).
+pub fn shown(name: &str) -> String {
+    let escaped: String = name
+        .chars()
+        .flat_map(|c| {
+            if c.is_control() {
+                c.escape_default().collect::<Vec<_>>()
+            } else {
+                vec![c]
+            }
+        })
+        .collect();
+    let n = escaped.chars().count();
+    if n <= 64 {
+        return escaped;
+    }
+    let cut: String = escaped.chars().take(48).collect();
+    format!("{cut}...({n} characters)")
+}
+
+/// `text` cut to `max` characters, saying how many were left out.
+pub fn bounded(text: &str, max: usize) -> String {
+    let n = text.chars().count();
+    if n <= max {
+        return text.to_string();
+    }
+    let cut: String = text.chars().take(max).collect();
+    format!("{cut}... ({} more characters)", n - max)
+}
+
+/// Items joined with ", ", at most 20 of them ("... and N more").
+fn list_bounded(items: impl Iterator<Item = String>) -> String {
+    let mut out = Vec::new();
+    let mut more = 0usize;
+    for it in items {
+        if out.len() < 20 {
+            out.push(it);
+        } else {
+            more += 1;
+        }
+    }
+    let mut s = out.join(", ");
+    if more > 0 {
+        s.push_str(&format!(", ... and {more} more"));
+    }
+    s
+}
+
+/// Refuse a second top-level variable of a name already seen: which one a reader picks would
+/// be a guess (MATLAB never writes such a file).
+fn check_unique<'a>(mut names: impl Iterator<Item = (&'a str, usize)>) -> R<()> {
+    let mut seen = std::collections::HashMap::new();
+    names.try_for_each(|(name, off)| match seen.insert(name, off) {
+        Some(first) => err(
+            off,
+            format!(
+                "two variables are named {} (the first at byte {first}); which one is meant \
+                 cannot be told: re-save the file with distinct names",
+                shown(name)
+            ),
+        ),
+        None => Ok(()),
+    })
+}
 
 fn err<T>(offset: usize, msg: impl Into<String>) -> R<T> {
     Err(MatError {
@@ -383,6 +455,7 @@ fn header(head: &[u8], file_len: usize) -> R<(String, bool)> {
 pub fn parse(bytes: &[u8]) -> R<MatFile> {
     let (header_text, big_endian) = header(&bytes[..bytes.len().min(128)], bytes.len())?;
     let mut vars = Vec::new();
+    let mut offsets = Vec::new();
     let mut off = 128;
     while off < bytes.len() {
         if bytes.len() - off < 8 {
@@ -390,9 +463,11 @@ pub fn parse(bytes: &[u8]) -> R<MatFile> {
             break;
         }
         let (var, next) = top_element(bytes, off, 0, big_endian)?;
+        offsets.extend(var.as_ref().map(|_| off));
         vars.extend(var);
         off = next;
     }
+    check_unique(vars.iter().map(|v| v.name.as_str()).zip(offsets))?;
     Ok(MatFile {
         header_text,
         big_endian,
@@ -596,11 +671,11 @@ impl MatDirectory {
         if self.entries.is_empty() {
             return "no variables".into();
         }
-        self.entries
-            .iter()
-            .map(|e| format!("{} ({})", e.name, e.describe()))
-            .collect::<Vec<_>>()
-            .join(", ")
+        list_bounded(
+            self.entries
+                .iter()
+                .map(|e| format!("{} ({})", shown(&e.name), e.describe())),
+        )
     }
 }
 
@@ -678,6 +753,7 @@ pub fn directory<F: Read + Seek>(file: &mut F) -> R<MatDirectory> {
         }
         off = next;
     }
+    check_unique(entries.iter().map(|e| (e.name.as_str(), e.offset as usize)))?;
     Ok(MatDirectory {
         header_text,
         big_endian,
@@ -756,6 +832,38 @@ pub fn decode_selected<F: Read + Seek>(
         big_endian: dir.big_endian,
         vars,
     })
+}
+
+/// Bytes of an entry's data once decompressed (its stored length when it is not compressed),
+/// learnt by inflating it into nothing: no memory is held, whatever it expands to. Capped at
+/// [`MAX_DECOMPRESSED`] + 1 (decoding refuses more); a stream that does not inflate counts
+/// what came out before the damage (decoding reports the damage).
+pub fn inflated_len<F: Read + Seek>(file: &mut F, e: &MatEntry) -> std::io::Result<u64> {
+    if !e.compressed {
+        return Ok(e.len);
+    }
+    file.seek(SeekFrom::Start(e.offset + 8))?;
+    let mut dec = flate2::read::ZlibDecoder::new(file.take(e.len.saturating_sub(8)))
+        .take(MAX_DECOMPRESSED as u64 + 1);
+    let mut n = 0u64;
+    let mut buf = vec![0u8; 64 * 1024];
+    loop {
+        match dec.read(&mut buf) {
+            Ok(0) | Err(_) => return Ok(n),
+            Ok(k) => n += k as u64,
+        }
+    }
+}
+
+/// Bytes of one value of a numeric class as stored (8 for a class MATLAB stores otherwise).
+pub fn class_bytes(class: MatClass) -> u64 {
+    use MatClass::*;
+    match class {
+        Int8 | UInt8 => 1,
+        Int16 | UInt16 => 2,
+        Int32 | UInt32 | Single => 4,
+        _ => 8,
+    }
 }
 
 /// [`directory`] of a file on disk; errors name the file.
@@ -1100,10 +1208,8 @@ impl Cursor {
                         format!("struct {name:?}: {count} elements x {n_fields} fields cannot fit in the {} bytes left", body.len() - at.min(body.len())),
                     );
                 }
-                let mut fields: Vec<(String, Vec<MatValue>)> = field_names
-                    .into_iter()
-                    .map(|n| (n, Vec::with_capacity(count)))
-                    .collect();
+                let mut fields: Vec<(String, Vec<MatValue>)> =
+                    field_names.into_iter().map(|n| (n, Vec::new())).collect();
                 // A struct without fields holds nothing per element, however many there are.
                 for _ in 0..if n_fields == 0 { 0 } else { count } {
                     for field in fields.iter_mut() {
@@ -1125,7 +1231,8 @@ impl Cursor {
                         format!("cell {name:?}: {count} elements cannot fit in the bytes left"),
                     );
                 }
-                let mut cells = Vec::with_capacity(count);
+                // Grown as elements parse: a header's count reserves nothing.
+                let mut cells = Vec::new();
                 for _ in 0..count {
                     cells.push(self.sub_matrix(body, &mut at, depth)?);
                 }

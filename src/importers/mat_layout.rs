@@ -14,7 +14,7 @@
 //! Then only what is needed is decoded: the rate variable first (a scalar), then the signals.
 
 use super::mat5::{self, MatDirectory, MatEntry, MatValue};
-use super::{check_classifier_channel, cwru, mfpt, resolve_sample_rate, ImportOptions};
+use super::{check_classifier_channel, cwru, memory, mfpt, resolve_sample_rate, ImportOptions};
 use crate::config::{ChannelConfig, ChannelKind, RigConfig};
 use crate::recording::{Channel, Provenance, Recording, Tacho};
 use anyhow::{bail, Result};
@@ -28,6 +28,13 @@ const KNOWN_LAYOUTS: &str = "it is not a CWRU file (variables X<nnn>_DE_time, X<
 /// Read a MAT file by the rules in the module doc.
 pub fn load(path: &Path, rig: &RigConfig, opts: &ImportOptions) -> Result<Recording> {
     let dir = mat5::read_directory(path)?;
+    if !rig_names_variables(rig) && (mfpt::is_mfpt_directory(&dir) || cwru::is_cwru_directory(&dir))
+    {
+        // These layouts are decoded whole.
+        let all: Vec<&str> = dir.entries.iter().map(|e| e.name.as_str()).collect();
+        let need = memory::mat_need(path, &dir, &all)?;
+        memory::check_need(path, need, "its variables", &memory::available())?;
+    }
     if !rig_names_variables(rig) {
         if mfpt::is_mfpt_directory(&dir) {
             return mfpt::from_mat(path, &mat5::read(path)?, rig, opts);
@@ -102,10 +109,24 @@ pub fn from_directory(
         vec![single_vector(path, dir, rig)?]
     };
     check_in_directory(path, dir, &sources)?;
-    let (sample_rate, rate_note) = sample_rate(path, dir, rig, opts)?;
     let mut tops: Vec<&str> = sources.iter().map(|s| s.var.top.as_str()).collect();
     tops.sort_unstable();
     tops.dedup();
+    let rate = rig
+        .acquisition
+        .mat_rate_variable
+        .as_deref()
+        .map(VarPath::parse);
+    let mut decoded = tops.clone();
+    decoded.extend(rate.as_ref().map(|v| v.top.as_str()));
+    let need = memory::mat_need(path, dir, &decoded)?;
+    memory::check_need(
+        path,
+        need,
+        &format!("variables {}", mat5::bounded(&decoded.join(", "), 200)),
+        &memory::available(),
+    )?;
+    let (sample_rate, rate_note) = sample_rate(path, dir, rig, opts)?;
     let mat = mat5::read_selected(path, dir, &tops)?;
     let (channels, tacho) = read_channels(path, &mat, &sources, &mut notes)?;
     notes.push(rate_note);
@@ -158,7 +179,7 @@ fn read_channels(
         notes.push(mapping_note(src, value));
         let cfg = src.channel;
         let k = cfg.sensitivity;
-        let samples: Vec<f32> = samples.iter().map(|&x| (x * k) as f32).collect();
+        let samples = super::scaled_f32(path, &cfg.name, samples, k)?;
         match cfg.kind {
             ChannelKind::Acceleration => channels.push(Channel {
                 name: cfg.name.clone(),
@@ -252,17 +273,21 @@ fn single_vector<'r>(path: &Path, dir: &MatDirectory, rig: &'r RigConfig) -> Res
         }
         [one] => format!(
             "its only numeric array, {}, is a {} matrix, not a vector (pick a column with mat_column = <k>)",
-            one.name,
+            mat5::shown(&one.name),
             one.describe()
         ),
         [] => "it holds no real numeric vector of samples".to_string(),
         many => format!(
             "it holds {} numeric arrays ({})",
             many.len(),
-            many.iter()
-                .map(|e| e.name.as_str())
-                .collect::<Vec<_>>()
-                .join(", ")
+            mat5::bounded(
+                &many
+                    .iter()
+                    .map(|e| mat5::shown(&e.name))
+                    .collect::<Vec<_>>()
+                    .join(", "),
+                1000
+            )
         ),
     };
     Err(unmappable(path, dir, &reason, accel[0], example))
@@ -304,7 +329,7 @@ fn check_in_directory(path: &Path, dir: &MatDirectory, sources: &[Source]) -> Re
                     "{}: wrong shape: {}: {} is {}, not a 1x1 struct with a field {:?}",
                     path.display(),
                     src.key(),
-                    e.name,
+                    mat5::shown(&e.name),
                     e.describe(),
                     src.var.fields[0]
                 );
@@ -468,9 +493,14 @@ fn unread_note(dir: &MatDirectory, sources: &[Source], rig: &RigConfig) -> Optio
         .iter()
         .filter(|e| !sources.iter().any(|s| s.var.top == e.name))
         .filter(|e| rate_top.as_deref() != Some(e.name.as_str()))
-        .map(|e| format!("{} ({})", e.name, e.describe()))
+        .map(|e| format!("{} ({})", mat5::shown(&e.name), e.describe()))
         .collect();
-    (!other.is_empty()).then(|| format!("other variables not read: {}", other.join(", ")))
+    (!other.is_empty()).then(|| {
+        format!(
+            "other variables not read: {}",
+            mat5::bounded(&other.join(", "), 1000)
+        )
+    })
 }
 
 /// The sample rate by the importers' one rule, with the rate variable (if the rig names one)
@@ -516,10 +546,12 @@ fn rate_variable(path: &Path, dir: &MatDirectory, var: &VarPath) -> Result<f64> 
             dir.summary()
         );
     };
-    if var.fields.is_empty() && e.class.is_numeric() && e.count() != 1 {
+    // A number needs a handful of characters; a long char array is refused before it is read.
+    let too_long = e.class == mat5::MatClass::Char && e.count() > 64;
+    if var.fields.is_empty() && ((e.class.is_numeric() && e.count() != 1) || too_long) {
         bail!(
             "{p}: wrong shape: {key}: {} is {}; expected one number (the sample rate in Hz)",
-            e.name,
+            mat5::shown(&e.name),
             e.describe()
         );
     }
@@ -551,8 +583,12 @@ fn scalars_hint(path: &Path, dir: &MatDirectory) -> String {
     let shown: Vec<String> = names
         .iter()
         .map(|n| match values.as_ref().and_then(|m| m.get(n)) {
-            Some(v) => format!("{n} = {}", v.as_text().trim_matches(['[', ']'])),
-            None => n.to_string(),
+            Some(v) => format!(
+                "{} = {}",
+                mat5::shown(n),
+                v.as_text().trim_matches(['[', ']'])
+            ),
+            None => mat5::shown(n),
         })
         .collect();
     format!(" (the file's scalars: {})", shown.join(", "))

@@ -5,6 +5,7 @@
 //! cgroup's `memory.max`, `ulimit -v`), instead of being killed minutes later. `replay` and
 //! `import` stream rigmon MCAP and WAV files and need no such check.
 
+use super::mat5::{self, MatDirectory};
 use super::Format;
 use anyhow::{bail, Result};
 use std::path::Path;
@@ -20,11 +21,14 @@ pub struct Available {
 /// what the reader holds while it converts.
 /// - WAV: 16-bit samples become 4-byte floats (2x the data), 8-bit 4x; plus the file's
 ///   bytes never held at once: 4x covers every sample width.
-/// - CSV: the text, the parsed f64 columns (a value takes at least 4 characters: 2x) and the
-///   f32 channels (1x): 4x.
+/// - CSV: the text (1x), and, reserved once for every line that can be a row, the time
+///   column as f64 and the channels as f32 (columns naming no channel are not kept); a value
+///   takes at least 2 characters (digit and separator), so at most 12 bytes per 4 characters of
+///   `0,0` rows: 3x. 4x in all.
 /// - rigmon MCAP: zstd-compressed float blocks (decompressed at most ~2x), held as blocks and
 ///   then as channels: 4x.
-/// - MAT: read and decoded by the MAT reader (not estimated here).
+/// - MAT: estimated from the variable directory instead ([`mat_need`]): the size of a file
+///   says nothing of what its compressed elements expand to.
 pub fn estimate(format: Format, size: u64) -> Option<u64> {
     match format {
         Format::Wav | Format::Csv | Format::Mcap => Some(size.saturating_mul(4)),
@@ -50,6 +54,64 @@ pub fn check_whole_read(
              WAV files with bounded memory (convert it with `rigmon import`), or split the file",
             path.display(),
             size_text(size),
+            size_text(need),
+            size_text(avail.bytes),
+            avail.limited_by
+        );
+    }
+    Ok(())
+}
+
+/// Bytes of memory decoding the MAT variables `names` of `dir` takes, at most. Each variable's
+/// data is held as read (its stored bytes), decompressed (inflated into nothing first to learn
+/// its size: [`mat5::inflated_len`]), then decoded:
+/// - a numeric array: `count` f64 values, then f32 channel samples: 12 bytes per element
+///   (an int8 element inflates 13-fold);
+/// - a struct or cell: per decompressed byte, at most one int8 value as f64 and f32 (12 bytes)
+///   or one nested matrix header: 13x its decompressed size.
+///
+/// Element counts come from the header and are checked against the data when decoding; here
+/// they only size the estimate, nothing is allocated from them.
+pub fn mat_need(path: &Path, dir: &MatDirectory, names: &[&str]) -> Result<u64> {
+    let mut f = std::io::BufReader::new(
+        std::fs::File::open(path)
+            .map_err(|e| anyhow::anyhow!("{}: cannot read: {e}", path.display()))?,
+    );
+    let mut need = 0u64;
+    for e in dir
+        .entries
+        .iter()
+        .filter(|e| names.contains(&e.name.as_str()))
+    {
+        let raw = mat5::inflated_len(&mut f, e)
+            .map_err(|err| anyhow::anyhow!("{}: cannot read: {err}", path.display()))?;
+        let decoded = if e.class.is_numeric() {
+            let count = e.count() as u64 * if e.complex { 2 } else { 1 };
+            count
+                .saturating_mul(12)
+                .max(raw.saturating_mul(12) / mat5::class_bytes(e.class))
+        } else {
+            raw.saturating_mul(12)
+        };
+        need = need
+            .saturating_add(e.len)
+            .saturating_add(raw)
+            .saturating_add(decoded);
+    }
+    Ok(need)
+}
+
+/// Refuse decoding that needs `need` bytes (a [`mat_need`]) when less is `available`.
+pub fn check_need(path: &Path, need: u64, what: &str, available: &Option<Available>) -> Result<()> {
+    let Some(avail) = available else {
+        return Ok(());
+    };
+    if need > avail.bytes {
+        bail!(
+            "{}: decoding {what} needs about {} of memory but {} is available ({}); nothing was \
+             decoded. Re-save the signals as single or double vectors in smaller files, or \
+             raise the limit",
+            path.display(),
             size_text(need),
             size_text(avail.bytes),
             avail.limited_by

@@ -158,7 +158,7 @@ pub fn from_mat(
             name: cfg.name.clone(),
             axis: cfg.axis.clone(),
             unit: cfg.unit.to_string(),
-            samples: signal.iter().map(|&x| (x * k) as f32).collect(),
+            samples: super::scaled_f32(path, &cfg.name, signal, k)?,
         }],
         tacho: None,
         rpm,

@@ -18,6 +18,7 @@ pub mod memory;
 pub mod mfpt;
 pub mod snapshots;
 pub mod wav;
+pub mod wav_header;
 
 use crate::config::{Acquisition, RigConfig};
 use crate::recording::mcap::file_writer::default_block_len;
@@ -165,6 +166,11 @@ pub fn open(path: &Path, rig: &RigConfig, opts: &ImportOptions) -> Result<Box<dy
         }
         Format::Wav => {
             let mut s = wav::open(path, rig, opts)?;
+            for note in s.info_mut().provenance.notes.iter() {
+                if let Some(w) = note.strip_prefix(WARNING) {
+                    tracing::warn!("{}: {w}", path.display());
+                }
+            }
             stamp_rig(&mut s.info_mut().metadata, rig);
             Ok(Box::new(s))
         }
@@ -448,6 +454,26 @@ pub fn resolve_sample_rate(
             path.display()
         ),
     }
+}
+
+/// A channel's samples as f32 after its sensitivity `k`, refusing a finite value beyond the
+/// range of f32 (it would become inf and be reported as inf, not as the number the file holds).
+pub(crate) fn scaled_f32(path: &Path, channel: &str, values: &[f64], k: f64) -> Result<Vec<f32>> {
+    let too_big = |x: f64| x.is_finite() && (x * k).abs() > f64::from(f32::MAX);
+    if let Some(i) = values.iter().position(|&x| too_big(x)) {
+        bail!(
+            "{}: channel {channel:?}: sample {i} is {:e}{}, beyond the range of the 32-bit floats \
+             recordings hold (+-3.4e38); check the file's scaling or the channel's sensitivity",
+            path.display(),
+            values[i],
+            if k == 1.0 {
+                String::new()
+            } else {
+                format!(" (times sensitivity {k})")
+            }
+        );
+    }
+    Ok(values.iter().map(|&x| (x * k) as f32).collect())
 }
 
 /// NaN/Inf samples in the acceleration channels and the analog tacho.

@@ -1,4 +1,5 @@
-//! Multi-channel WAV (float32, int8/16/24/32 PCM) via `hound`, read as a stream of blocks
+//! Multi-channel WAV (float32/64, int8/16/24/32 PCM, WAVE_FORMAT_EXTENSIBLE; the header read
+//! by [`wav_header`](super::wav_header), which says what a lying header did), read as a stream of blocks
 //! ([`WavStream`]: `replay` and `import` hold one block in memory, whatever the file's size) or
 //! whole ([`load`]).
 //!
@@ -7,6 +8,7 @@
 //! as they are; both are then multiplied by the channel's `sensitivity` to give `unit`. A tacho
 //! channel becomes the analog tacho ([`Tacho::Analog`]).
 
+use super::wav_header::{self, WavHeader};
 use super::{check_classifier_names, resolve_sample_rate, ImportOptions};
 use crate::config::{ChannelKind, RigConfig};
 use crate::recording::mcap::{ChannelInfo, RecordingInfo, TachoInfo};
@@ -15,7 +17,7 @@ use crate::recording::{Channel, Provenance, Recording, SampleBlock, Tacho};
 use anyhow::{bail, Result};
 use std::collections::BTreeMap;
 use std::fs::File;
-use std::io::BufReader;
+use std::io::{BufReader, Read, Seek, SeekFrom};
 use std::path::Path;
 
 /// Where a WAV channel goes.
@@ -28,27 +30,28 @@ enum Target {
 
 /// A WAV file read block by block.
 pub struct WavStream {
-    reader: hound::WavReader<BufReader<File>>,
+    reader: BufReader<File>,
     path: String,
-    spec: hound::WavSpec,
+    header: WavHeader,
     info: RecordingInfo,
     targets: Vec<Target>,
-    /// Full scale of an integer sample (1 for float), and each WAV channel's `sensitivity`.
-    full_scale: f64,
+    /// Each WAV channel's `sensitivity`.
     sensitivities: Vec<f32>,
     frames: u64,
     next_frame: u64,
     block: usize,
     scratch: Vec<f64>,
+    bytes: Vec<u8>,
 }
 
 /// Open a WAV file: check its header against the rig and settle the sample rate.
 pub fn open(path: &Path, rig: &RigConfig, opts: &ImportOptions) -> Result<WavStream> {
     let p = path.display();
-    let reader = hound::WavReader::open(path)
-        .map_err(|e| anyhow::anyhow!("{p}: not a readable WAV file: {e}"))?;
-    let spec = reader.spec();
-    let n_ch = spec.channels as usize;
+    let file = File::open(path).map_err(|e| anyhow::anyhow!("{p}: cannot open: {e}"))?;
+    let file_len = file.metadata()?.len();
+    let mut reader = BufReader::new(file);
+    let header = wav_header::read(&mut reader, file_len, &p.to_string())?;
+    let n_ch = header.channels;
     if n_ch != rig.channels.len() {
         bail!(
             "{p}: the WAV has {n_ch} channel(s) but the rig file lists {} ({:?}); the rig's `channels` give the WAV channel order",
@@ -56,41 +59,13 @@ pub fn open(path: &Path, rig: &RigConfig, opts: &ImportOptions) -> Result<WavStr
             rig.channel_names()
         );
     }
-    let frames = reader.duration() as u64;
-    // The header's length is bounded by the file size (hound checks the data chunk).
-    let file_len = std::fs::metadata(path)?.len();
-    let bytes_per_sample = (spec.bits_per_sample as u64).div_ceil(8).max(1);
-    if frames
-        .saturating_mul(n_ch as u64)
-        .saturating_mul(bytes_per_sample)
-        > file_len
-    {
-        bail!("{p}: truncated: the WAV header announces {frames} frames but the file holds only {file_len} bytes");
-    }
-    let full_scale = match spec.sample_format {
-        hound::SampleFormat::Float => {
-            if spec.bits_per_sample != 32 {
-                bail!(
-                    "{p}: {}-bit float WAV is not supported (use 32-bit float)",
-                    spec.bits_per_sample
-                );
-            }
-            1.0
-        }
-        hound::SampleFormat::Int => {
-            let bits = spec.bits_per_sample;
-            if !(1..=32).contains(&bits) {
-                bail!("{p}: {bits}-bit integer WAV is not supported");
-            }
-            (1u64 << (bits - 1)) as f64
-        }
-    };
+    let frames = header.frames;
     if frames == 0 {
-        bail!("{p}: the WAV holds no samples");
+        bail!("{p}: the WAV holds no samples (its data chunk is empty)");
     }
     let (sample_rate, note) = resolve_sample_rate(
         path,
-        Some((spec.sample_rate as f64, "WAV header".to_string())),
+        Some((f64::from(header.sample_rate), "WAV header".to_string())),
         &rig.acquisition,
         opts,
     )?;
@@ -120,10 +95,8 @@ pub fn open(path: &Path, rig: &RigConfig, opts: &ImportOptions) -> Result<WavStr
     }
     let names: Vec<&str> = channels.iter().map(|c| c.name.as_str()).collect();
     check_classifier_names(path, rig, &names, "WAV channel")?;
-    let format = match spec.sample_format {
-        hound::SampleFormat::Float => "float32".to_string(),
-        hound::SampleFormat::Int => format!("int{}", spec.bits_per_sample),
-    };
+    let mut notes = vec![format!("{n_ch}-channel {} WAV", header.format_text), note];
+    notes.extend(header.notes.iter().cloned());
     let info = RecordingInfo {
         sample_rate,
         start_time_ns: 0,
@@ -133,23 +106,24 @@ pub fn open(path: &Path, rig: &RigConfig, opts: &ImportOptions) -> Result<WavStr
         provenance: Provenance {
             source_path: p.to_string(),
             format: "wav".into(),
-            notes: vec![format!("{n_ch}-channel {format} WAV"), note],
+            notes,
         },
         metadata: BTreeMap::new(),
     };
     let block = crate::recording::mcap::file_writer::default_block_len(sample_rate);
+    reader.seek(SeekFrom::Start(header.data_offset))?;
     Ok(WavStream {
         reader,
         path: p.to_string(),
-        full_scale,
         sensitivities: rig.channels.iter().map(|c| c.sensitivity as f32).collect(),
-        spec,
+        header,
         info,
         targets,
         frames,
         next_frame: 0,
         block,
         scratch: Vec::new(),
+        bytes: Vec::new(),
     })
 }
 
@@ -164,40 +138,22 @@ impl WavStream {
         self.frames
     }
 
-    /// Read up to `frames` frames, interleaved, as f64 (before scaling) into `scratch`.
+    /// Read up to `frames` frames, interleaved, as fractions of full scale (float samples as
+    /// they are, before the sensitivity) into `scratch`.
     fn read_frames(&mut self, frames: usize) -> Result<usize> {
-        let n_ch = self.targets.len();
-        let want = frames * n_ch;
-        self.scratch.clear();
-        let first = self.next_frame;
-        let path = &self.path;
-        let sample_err = |k: usize, e: hound::Error| {
-            anyhow::anyhow!(
-                "{path}: truncated or damaged WAV at frame {} (channel {}): {e}",
-                first + (k / n_ch) as u64,
-                k % n_ch
-            )
-        };
-        match self.spec.sample_format {
-            hound::SampleFormat::Float => {
-                for (k, s) in self.reader.samples::<f32>().take(want).enumerate() {
-                    self.scratch.push(s.map_err(|e| sample_err(k, e))? as f64);
-                }
-            }
-            hound::SampleFormat::Int => {
-                for (k, s) in self.reader.samples::<i32>().take(want).enumerate() {
-                    self.scratch.push(s.map_err(|e| sample_err(k, e))? as f64);
-                }
-            }
-        }
-        let got = self.scratch.len();
-        if got % n_ch != 0 {
+        let frames = (frames as u64).min(self.frames - self.next_frame) as usize;
+        let fb = self.header.frame_bytes();
+        self.bytes.resize(frames * fb, 0);
+        if let Err(e) = self.reader.read_exact(&mut self.bytes) {
             bail!(
-                "{path}: truncated: the data ends in the middle of a frame ({} samples for {n_ch} channels)",
-                self.next_frame * n_ch as u64 + got as u64
+                "{}: truncated or damaged WAV at frame {}: {e} (the file changed while it was read?)",
+                self.path,
+                self.next_frame
             );
         }
-        Ok(got / n_ch)
+        self.scratch.clear();
+        wav_header::decode(&self.header, &self.bytes, &mut self.scratch);
+        Ok(frames)
     }
 }
 
@@ -228,7 +184,7 @@ impl BlockStream for WavStream {
         for frame in self.scratch.chunks_exact(self.targets.len()) {
             for ((x, target), &sens) in frame.iter().zip(&self.targets).zip(&self.sensitivities) {
                 // As fractions of full scale, then times the sensitivity (in f32).
-                let mut v = (x / self.full_scale) as f32;
+                let mut v = *x as f32;
                 if sens != 1.0 {
                     v *= sens;
                 }
@@ -276,7 +232,7 @@ impl BlockStream for WavStream {
 
     fn rewind(&mut self) -> Result<()> {
         self.reader
-            .seek(0)
+            .seek(SeekFrom::Start(self.header.data_offset))
             .map_err(|e| anyhow::anyhow!("{}: cannot go back to the start: {e}", self.path))?;
         self.next_frame = 0;
         Ok(())

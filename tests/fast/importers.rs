@@ -2857,3 +2857,567 @@ fn repair_makes_cut_and_damaged_files_readable_by_the_usual_readers() {
         serde_json::Value::Null
     );
 }
+
+// ------------------------------------------------ hostile files (issue 38)
+
+/// A one-channel rig ("vertical", 12 kHz, fixed 1800 rpm), with `extra` under [acquisition].
+fn mono_rig(extra: &str) -> RigConfig {
+    RigConfig::parse(&format!(
+        "[machine]\nid = \"one\"\n[bearing]\nballs = 9\nball_diameter_mm = 7.94\npitch_diameter_mm = 39.04\n\
+         [acquisition]\nsample_rate_hz = 12000.0\n{extra}[[channels]]\nname = \"vertical\"\nkind = \"acceleration\"\n\
+         axis = \"vertical\"\nunit = \"g\"\n[speed]\nsource = \"fixed\"\nrpm = 1800.0\n[features]\nclassifier_axis = \"vertical\"\n"
+    ))
+    .unwrap()
+}
+
+/// A RIFF/WAVE file from raw chunks (each padded to even length unless `pad` is false), with
+/// the RIFF size given or computed.
+fn riff(chunks: &[(&[u8; 4], Vec<u8>, Option<u32>)], riff_size: Option<u32>, pad: bool) -> Vec<u8> {
+    let mut body = b"WAVE".to_vec();
+    for (id, data, size) in chunks {
+        body.extend_from_slice(*id);
+        body.extend_from_slice(&size.unwrap_or(data.len() as u32).to_le_bytes());
+        body.extend_from_slice(data);
+        if pad && data.len() % 2 == 1 {
+            body.push(0);
+        }
+    }
+    let mut out = b"RIFF".to_vec();
+    out.extend_from_slice(&riff_size.unwrap_or(body.len() as u32).to_le_bytes());
+    out.extend(body);
+    out
+}
+
+/// A fmt chunk: PCM (`ext` None) or WAVE_FORMAT_EXTENSIBLE with (valid bits, channel mask,
+/// sub-format code).
+fn fmt_chunk(channels: u16, container: u16, bits: u16, ext: Option<(u16, u32, u8)>) -> Vec<u8> {
+    let align = channels * container;
+    let tag: u16 = if ext.is_some() { 0xFFFE } else { 1 };
+    let mut f = Vec::new();
+    for v in [tag, channels] {
+        f.extend_from_slice(&v.to_le_bytes());
+    }
+    f.extend_from_slice(&12000u32.to_le_bytes());
+    f.extend_from_slice(&(12000 * align as u32).to_le_bytes());
+    f.extend_from_slice(&align.to_le_bytes());
+    f.extend_from_slice(&bits.to_le_bytes());
+    if let Some((valid, mask, code)) = ext {
+        f.extend_from_slice(&22u16.to_le_bytes());
+        f.extend_from_slice(&valid.to_le_bytes());
+        f.extend_from_slice(&mask.to_le_bytes());
+        f.extend_from_slice(&[
+            code, 0, 0, 0, 0, 0, 0x10, 0, 0x80, 0, 0, 0xAA, 0, 0x38, 0x9B, 0x71,
+        ]);
+    }
+    f
+}
+
+/// `n` samples of a test signal in -0.9 .. 0.9.
+fn mono_signal(n: usize) -> Vec<f64> {
+    signal(n, 1.5).iter().map(|x| x * 0.9).collect()
+}
+
+fn pcm16(x: &[f64]) -> Vec<u8> {
+    x.iter()
+        .flat_map(|v| ((v * 32767.0).round() as i16).to_le_bytes())
+        .collect()
+}
+
+#[test]
+fn wav_extensible_24_in_32_reads_like_its_16_bit_copy_and_unknown_formats_are_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let rig = mono_rig("");
+    let x = mono_signal(3000);
+    let p16 = write(
+        dir.path(),
+        "a16.wav",
+        &riff(
+            &[
+                (b"fmt ", fmt_chunk(1, 2, 16, None), None),
+                (b"data", pcm16(&x), None),
+            ],
+            None,
+            true,
+        ),
+    );
+    // 24 valid bits left-justified in 32-bit containers, as scipy and MATLAB write them.
+    let d24: Vec<u8> = x
+        .iter()
+        .flat_map(|v| (((v * 8_388_607.0).round() as i32) << 8).to_le_bytes())
+        .collect();
+    let p24 = write(
+        dir.path(),
+        "a24in32.wav",
+        &riff(
+            &[
+                (b"fmt ", fmt_chunk(1, 4, 32, Some((24, 4, 1))), None),
+                (b"data", d24, None),
+            ],
+            None,
+            true,
+        ),
+    );
+    // Extensible float and 24-in-24 as well.
+    let df: Vec<u8> = x.iter().flat_map(|v| (*v as f32).to_le_bytes()).collect();
+    let pf = write(
+        dir.path(),
+        "af.wav",
+        &riff(
+            &[
+                (b"fmt ", fmt_chunk(1, 4, 32, Some((32, 4, 3))), None),
+                (b"data", df, None),
+            ],
+            None,
+            true,
+        ),
+    );
+    let d3: Vec<u8> = x
+        .iter()
+        .flat_map(|v| ((v * 8_388_607.0).round() as i32).to_le_bytes()[..3].to_vec())
+        .collect();
+    let p3 = write(
+        dir.path(),
+        "a24.wav",
+        &riff(
+            &[
+                (b"fmt ", fmt_chunk(1, 3, 24, Some((24, 0, 1))), None),
+                (b"data", d3, None),
+            ],
+            None,
+            true,
+        ),
+    );
+    let a = importers::load(&p16, &rig, &no_opts()).unwrap();
+    for p in [&p24, &pf, &p3] {
+        let b = importers::load(p, &rig, &no_opts()).unwrap();
+        assert_eq!(b.len(), 3000);
+        let worst = a.channels[0]
+            .samples
+            .iter()
+            .zip(&b.channels[0].samples)
+            .map(|(u, v)| (u - v).abs())
+            .fold(0f32, f32::max);
+        assert!(
+            worst < 1e-4,
+            "{}: differs from the 16-bit copy by {worst}",
+            p.display()
+        );
+    }
+    let b = importers::load(&p24, &rig, &no_opts()).unwrap();
+    let notes = b.provenance.notes.join("; ");
+    assert_mentions(
+        &notes,
+        &[
+            "int24 in 32-bit containers",
+            "WAVE_FORMAT_EXTENSIBLE",
+            "channel mask 0x4",
+        ],
+    );
+    // An unknown sub-format and more valid bits than the container are refused by name.
+    let bad = write(
+        dir.path(),
+        "alaw.wav",
+        &riff(
+            &[
+                (b"fmt ", fmt_chunk(1, 4, 32, Some((32, 4, 6))), None),
+                (b"data", vec![0; 16], None),
+            ],
+            None,
+            true,
+        ),
+    );
+    assert_mentions(
+        &err_of(importers::load(&bad, &rig, &no_opts())),
+        &["alaw.wav", "sub-format", "not"],
+    );
+    let bad = write(
+        dir.path(),
+        "valid.wav",
+        &riff(
+            &[
+                (b"fmt ", fmt_chunk(1, 2, 16, Some((24, 4, 1))), None),
+                (b"data", vec![0; 16], None),
+            ],
+            None,
+            true,
+        ),
+    );
+    assert_mentions(
+        &err_of(importers::load(&bad, &rig, &no_opts())),
+        &["valid.wav", "24 valid bits", "16-bit"],
+    );
+}
+
+#[test]
+fn lying_and_unusual_wav_headers_are_read_and_said() {
+    let dir = tempfile::tempdir().unwrap();
+    let rig = mono_rig("");
+    let x = mono_signal(1000);
+    let data = pcm16(&x);
+    let fmt = || (b"fmt ", fmt_chunk(1, 2, 16, None), None);
+    let warned = |r: &Recording, what: &str| {
+        r.provenance
+            .notes
+            .iter()
+            .any(|n| n.starts_with(importers::WARNING) && n.contains(what))
+    };
+    // A data size smaller than the data: read as declared, and said.
+    let short = write(
+        dir.path(),
+        "short.wav",
+        &riff(&[fmt(), (b"data", data.clone(), Some(1200))], None, true),
+    );
+    let r = importers::load(&short, &rig, &no_opts()).unwrap();
+    assert_eq!(r.len(), 600);
+    assert!(
+        warned(&r, "800 more bytes follow"),
+        "{:?}",
+        r.provenance.notes
+    );
+    // The streaming reader (`import`, `replay`) says the same.
+    let s = importers::open(&short, &rig, &no_opts()).unwrap();
+    assert!(s
+        .info()
+        .provenance
+        .notes
+        .iter()
+        .any(|n| n.contains("understate")));
+    // A valid odd-sized chunk with its pad byte is read.
+    let odd = write(
+        dir.path(),
+        "odd.wav",
+        &riff(
+            &[
+                fmt(),
+                (b"note", b"odd-sized".to_vec(), None),
+                (b"data", data.clone(), None),
+            ],
+            None,
+            true,
+        ),
+    );
+    assert_eq!(importers::load(&odd, &rig, &no_opts()).unwrap().len(), 1000);
+    // ...and one whose writer left the pad byte out.
+    let nopad = write(
+        dir.path(),
+        "nopad.wav",
+        &riff(
+            &[
+                fmt(),
+                (b"note", b"odd-sized".to_vec(), None),
+                (b"data", data.clone(), None),
+            ],
+            None,
+            false,
+        ),
+    );
+    assert_eq!(
+        importers::load(&nopad, &rig, &no_opts()).unwrap().len(),
+        1000
+    );
+    // Unfinalised headers (sizes 0 or 0xFFFFFFFF): the data to the end of the file, said.
+    for (name, size) in [("zero.wav", 0u32), ("ffff.wav", u32::MAX)] {
+        let p = write(
+            dir.path(),
+            name,
+            &riff(
+                &[fmt(), (b"data", data.clone(), Some(size))],
+                Some(size),
+                true,
+            ),
+        );
+        let r = importers::load(&p, &rig, &no_opts()).unwrap();
+        assert_eq!(r.len(), 1000, "{name}");
+        assert!(
+            warned(&r, "never finalised"),
+            "{name}: {:?}",
+            r.provenance.notes
+        );
+        assert_eq!(
+            r.channels[0].samples[999],
+            (x[999] * 32767.0).round() as f32 / 32768.0
+        );
+    }
+    // A data size beyond the file is still truncation; RIFX and RF64 are refused by name.
+    let long = write(
+        dir.path(),
+        "long.wav",
+        &riff(&[fmt(), (b"data", data.clone(), Some(4000))], None, true),
+    );
+    assert_mentions(
+        &err_of(importers::load(&long, &rig, &no_opts())),
+        &["long.wav", "truncated", "2000 frames"],
+    );
+    let mut rifx = std::fs::read(&odd).unwrap();
+    rifx[..4].copy_from_slice(b"RIFX");
+    let rifx = write(dir.path(), "rifx.wav", &rifx);
+    assert_mentions(
+        &err_of(importers::load(&rifx, &rig, &no_opts())),
+        &["rifx.wav", "big-endian RIFX"],
+    );
+}
+
+/// `rigmon <args>` under `ulimit -v` (KiB): (exit code, stderr).
+fn rigmon_limited(limit_kib: u64, args: &[&str]) -> (i32, String) {
+    let o = std::process::Command::new("sh")
+        .arg("-c")
+        .arg(format!("ulimit -v {limit_kib}; exec \"$0\" \"$@\""))
+        .arg(env!("CARGO_BIN_EXE_rigmon"))
+        .args(args)
+        .output()
+        .unwrap();
+    (
+        o.status.code().unwrap_or(-1),
+        String::from_utf8_lossy(&o.stderr).into_owned(),
+    )
+}
+
+#[test]
+fn mat_bombs_are_refused_by_the_memory_estimate_not_aborted() {
+    let dir = tempfile::tempdir().unwrap();
+    let m = Mat { be: false };
+    // 128 MiB of int8 zeros in a ~130 KiB file: decoding takes 13 bytes per element.
+    let n: u32 = 128 << 20;
+    let int8 = m.compressed(&m.numeric("x", 8, 1, [n, 1], &vec![0u8; n as usize]));
+    let p8 = write(dir.path(), "int8.mat", &m.file(&[int8]));
+    assert!(std::fs::metadata(&p8).unwrap().len() < 1 << 20);
+    // A struct whose field is a cell declaring 2^24 elements (zero bytes where they should be).
+    let cells: u32 = 1 << 24;
+    let mut cell = m.head(1, &[cells, 1], "");
+    cell.extend(vec![0u8; 8 * cells as usize]);
+    let s = m.compressed(&m.structure("s", &[("x", m.el(14, &cell))]));
+    let pc = write(dir.path(), "cell.mat", &m.file(&[s]));
+    let rig_file = |name: &str, extra: &str| {
+        write(
+            dir.path(),
+            name,
+            format!(
+                "[machine]\nid = \"one\"\n[bearing]\nballs = 9\nball_diameter_mm = 7.94\npitch_diameter_mm = 39.04\n\
+                 [acquisition]\nsample_rate_hz = 12000.0\n[[channels]]\nname = \"vertical\"\nkind = \"acceleration\"\n\
+                 axis = \"vertical\"\nunit = \"g\"\n{extra}[speed]\nsource = \"fixed\"\nrpm = 1800.0\n[features]\nclassifier_axis = \"vertical\"\n"
+            )
+            .as_bytes(),
+        )
+    };
+    let r1 = rig_file("one.toml", "");
+    let r2 = rig_file("one-s.toml", "mat_variable = \"s.x\"\n");
+    let out = dir.path().join("out.mcap");
+    for (p, r) in [(&p8, &r1), (&pc, &r2)] {
+        let (code, err) = rigmon_limited(
+            1_000_000,
+            &[
+                "import",
+                p.to_str().unwrap(),
+                "--rig",
+                r.to_str().unwrap(),
+                "-o",
+                out.to_str().unwrap(),
+            ],
+        );
+        assert_eq!(code, 1, "{}: {err}", p.display());
+        assert_mentions(
+            &err,
+            &[p.to_str().unwrap(), "needs about", "available", "RLIMIT_AS"],
+        );
+    }
+    // Without a limit the cell's header reserves nothing: its first element is refused at once.
+    let e = err_of(importers::load(
+        &pc,
+        &RigConfig::load(&r2).unwrap(),
+        &no_opts(),
+    ));
+    assert_mentions(&e, &["cell.mat", "expected a nested matrix"]);
+}
+
+#[test]
+fn mat_names_rates_and_values_that_would_mislead_are_refused_in_bounded_messages() {
+    let dir = tempfile::tempdir().unwrap();
+    let m = Mat { be: false };
+    let v = signal(500, 2.0);
+    // A rate variable declaring 64 M characters is refused from its header, not decoded
+    // (its data here says "12000": read whole, it was taken as the rate).
+    let mut b = m.head(4, &[1, 64 << 20], "fs");
+    b.extend(
+        m.el(
+            4,
+            &"12000"
+                .encode_utf16()
+                .flat_map(u16::to_le_bytes)
+                .collect::<Vec<u8>>(),
+        ),
+    );
+    let p = write(
+        dir.path(),
+        "rate.mat",
+        &m.file(&[m.double("x", 500, 1, &v), m.el(14, &b)]),
+    );
+    let rig = mono_rig("mat_rate_variable = \"fs\"\n");
+    let e = err_of(importers::load(&p, &rig, &no_opts()).map(|r| r.sample_rate));
+    assert_mentions(&e, &["rate.mat", "1x67108864 char", "expected one number"]);
+    // Two variables of one name: which is meant cannot be told.
+    let p = write(
+        dir.path(),
+        "dup.mat",
+        &m.file(&[m.double("x", 500, 1, &v), m.double("x", 500, 1, &v)]),
+    );
+    assert_mentions(
+        &err_of(importers::load(&p, &mono_rig(""), &no_opts())),
+        &["dup.mat", "two variables are named x"],
+    );
+    // Terminal escapes in names are shown escaped; a 30000-character name gives a short message.
+    let long = "n".repeat(30_000);
+    let p = write(
+        dir.path(),
+        "names.mat",
+        &m.file(&[
+            m.double("a\u{1b}[2Jb", 500, 1, &v),
+            m.double(&long, 500, 1, &v),
+        ]),
+    );
+    let e = err_of(importers::load(&p, &mono_rig(""), &no_opts()));
+    assert!(!e.contains('\u{1b}'), "a raw escape in: {e:?}");
+    assert_mentions(&e, &["a\\u{1b}[2Jb", "(30000 characters)"]);
+    assert!(e.len() < 8000, "{} characters", e.len());
+    // 1e300 is named as the number the file holds, not as the inf it would become.
+    let mut big = v.clone();
+    big[7] = 1e300;
+    let p = write(
+        dir.path(),
+        "big.mat",
+        &m.file(&[m.double("x", 500, 1, &big)]),
+    );
+    assert_mentions(
+        &err_of(importers::load(&p, &mono_rig(""), &no_opts())),
+        &["big.mat", "sample 7", "1e300", "range"],
+    );
+}
+
+#[test]
+fn no_command_writes_over_its_input_through_a_hard_link() {
+    let dir = tempfile::tempdir().unwrap();
+    let bytes = std::fs::read(shipped("lut-outer_race-588rpm.mcap")).unwrap();
+    let cut = &bytes[..bytes.len() / 2];
+    let (inp, link) = (dir.path().join("in.mcap"), dir.path().join("link.mcap"));
+    let rig = Path::new(env!("CARGO_MANIFEST_DIR")).join("config/lut-rig.toml");
+    let rigs = rig.to_str().unwrap();
+    let (i, l) = (inp.to_str().unwrap(), link.to_str().unwrap());
+    let rig_link = dir.path().join("rig-link.toml");
+    std::fs::copy(&rig, dir.path().join("rig.toml")).unwrap();
+    std::fs::hard_link(dir.path().join("rig.toml"), &rig_link).unwrap();
+    let rl = dir.path().join("rig.toml");
+    let cases: Vec<Vec<&str>> = vec![
+        vec!["repair", i, "-o", l],
+        vec!["import", i, "--rig", rigs, "-o", l],
+        vec![
+            "simulate",
+            "--rig",
+            rl.to_str().unwrap(),
+            "--rpm",
+            "600",
+            "-o",
+            rig_link.to_str().unwrap(),
+        ],
+        vec!["inspect", i, "--rig", rigs, "--png", l],
+    ];
+    for args in cases {
+        std::fs::write(&inp, cut).unwrap();
+        let _ = std::fs::remove_file(&link);
+        std::fs::hard_link(&inp, &link).unwrap();
+        let before = std::fs::read(dir.path().join("rig.toml")).unwrap();
+        let o = std::process::Command::new(env!("CARGO_BIN_EXE_rigmon"))
+            .args(&args)
+            .output()
+            .unwrap();
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(1), "{args:?}: {err}");
+        assert_mentions(
+            &err,
+            &["that is the input", "hard link", "write to another path"],
+        );
+        assert_eq!(
+            std::fs::read(&inp).unwrap(),
+            cut,
+            "{args:?} changed its input"
+        );
+        assert_eq!(
+            std::fs::read(dir.path().join("rig.toml")).unwrap(),
+            before,
+            "{args:?}"
+        );
+    }
+}
+
+#[test]
+fn csv_times_must_be_finite_and_a_wide_header_costs_linear_time_and_no_memory() {
+    let dir = tempfile::tempdir().unwrap();
+    let rig = mono_rig("");
+    // NaN (or inf) in the time column: refused with its line.
+    let mut text = String::from("time,vertical\n");
+    for i in 0..50 {
+        let t = if i == 20 {
+            "NaN".to_string()
+        } else {
+            format!("{}", i as f64 / 12000.0)
+        };
+        text += &format!("{t},{}\n", (i as f64 * 0.3).sin());
+    }
+    let p = write(dir.path(), "nan.csv", text.as_bytes());
+    assert_mentions(
+        &err_of(importers::load(&p, &rig, &no_opts())),
+        &["nan.csv", "line 22", "\"time\"", "NaN", "finite"],
+    );
+    // 100 000 side-data columns and one channel: linear in the cells, side data not kept.
+    let wide = 100_000;
+    let mut text = String::from("vertical");
+    for c in 0..wide {
+        text += &format!(",side{c}");
+    }
+    text.push('\n');
+    let row = format!("0.5{}\n", ",0".repeat(wide));
+    for _ in 0..40 {
+        text += &row;
+    }
+    let p = write(dir.path(), "wide.csv", text.as_bytes());
+    let t0 = std::time::Instant::now();
+    let r = importers::load(&p, &rig, &no_opts()).unwrap();
+    assert_eq!(r.len(), 40);
+    assert!(
+        t0.elapsed().as_secs_f64() < 5.0,
+        "{:?} for a wide header",
+        t0.elapsed()
+    );
+    assert!(r.provenance.notes.iter().map(|n| n.len()).max().unwrap() < 3000);
+    // 24 MB of `0` side data: peak memory stays near the text, not 4-8x it as f64 columns.
+    let mut text = String::from("vertical");
+    for c in 0..20 {
+        text += &format!(",side{c}");
+    }
+    text.push('\n');
+    let row = "0.25,0,0,0,0,0,0,0,0,0,0,0,0,0,0,0,0,0,0,0,0\n";
+    let rows = (24 << 20) / row.len();
+    text.reserve(rows * row.len());
+    for _ in 0..rows {
+        text += row;
+    }
+    let p = write(dir.path(), "side.csv", text.as_bytes());
+    let rig_path = write(
+        dir.path(),
+        "one.toml",
+        toml::to_string(&rig).unwrap().as_bytes(),
+    );
+    let out = dir.path().join("side.mcap");
+    let (code, _, err, rss_kb) = run_measured(&[
+        "import",
+        p.to_str().unwrap(),
+        "--rig",
+        rig_path.to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+    ]);
+    assert_eq!(code, 0, "{err}");
+    let mb = rss_kb as f64 / 1024.0;
+    assert!(
+        mb < 24.0 * 2.5 + 40.0,
+        "import of a 24 MB CSV peaked at {mb:.0} MB"
+    );
+}
