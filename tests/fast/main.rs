@@ -28,3 +28,4 @@ mod novel_faults;
 mod opendaq;
 mod real_files;
 mod sim;
+mod speed_cues;
