@@ -379,6 +379,7 @@ mod tests {
             prom: vec![0.0; 1500],
             skip_mains: true,
             interpolate: true,
+            ..Whitened::default()
         };
         for &f in lines {
             let i = (f / df).round() as usize;

@@ -34,6 +34,12 @@ pub struct Whitened {
     /// harmonic sum then varies smoothly with the fundamental, so its peak can be refined
     /// below the search grid); else the nearest bin.
     pub interpolate: bool,
+    /// Half-width of a line's main lobe, Hz (two bins of the signal before zero padding, Hann
+    /// window): how far a line's own peak reaches.
+    pub lobe: f64,
+    /// Relative spread of the mains lines in this spectrum: 0 for a spectrum in time, |r| x
+    /// span for a history warped along a speed trend r (a fixed line becomes a sweep).
+    pub mains_spread: f64,
 }
 
 /// FFT plans (cached per length by the planner) and buffers for whitened spectra.
@@ -106,6 +112,8 @@ impl Whitener {
         let stride = stride.max(1);
         let mut med = 0.0;
         out.df = df;
+        out.lobe = 2.0 * fs / n as f64;
+        out.mains_spread = 0.0;
         out.prom.clear();
         out.prom.extend((0..=top).map(|i| {
             if i % stride == 0 {
@@ -159,6 +167,15 @@ impl Whitened {
         }
         let i = (f / self.df).round() as usize;
         self.prom.get(i).copied().unwrap_or(f64::NEG_INFINITY)
+    }
+
+    /// `f` lies on a mains harmonic's line in this spectrum: within its main lobe (a strong
+    /// mains line lifts the bins beside it well above the background, and a fundamental whose
+    /// harmonic sits there would read it as its own: 50 Hz hum alone read 1484-1511 rpm) and,
+    /// in a warped spectrum, within its sweep. The tracker's check of the newest signal uses
+    /// it; the harmonic sum itself leaves out 1.5 bins around each mains harmonic.
+    pub fn on_mains(&self, f: f64) -> bool {
+        on_mains_harmonic(f, (1.5 * self.df).max(self.lobe) + self.mains_spread * f)
     }
 
     /// Mean prominence of harmonics `ks` of `f0` (mains lines left out when `skip_mains`).
@@ -264,6 +281,7 @@ mod tests {
             prom: vec![0.0; 2000],
             skip_mains: false,
             interpolate: false,
+            ..Whitened::default()
         };
         w.prom[500] = 10.0;
         assert!(w.full(10.0) > 1.9, "50 Hz is the 5th harmonic of 10 Hz");

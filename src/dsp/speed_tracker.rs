@@ -78,6 +78,15 @@ const MAX_MISSES: u32 = 3;
 const OVERSAMPLE: f64 = 4.0;
 /// Share of the output Nyquist the decimator keeps.
 const KEEP: f64 = 0.8;
+/// Shortest stretch of the newest signal (s) in which the window's speed must show a line of
+/// its own ([`SpeedTracker::recent_support`]): a window's worth (the daemon's windows are 1 s).
+const RECENT_S: f64 = 1.0;
+/// Prominence the best line of the speed needs in that stretch (a bin of Gaussian noise
+/// exceeds 1.6 with probability 1e-7; at 1.2, 5e-4, one mains-hum window in 39 still passed
+/// check 4 of the shared hostile-input checks).
+const RECENT_LINE: f64 = 1.6;
+/// Confidence at most of a speed the newest signal does not show.
+const UNSUPPORTED: f64 = 0.3;
 /// Speeds related to the shaft lines' choice g that the fault families may prefer: g p / q.
 const RELATED: [(f64, f64); 10] = [
     (1.0, 2.0),
@@ -194,6 +203,8 @@ pub struct SpeedTracker {
     env_hist: Vec<f32>,
     env_spec: Whitened,
     env_span: Option<(usize, usize)>,
+    /// Spectrum of the newest stretch of the history ([`Self::recent_support`]).
+    recent_spec: Whitened,
 }
 
 impl SpeedTracker {
@@ -258,6 +269,7 @@ impl SpeedTracker {
                 ..Whitened::default()
             },
             env_span: None,
+            recent_spec: Whitened::default(),
         })
     }
 
@@ -333,10 +345,11 @@ impl SpeedTracker {
         }
         let t_end = self.t_newest();
         self.env_span = None;
-        let best = match self.lock.filter(|l| l.confirmed) {
+        let mut best = match self.lock.filter(|l| l.confirmed) {
             Some(lock) => self.follow(lock, n),
             None => self.acquire(n),
         };
+        best.recent = self.recent_support(best.hz, best.trend);
         Ok(self.decide(best, t_end))
     }
 
@@ -399,6 +412,7 @@ impl SpeedTracker {
         for (k, (a, b)) in [(0, h), (n - h, n)].into_iter().enumerate() {
             self.whitener
                 .whiten_into(&self.warped[a..b], fs_u, (4, 1), top, &mut self.spec);
+            self.spec.mains_spread = r.abs() * (last - first) as f64 / self.fs_d;
             let (line, score) = self.spec.best_in(hz * 0.95, hz * 1.05);
             if score < SCORE_NOISE {
                 return None;
@@ -452,6 +466,7 @@ impl SpeedTracker {
             let fs_u = warp(&self.hist[first..last], self.fs_d, r, &mut self.warped);
             self.whitener
                 .whiten_into(&self.warped, fs_u, (2, stride), top, &mut self.spec);
+            self.spec.mains_spread = r.abs() * span;
         }
         let global = fundamental(&self.spec, lo, self.fmax);
         let mut c = Candidate {
@@ -464,6 +479,7 @@ impl SpeedTracker {
             unresolved: false,
             by_family: false,
             held: None,
+            recent: true,
         };
         if let Some(lock) = self.lock {
             let t = self.t_newest();
@@ -615,12 +631,10 @@ impl SpeedTracker {
             self.misses = 0;
         } else {
             self.misses += 1;
-            if self.misses > MAX_MISSES {
-                // the line followed is gone: look afresh
-                self.lock = None;
-                self.pending = None;
-                self.misses = 0;
-            }
+        }
+        // the line followed is gone, or has left the newest signal (a step, a stop): look afresh
+        if self.misses > MAX_MISSES || (following && c.followed && !c.recent) {
+            self.forget_lock();
         }
         match status {
             SpeedStatus::Tracking | SpeedStatus::Hint => {
@@ -665,6 +679,49 @@ impl SpeedTracker {
             rival_rpm: rival.map(|f| f * 60.0),
             score: c.score,
         }
+    }
+
+    /// Drop the line followed (and any pending one): the next window looks afresh.
+    fn forget_lock(&mut self) {
+        self.lock = None;
+        self.pending = None;
+        self.misses = 0;
+    }
+
+    /// The newest stretch of the history ([`RECENT_S`], or [`MIN_REVS`] revolutions at `hz`
+    /// if longer), warped along `trend`, shows a line of speed `hz`: one of its harmonics 1x-5x
+    /// off the mains series stands [`RECENT_LINE`] above its floor within 1 % of where it
+    /// belongs. A speed read from a longer history is otherwise the history's, not the
+    /// window's: after a step the old line fills most of it (a window wholly after a step
+    /// 600 -> 1500 rpm read 600.3 rpm at confidence 0.98).
+    fn recent_support(&mut self, hz: f64, trend: f64) -> bool {
+        let last = self.hist.len();
+        let m = ((RECENT_S.max(MIN_REVS / hz) * self.fs_d).ceil() as usize).min(last);
+        if m < 8 {
+            return false;
+        }
+        let fs_u = if trend == 0.0 {
+            self.warped.clear();
+            self.warped.extend_from_slice(&self.hist[last - m..]);
+            self.fs_d
+        } else {
+            warp(&self.hist[last - m..], self.fs_d, trend, &mut self.warped)
+        };
+        let top = (HARMONICS as f64 + 1.0) * hz;
+        self.whitener
+            .whiten_into(&self.warped, fs_u, (2, 1), top, &mut self.recent_spec);
+        self.recent_spec.mains_spread = trend.abs() * m as f64 / self.fs_d;
+        let w = &self.recent_spec;
+        (1..=HARMONICS).any(|k| {
+            let f = k as f64 * hz;
+            if w.on_mains(f) {
+                return false;
+            }
+            let band = 1.5 * w.df + 0.01 * f;
+            let lo = ((f - band) / w.df).ceil().max(0.0) as usize;
+            let hi = (((f + band) / w.df).floor() as usize).min(w.prom.len().saturating_sub(1));
+            (lo..=hi).any(|i| w.prom[i] >= RECENT_LINE)
+        })
     }
 
     /// The line that won the last window without being taken is at `hz` (its second win).
@@ -737,6 +794,8 @@ struct Candidate {
     by_family: bool,
     /// The followed line (Hz, score) when the octave guard moved the candidate to its half.
     held: Option<(f64, f64)>,
+    /// The newest stretch of the signal shows a line of this speed.
+    recent: bool,
 }
 
 impl Candidate {
@@ -754,6 +813,7 @@ impl Candidate {
     /// [`MIN_CONFIDENCE`] with an octave rival.
     fn confidence(&self) -> f64 {
         let c = self.clear().min(self.filled());
+        let c = if self.recent { c } else { c.min(UNSUPPORTED) };
         if self.unresolved {
             c.min(0.49 * MIN_CONFIDENCE / 0.5)
         } else if self.rival.is_some() && !self.by_family {
@@ -969,6 +1029,7 @@ mod tests {
             unresolved: false,
             by_family: false,
             held: Some((20.0, 3.0)),
+            recent: true,
         }
     }
 

@@ -30,4 +30,5 @@ mod real_files;
 mod rule_agreement;
 mod sim;
 mod snapshots;
+mod speed_cues;
 mod speed_free;
