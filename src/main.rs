@@ -85,7 +85,7 @@ fn main() -> std::process::ExitCode {
         Command::Inspect(a) => {
             cli::inspect::refuse_overwrite(&a).and_then(|()| cli::inspect::run(a))
         }
-        Command::Trend(a) => cli::trend::run(a),
+        Command::Trend(a) => cli::trend::refuse_overwrite(&a).and_then(|()| cli::trend::run(a)),
         Command::Simulate(a) => {
             cli::simulate::refuse_overwrite(&a).and_then(|()| cli::simulate::run(a))
         }

@@ -33,6 +33,16 @@ pub struct Args {
     pub read: super::read_args::ReadArgs,
 }
 
+/// Refuse a `--png` that names the recording or the rig file (issue 38, F9).
+pub fn refuse_overwrite(args: &Args) -> Result<()> {
+    let outputs: Vec<(&str, &std::path::Path)> =
+        args.png.iter().map(|p| ("--png", p.as_path())).collect();
+    super::same_file::refuse_output_naming_input(
+        &outputs,
+        &[("", &args.recording), ("--rig", &args.rig)],
+    )
+}
+
 /// The trend of one recording and the rule over it.
 #[derive(Debug, serde::Serialize)]
 pub struct Trend {

@@ -3318,6 +3318,7 @@ fn no_command_writes_over_its_input_through_a_hard_link() {
             rig_link.to_str().unwrap(),
         ],
         vec!["inspect", i, "--rig", rigs, "--png", l],
+        vec!["trend", i, "--rig", rigs, "--png", l],
     ];
     for args in cases {
         std::fs::write(&inp, cut).unwrap();

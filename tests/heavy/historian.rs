@@ -203,6 +203,18 @@ impl Postgres {
     }
 }
 
+impl Postgres {
+    /// A server with an empty `fleet` database, as the historian's config names it.
+    fn with_fleet_database() -> Postgres {
+        let pg = Postgres::start();
+        let (rt, c) = pg.client("postgres");
+        rt.block_on(c.batch_execute("CREATE DATABASE fleet"))
+            .unwrap();
+        drop((c, rt));
+        pg
+    }
+}
+
 impl Drop for Postgres {
     fn drop(&mut self) {
         let _ = Command::new("runuser")
@@ -220,6 +232,31 @@ impl Drop for Postgres {
 }
 
 /// A daemon config replaying `file` in real time, looping, as a Zenoh client of the router.
+/// A Zenoh router in this process on a free loopback port (multicast scouting off, as every
+/// [`ZenohSettings`] has it), and its endpoint.
+fn loopback_router() -> (String, zenoh::Session) {
+    let router_ep = format!("tcp/127.0.0.1:{}", free_port());
+    let router = ZenohSettings {
+        mode: rigmon::vocabulary::ZenohMode::Router,
+        listen: vec![router_ep.clone()],
+        ..Default::default()
+    }
+    .open()
+    .unwrap();
+    (router_ep, router)
+}
+
+/// A client session of that router.
+fn loopback_client(router_ep: &str) -> zenoh::Session {
+    ZenohSettings {
+        mode: rigmon::vocabulary::ZenohMode::Client,
+        connect: vec![router_ep.to_string()],
+        ..Default::default()
+    }
+    .open()
+    .unwrap()
+}
+
 fn daemon(dir: &Path, name: &str, rig: &Path, model: &str, file: &Path, router: &str) -> Guard {
     let cfg = dir.join(format!("{name}.toml"));
     std::fs::write(
@@ -289,27 +326,9 @@ fn three_daemons_a_router_and_the_historian_keep_every_window_once_through_outag
     );
     let tmp = tempfile::tempdir().unwrap();
     let d = tmp.path();
-    let pg = Postgres::start();
-    {
-        let (rt, c) = pg.client("postgres");
-        rt.block_on(c.batch_execute("CREATE DATABASE fleet"))
-            .unwrap();
-    }
-    let router_ep = format!("tcp/127.0.0.1:{}", free_port());
-    let router = ZenohSettings {
-        mode: rigmon::vocabulary::ZenohMode::Router,
-        listen: vec![router_ep.clone()],
-        ..Default::default()
-    }
-    .open()
-    .unwrap();
-    let client = ZenohSettings {
-        mode: rigmon::vocabulary::ZenohMode::Client,
-        connect: vec![router_ep.clone()],
-        ..Default::default()
-    }
-    .open()
-    .unwrap();
+    let pg = Postgres::with_fleet_database();
+    let (router_ep, router) = loopback_router();
+    let client = loopback_client(&router_ep);
     let truth: Truth = Arc::default();
     let t2 = truth.clone();
     let _truth_sub = client
@@ -1134,12 +1153,7 @@ fn every_field_set(run_ns: u64, seq: u64) -> rigmon::health::message::HealthMess
 fn every_health_field_survives_the_historian_and_a_version_1_database_is_upgraded() {
     let tmp = tempfile::tempdir().unwrap();
     let d = tmp.path();
-    let pg = Postgres::start();
-    {
-        let (rt, c) = pg.client("postgres");
-        rt.block_on(c.batch_execute("CREATE DATABASE fleet"))
-            .unwrap();
-    }
+    let pg = Postgres::with_fleet_database();
     let now_ms = std::time::SystemTime::now()
         .duration_since(std::time::UNIX_EPOCH)
         .unwrap()
@@ -1148,14 +1162,7 @@ fn every_health_field_survives_the_historian_and_a_version_1_database_is_upgrade
     let (rt, db) = pg.client("fleet");
     version_1_database(&rt, &db, old_time);
 
-    let router_ep = format!("tcp/127.0.0.1:{}", free_port());
-    let router = ZenohSettings {
-        mode: rigmon::vocabulary::ZenohMode::Router,
-        listen: vec![router_ep.clone()],
-        ..Default::default()
-    }
-    .open()
-    .unwrap();
+    let (router_ep, router) = loopback_router();
     let _hist = historian(d, &pg, &router_ep);
     let versions = || -> Vec<i32> {
         rt.block_on(db.query(
@@ -1185,13 +1192,7 @@ fn every_health_field_survives_the_historian_and_a_version_1_database_is_upgrade
     bare.speed_confidence = None;
     bare.speed_rival_rpm = None;
     bare.model.foreign.clear();
-    let client = ZenohSettings {
-        mode: rigmon::vocabulary::ZenohMode::Client,
-        connect: vec![router_ep.clone()],
-        ..Default::default()
-    }
-    .open()
-    .unwrap();
+    let client = loopback_client(&router_ep);
     let rows = || -> i64 {
         rt.block_on(db.query_one("SELECT count(*) FROM windows", &[]))
             .unwrap()
@@ -1322,27 +1323,9 @@ fn every_health_field_survives_the_historian_and_a_version_1_database_is_upgrade
 fn hostile_health_messages_are_refused_counted_and_break_nothing() {
     let tmp = tempfile::tempdir().unwrap();
     let d = tmp.path();
-    let pg = Postgres::start();
-    {
-        let (rt, c) = pg.client("postgres");
-        rt.block_on(c.batch_execute("CREATE DATABASE fleet"))
-            .unwrap();
-    }
-    let router_ep = format!("tcp/127.0.0.1:{}", free_port());
-    let router = ZenohSettings {
-        mode: rigmon::vocabulary::ZenohMode::Router,
-        listen: vec![router_ep.clone()],
-        ..Default::default()
-    }
-    .open()
-    .unwrap();
-    let client = ZenohSettings {
-        mode: rigmon::vocabulary::ZenohMode::Client,
-        connect: vec![router_ep.clone()],
-        ..Default::default()
-    }
-    .open()
-    .unwrap();
+    let pg = Postgres::with_fleet_database();
+    let (router_ep, router) = loopback_router();
+    let client = loopback_client(&router_ep);
     let status: Arc<Mutex<Option<HistorianStatus>>> = Arc::default();
     let s2 = status.clone();
     let _status_sub = client
