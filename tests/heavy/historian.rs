@@ -257,6 +257,26 @@ fn loopback_client(router_ep: &str) -> zenoh::Session {
     .unwrap()
 }
 
+/// The test historian's last status (`rigmon/@historian/test/status`), kept as it arrives;
+/// the subscriber must stay alive as long as it is read.
+fn historian_status(
+    client: &zenoh::Session,
+) -> (
+    zenoh::pubsub::Subscriber<()>,
+    Arc<Mutex<Option<HistorianStatus>>>,
+) {
+    let status: Arc<Mutex<Option<HistorianStatus>>> = Arc::default();
+    let s2 = status.clone();
+    let sub = client
+        .declare_subscriber("rigmon/@historian/test/status")
+        .callback(move |s| {
+            *s2.lock().unwrap() = serde_json::from_slice(&s.payload().to_bytes()).ok()
+        })
+        .wait()
+        .unwrap();
+    (sub, status)
+}
+
 fn daemon(dir: &Path, name: &str, rig: &Path, model: &str, file: &Path, router: &str) -> Guard {
     let cfg = dir.join(format!("{name}.toml"));
     std::fs::write(
@@ -348,15 +368,7 @@ fn three_daemons_a_router_and_the_historian_keep_every_window_once_through_outag
         })
         .wait()
         .unwrap();
-    let status: Arc<Mutex<Option<HistorianStatus>>> = Arc::default();
-    let s2 = status.clone();
-    let _status_sub = client
-        .declare_subscriber("rigmon/@historian/test/status")
-        .callback(move |s| {
-            *s2.lock().unwrap() = serde_json::from_slice(&s.payload().to_bytes()).ok()
-        })
-        .wait()
-        .unwrap();
+    let (_status_sub, status) = historian_status(&client);
     let st = || status.lock().unwrap().clone();
     let mut hist = historian(d, &pg, &router_ep);
     wait_until(
@@ -1326,15 +1338,7 @@ fn hostile_health_messages_are_refused_counted_and_break_nothing() {
     let pg = Postgres::with_fleet_database();
     let (router_ep, router) = loopback_router();
     let client = loopback_client(&router_ep);
-    let status: Arc<Mutex<Option<HistorianStatus>>> = Arc::default();
-    let s2 = status.clone();
-    let _status_sub = client
-        .declare_subscriber("rigmon/@historian/test/status")
-        .callback(move |s| {
-            *s2.lock().unwrap() = serde_json::from_slice(&s.payload().to_bytes()).ok()
-        })
-        .wait()
-        .unwrap();
+    let (_status_sub, status) = historian_status(&client);
     let st = || status.lock().unwrap().clone();
     let _hist = historian(d, &pg, &router_ep);
     wait_until(
