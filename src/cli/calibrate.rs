@@ -46,11 +46,17 @@ pub fn refuse_overwrite(a: &Args) -> Result<()> {
 
 pub fn run(a: Args) -> Result<()> {
     let rig = RigConfig::load(&a.rig)?;
+    let t_load = std::time::Instant::now();
     let mut ops = measured::load(&rig, &a.measured, a.seconds.unwrap_or(f64::INFINITY))?;
     if ops.len() == 1 {
         ops = measured::split_single(&ops[0], &rig)?;
     }
     let part = measured::checkerboard(&ops);
+    eprintln!(
+        "loaded {} recordings in {:.1} s",
+        ops.len(),
+        t_load.elapsed().as_secs_f64()
+    );
     for (m, p) in ops.iter().zip(&part) {
         eprintln!(
             "split: {:<32} {:<11} {:7.1} rpm  {:6.2} s at {:.3} Hz (recorded at {} Hz)  {}",
@@ -75,6 +81,7 @@ pub fn run(a: Args) -> Result<()> {
             .collect::<Vec<_>>()
             .join(", ")
     );
+    let t_report = std::time::Instant::now();
     let id = report::calibration_id(&outcome, &ops);
     std::fs::create_dir_all(&a.report)
         .with_context(|| format!("cannot create report folder {}", a.report.display()))?;
@@ -126,6 +133,10 @@ pub fn run(a: Args) -> Result<()> {
         &outcome.measured_views[worst],
         &outcome.views_after[worst],
     )?;
+    eprintln!(
+        "report and plots written in {:.1} s",
+        t_report.elapsed().as_secs_f64()
+    );
     eprintln!(
         "calibration {id}: error {:.3} -> {:.3}; effects: [{}]; unexplained: {}; wrote {} and {}",
         outcome.before.total,
