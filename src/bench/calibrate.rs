@@ -133,11 +133,8 @@ pub fn run(
     measured_path: Option<PathBuf>,
     analysed: Option<f64>,
 ) -> Result<()> {
-    let rig_path = opts
-        .rig
-        .clone()
-        .unwrap_or_else(|| shipped("config/lut-rig.toml"));
-    let rig = RigConfig::load(&rig_path)?;
+    let rig_path = opts.rig.clone();
+    let rig = RigConfig::load(&rig_path.unwrap_or_else(|| shipped("config/lut-rig.toml")))?;
     let labels = match measured_path {
         Some(p) => p,
         None => generate("speed_fluctuation")?,
@@ -153,13 +150,8 @@ pub fn run(
         labels.display()
     );
     progress("now:", &new);
-    let (old, _) = one(
-        &rig,
-        inputs,
-        analysed,
-        fit::Options::before_issue_37(),
-        false,
-    )?;
+    let before = fit::Options::before_issue_37();
+    let (old, _) = one(&rig, inputs, analysed, before, false)?;
     progress("before:", &old);
     let ratio = old.seconds / new.seconds;
     if opts.json {

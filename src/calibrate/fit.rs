@@ -431,10 +431,8 @@ impl<'a> Twin<'a> {
         if parts == Parts::ALL {
             self.views.lock().expect("cache").insert(key, v.clone());
         } else {
-            self.partial
-                .lock()
-                .expect("cache")
-                .insert(partial_key, v.clone());
+            let mut partial = self.partial.lock().expect("cache");
+            partial.insert(partial_key, v.clone());
         }
         Ok(v)
     }
@@ -603,16 +601,26 @@ fn named_params(
 /// at the start of the last round; `now`: at the start of this one). Its search would start
 /// from the same values on the same error landscape of its own components.
 pub fn ruled_out(effect: Effect, last: &[Trial], before: &ErrorParts, now: &ErrorParts) -> bool {
-    let Some(t) = last.iter().find(|t| t.effect == Some(effect)) else {
-        return false;
-    };
+    last.iter()
+        .find(|t| t.effect == Some(effect))
+        .is_some_and(|t| {
+            ruled_out_by(effect, (t.own_fit_before, t.own_fit_after), &|c| {
+                now.get(c) - before.get(c)
+            })
+        })
+}
+
+/// [`ruled_out`] from the last trial's own components on the fit part (before, after) and
+/// how far each component has moved on the fit part since the last round began.
+pub fn ruled_out_by(
+    effect: Effect,
+    (b, a): (f64, f64),
+    moved_by: &dyn Fn(ErrorComponent) -> f64,
+) -> bool {
     let own = effect.components();
     let floor: f64 = own.iter().map(|&c| min_cut(c)).sum();
-    let (b, a) = (t.own_fit_before, t.own_fit_after);
     let fit_passed = b - a >= FIT_CUT.0 * b && b - a >= FIT_CUT.1 * floor;
-    let moved = own
-        .iter()
-        .any(|&c| (now.get(c) - before.get(c)).abs() > min_cut(c));
+    let moved = own.iter().any(|&c| moved_by(c).abs() > min_cut(c));
     !fit_passed && !moved
 }
 
@@ -909,4 +917,32 @@ pub fn round_sig(v: f64) -> f64 {
     let d = 3 - v.abs().log10().floor() as i32;
     let p = 10f64.powi(d);
     (v * p).round() / p
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn an_effect_is_ruled_out_only_when_it_failed_and_its_view_stood_still() {
+        use ErrorComponent as C;
+        let e = Effect::Noise; // own component: floor
+                               // the accepted effect moved another view (bands), not the floor
+        let other = |c: ErrorComponent| if c == C::Bands { -6.0 } else { 0.0 };
+        assert!(ruled_out_by(e, (4.0, 3.9), &other));
+        // a cut that passed the fit part's rule (the held-out part refused it): try again
+        assert!(!ruled_out_by(e, (4.0, 1.0), &other));
+        // the floor moved by more than its smallest meaningful cut: try again
+        let floor = |c: ErrorComponent| {
+            if c == C::Floor {
+                2.0 * min_cut(C::Floor)
+            } else {
+                0.0
+            }
+        };
+        assert!(!ruled_out_by(e, (4.0, 3.9), &floor));
+        // no trial in the last round: nothing rules it out
+        let p = ErrorParts::default();
+        assert!(!ruled_out(e, &[], &p, &p));
+    }
 }
