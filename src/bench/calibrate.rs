@@ -1,10 +1,11 @@
-//! `rigmon bench calibrate`: wall time of one calibration ([`fit::calibrate`]) of measured
-//! recordings analysed whole, against the same calibration the way it ran before
-//! ([`fit::Options::baseline`]: each recording as one piece with a twin as long as it, the
-//! trials of a round one after the other, the engine cache emptied when full), in the same
-//! run on the same data. Default data: the independent generator's `speed_fluctuation` case
-//! (`tests/python/measured_like.py`, six recordings of 20 s, seed 1); `--measured` takes any
-//! `labels.csv`, `--seconds` cuts each recording (default: whole).
+//! `rigmon bench calibrate`: wall time of one calibration as `rigmon calibrate` runs it
+//! (the recordings loaded, then [`fit::calibrate`]) against the same calibration the way it
+//! ran before issue 37 ([`fit::Options::before_issue_37`]: every open effect tried again in
+//! every round; the recordings loaded one after the other), in the same run on the same
+//! data. (The way before issue 15, [`fit::Options::baseline`], took 15x longer; its figures
+//! are in docs/calibration-speed.md.) Default data: the independent generator's
+//! `speed_fluctuation` case (`tests/python/measured_like.py`, six recordings of 20 s, seed
+//! 1); `--measured` takes any `labels.csv`, `--seconds` cuts each recording (default: whole).
 
 use super::{machine_line, BenchOptions};
 use crate::calibrate::{fit, measured};
@@ -45,6 +46,8 @@ fn generate(case: &str) -> Result<PathBuf> {
 
 struct Timed {
     seconds: f64,
+    /// Of which loading the recordings.
+    load_seconds: f64,
     /// CPU time of the process (user + system, all threads) during the run.
     cpu_seconds: f64,
     /// The 1-minute load average at the start and at the end of the run (other jobs on the
@@ -53,30 +56,48 @@ struct Timed {
     outcome: fit::Outcome,
 }
 
+/// Load and calibrate, timed; also returns the recordings.
 fn one(
     rig: &RigConfig,
-    ops: &[measured::Measured],
-    part: &[bool],
+    inputs: &[PathBuf],
+    analysed: f64,
     options: fit::Options,
-) -> Result<Timed> {
+    parallel_load: bool,
+) -> Result<(Timed, Vec<measured::Measured>)> {
     let load = || load_1min().unwrap_or(f64::NAN);
     let (l0, c0, t0) = (load(), process_cpu_s(), Instant::now());
-    let outcome = fit::calibrate_with(rig, ops, part.to_vec(), options)?;
-    Ok(Timed {
+    let ops = measured::load_with(rig, inputs, analysed, parallel_load)?;
+    let load_seconds = t0.elapsed().as_secs_f64();
+    let part = measured::checkerboard(&ops);
+    let outcome = fit::calibrate_with(rig, &ops, part, options)?;
+    let t = Timed {
         seconds: t0.elapsed().as_secs_f64(),
+        load_seconds,
         cpu_seconds: process_cpu_s() - c0,
         load: (l0, load()),
         outcome,
-    })
+    };
+    Ok((t, ops))
 }
 
 /// The per-stage times of one calibration, one line.
 fn stages(o: &fit::Outcome) -> String {
-    o.timings
+    let rounds: Vec<String> = o
+        .round_times
+        .iter()
+        .map(|r| format!("{:.1} s ({} tried)", r.wall_s, r.trials.len()))
+        .collect();
+    let stages: Vec<String> = o
+        .timings
         .iter()
         .map(|t| format!("{} {:.1} s ({} calls)", t.stage, t.seconds, t.calls))
-        .collect::<Vec<_>>()
-        .join(", ")
+        .collect();
+    format!(
+        "{}; measured views {:.1} s wall, rounds {}",
+        stages.join(", "),
+        o.measured_views_wall_s,
+        rounds.join(", ")
+    )
 }
 
 fn summary(o: &fit::Outcome) -> String {
@@ -96,8 +117,9 @@ fn summary(o: &fit::Outcome) -> String {
 /// One timed calibration on stderr, as it finishes.
 fn progress(what: &str, t: &Timed) {
     eprintln!(
-        "  {what:<9} {:.1} s (CPU {:.1} s, load {:.1} -> {:.1})  {}",
+        "  {what:<9} {:.1} s, of which loading {:.1} s (CPU {:.1} s, load {:.1} -> {:.1})  {}",
         t.seconds,
+        t.load_seconds,
         t.cpu_seconds,
         t.load.0,
         t.load.1,
@@ -111,18 +133,15 @@ pub fn run(
     measured_path: Option<PathBuf>,
     analysed: Option<f64>,
 ) -> Result<()> {
-    let rig_path = opts
-        .rig
-        .clone()
-        .unwrap_or_else(|| shipped("config/lut-rig.toml"));
-    let rig = RigConfig::load(&rig_path)?;
+    let rig_path = opts.rig.clone();
+    let rig = RigConfig::load(&rig_path.unwrap_or_else(|| shipped("config/lut-rig.toml")))?;
     let labels = match measured_path {
         Some(p) => p,
         None => generate("speed_fluctuation")?,
     };
     let inputs = std::slice::from_ref(&labels);
-    let ops = measured::load(&rig, inputs, analysed.unwrap_or(f64::INFINITY))?;
-    let part = measured::checkerboard(&ops);
+    let analysed = analysed.unwrap_or(f64::INFINITY);
+    let (new, ops) = one(&rig, inputs, analysed, fit::Options::default(), true)?;
     let signal: f64 = ops.iter().map(|m| m.recording.duration_s()).sum();
     eprintln!(
         "bench calibrate: {} recordings, {:.1} s of signal from {}",
@@ -130,10 +149,10 @@ pub fn run(
         signal,
         labels.display()
     );
-    let new = one(&rig, &ops, &part, fit::Options::default())?;
     progress("now:", &new);
-    let old = one(&rig, &ops, &part, fit::Options::baseline())?;
-    progress("baseline:", &old);
+    let before = fit::Options::before_issue_37();
+    let (old, _) = one(&rig, inputs, analysed, before, false)?;
+    progress("before:", &old);
     let ratio = old.seconds / new.seconds;
     if opts.json {
         println!(
@@ -155,14 +174,18 @@ pub fn run(
                 "baseline_effects": old.outcome.accepted.iter().map(|t| &t.name).collect::<Vec<_>>(),
                 "stages": new.outcome.timings,
                 "baseline_stages": old.outcome.timings,
+                "load_seconds": new.load_seconds,
+                "baseline_load_seconds": old.load_seconds,
+                "rounds": new.outcome.round_times,
+                "baseline_rounds": old.outcome.round_times,
             })
         );
     } else {
         println!("machine: {}", machine_line());
         println!(
-            "calibration of {} recordings ({:.1} s of signal, analysed whole): {:.1} s \
-             (CPU {:.1} s, load average {:.1} -> {:.1}); the same calibration before (one \
-             piece per recording, serial trials, engine cache emptied when full): {:.1} s \
+            "load and calibration of {} recordings ({:.1} s of signal, analysed whole): {:.1} s \
+             (CPU {:.1} s, load average {:.1} -> {:.1}); the same before issue 37 (every open \
+             effect tried in every round, recordings loaded one by one): {:.1} s \
              (CPU {:.1} s, load average {:.1} -> {:.1}): {:.2}x faster",
             ops.len(),
             signal,

@@ -17,7 +17,7 @@ use super::measured::{several_speeds, Measured};
 use super::modes::Mode;
 use super::search;
 use super::speed_line;
-use super::timing::{Stage, StageTime, Timings};
+use super::timing::{RecordingTime, RoundTime, Stage, StageTime, Timings};
 use super::views::{self, Parts, Views};
 use crate::config::simulation::SimulationConfig;
 use crate::config::{RigConfig, SpeedConfig};
@@ -82,6 +82,9 @@ pub struct Trial {
     pub components_after: ErrorParts,
     pub accepted: bool,
     pub evaluations: usize,
+    /// Wall seconds of this trial (search, re-fits and final errors; with the trials of a
+    /// round in parallel, including time spent waiting for a core).
+    pub seconds: f64,
     /// Accepted effects re-fitted together with this one.
     pub refits: Vec<Refit>,
     /// Parameters that ended within 1 % of a search bound (the bound, not the data, may
@@ -125,6 +128,13 @@ pub struct Outcome {
     pub views_after: Vec<Views>,
     /// Where the calibration spent its time ([`Timings`]).
     pub timings: Vec<StageTime>,
+    /// The same per measured recording.
+    pub recording_times: Vec<RecordingTime>,
+    /// Wall time of each round and its trials.
+    pub round_times: Vec<RoundTime>,
+    /// Wall seconds of the measured recordings' views, and of the whole calibration.
+    pub measured_views_wall_s: f64,
+    pub wall_s: f64,
 }
 
 /// How the calibration runs. [`Options::default`] is the normal way; [`Options::baseline`]
@@ -143,6 +153,8 @@ pub struct Options {
     /// While an effect's parameters are searched, simulate and compare only what its own
     /// components read ([`Twin::error_of`]; else every view of every recording).
     pub own_views: bool,
+    /// Do not try again an effect the last round ruled out ([`ruled_out`]).
+    pub skip_ruled_out: bool,
 }
 
 impl Default for Options {
@@ -152,11 +164,20 @@ impl Default for Options {
             parallel_trials: true,
             engine_lru: true,
             own_views: true,
+            skip_ruled_out: true,
         }
     }
 }
 
 impl Options {
+    /// The calibration as it ran before issue 37: every open effect tried in every round.
+    pub fn before_issue_37() -> Self {
+        Options {
+            skip_ruled_out: false,
+            ..Options::default()
+        }
+    }
+
     /// The calibration as it ran before whole-recording analysis (see [`Options`]).
     pub fn baseline() -> Self {
         Options {
@@ -164,6 +185,7 @@ impl Options {
             parallel_trials: false,
             engine_lru: false,
             own_views: false,
+            skip_ruled_out: false,
         }
     }
 }
@@ -270,11 +292,12 @@ impl<'a> Twin<'a> {
     }
 
     pub fn with_options(rig: &'a RigConfig, ops: &'a [Measured], options: Options) -> Result<Self> {
-        let timings = Timings::default();
+        let timings = Timings::for_recordings(ops.len());
         let measured = ops
             .par_iter()
-            .map(|m| {
-                let v = timings.time(Stage::MeasuredViews, || {
+            .enumerate()
+            .map(|(i, m)| {
+                let v = timings.time_op(Stage::MeasuredViews, Some(i), || {
                     if options.segmented {
                         views::compute(&m.recording, rig, &m.faults)
                     } else {
@@ -361,7 +384,7 @@ impl<'a> Twin<'a> {
                 None => {
                     let r = Arc::new(
                         self.timings
-                            .time(Stage::Engine, || run_engine(self.rig, &s, &sc))
+                            .time_op(Stage::Engine, Some(i), || run_engine(self.rig, &s, &sc))
                             .with_context(|| format!("simulating the twin of {}", m.name))?,
                     );
                     self.engines
@@ -371,30 +394,32 @@ impl<'a> Twin<'a> {
                     r
                 }
             };
-            Some(self.timings.time(Stage::Sensor, || {
+            Some(self.timings.time_op(Stage::Sensor, Some(i), || {
                 sensor::finish(self.rig, &sc.overrides.apply(&s), &sc, &run)
             })?)
         };
-        let mut v = self.timings.time(Stage::SimViews, || -> Result<Views> {
-            if !self.options.segmented {
-                let rec = rec.as_ref().expect("the baseline computes every view");
-                return whole_piece(rec, self.rig, &m.faults);
-            }
-            let mut v = match &rec {
-                Some(rec) => views::compute_parts(rec, self.rig, &m.faults, parts)?,
-                None => Views {
-                    rpm: m.rpm,
-                    healthy: m.faults.is_empty(),
-                    seconds: twin_s,
-                    segments: 1,
-                    ..Views::default()
-                },
-            };
-            let track = twin_speed_track(self.rig, &s, m.rpm, dur)?;
-            v.speed = views::speed_view(&track, dur, track.mean_rpm(0.0, dur));
-            v.seconds = dur;
-            Ok(v)
-        })?;
+        let mut v = self
+            .timings
+            .time_op(Stage::SimViews, Some(i), || -> Result<Views> {
+                if !self.options.segmented {
+                    let rec = rec.as_ref().expect("the baseline computes every view");
+                    return whole_piece(rec, self.rig, &m.faults);
+                }
+                let mut v = match &rec {
+                    Some(rec) => views::compute_parts(rec, self.rig, &m.faults, parts)?,
+                    None => Views {
+                        rpm: m.rpm,
+                        healthy: m.faults.is_empty(),
+                        seconds: twin_s,
+                        segments: 1,
+                        ..Views::default()
+                    },
+                };
+                let track = twin_speed_track(self.rig, &s, m.rpm, dur)?;
+                v.speed = views::speed_view(&track, dur, track.mean_rpm(0.0, dur));
+                v.seconds = dur;
+                Ok(v)
+            })?;
         // the simulated side of `modes` is the model's dominant mode (see `error`)
         if let Some(hz) = dominant_resonance_hz(self.rig, &s) {
             v.mode = Mode {
@@ -406,10 +431,8 @@ impl<'a> Twin<'a> {
         if parts == Parts::ALL {
             self.views.lock().expect("cache").insert(key, v.clone());
         } else {
-            self.partial
-                .lock()
-                .expect("cache")
-                .insert(partial_key, v.clone());
+            let mut partial = self.partial.lock().expect("cache");
+            partial.insert(partial_key, v.clone());
         }
         Ok(v)
     }
@@ -438,7 +461,7 @@ impl<'a> Twin<'a> {
             .par_iter()
             .map(|&i| {
                 let s = self.simulated_parts(sim, i, parts)?;
-                Ok(self.timings.time(Stage::Error, || {
+                Ok(self.timings.time_op(Stage::Error, Some(i), || {
                     error::pair_only(&self.measured[i], &s, own)
                 }))
             })
@@ -454,7 +477,7 @@ impl<'a> Twin<'a> {
                 let s = self.simulated(sim, i)?;
                 Ok(self
                     .timings
-                    .time(Stage::Error, || error::pair(&self.measured[i], &s)))
+                    .time_op(Stage::Error, Some(i), || error::pair(&self.measured[i], &s)))
             })
             .collect::<Result<Vec<_>>>()?;
         Ok(error::mean(&parts))
@@ -571,6 +594,137 @@ fn named_params(
     Ok(p)
 }
 
+/// Whether the last round's evidence rules `effect` out of this round: its trial there did
+/// not cut its own components on the fit part as [`accepts`] requires (the fit part alone,
+/// before the held-out part is asked), and the effect accepted since moved none of those
+/// components on the fit part by more than its [`min_cut`] (`before`: the fit part's error
+/// at the start of the last round; `now`: at the start of this one). Its search would start
+/// from the same values on the same error landscape of its own components.
+pub fn ruled_out(effect: Effect, last: &[Trial], before: &ErrorParts, now: &ErrorParts) -> bool {
+    last.iter()
+        .find(|t| t.effect == Some(effect))
+        .is_some_and(|t| {
+            ruled_out_by(effect, (t.own_fit_before, t.own_fit_after), &|c| {
+                now.get(c) - before.get(c)
+            })
+        })
+}
+
+/// [`ruled_out`] from the last trial's own components on the fit part (before, after) and
+/// how far each component has moved on the fit part since the last round began.
+pub fn ruled_out_by(
+    effect: Effect,
+    (b, a): (f64, f64),
+    moved_by: &dyn Fn(ErrorComponent) -> f64,
+) -> bool {
+    let own = effect.components();
+    let floor: f64 = own.iter().map(|&c| min_cut(c)).sum();
+    let fit_passed = b - a >= FIT_CUT.0 * b && b - a >= FIT_CUT.1 * floor;
+    let moved = own.iter().any(|&c| moved_by(c).abs() > min_cut(c));
+    !fit_passed && !moved
+}
+
+/// One round of trials: the calibration so far, and its errors.
+struct Round<'r, 'a> {
+    twin: &'r Twin<'a>,
+    current: &'r SimulationConfig,
+    accepted: &'r [Trial],
+    cur_fit_parts: ErrorParts,
+    cur_held_parts: ErrorParts,
+    cur_all: f64,
+    /// The fit, held-out and all operating points.
+    parts: (&'r [usize], &'r [usize], &'r [usize]),
+    cx: &'r catalog::Context,
+}
+
+impl Round<'_, '_> {
+    /// Search `effect` on top of the calibration so far, re-fit the accepted effects whose
+    /// views it moves, and judge it ([`accepts`]).
+    fn try_effect(&self, effect: Effect) -> Result<Trial> {
+        let trial_start = std::time::Instant::now();
+        let (twin, cx) = (self.twin, self.cx);
+        let (fit, held, all) = self.parts;
+        let own = effect.components();
+        let (values, _, evals) = search_effect(twin, effect, self.current, None, fit, cx)?;
+        let cand = effect.apply(self.current, &values, cx);
+        let (cand, refits, evals) = self.refit_moved(cand, evals)?;
+        let fit_parts = twin.error(&cand, fit)?;
+        let (fit_after, own_fit_after) = (fit_parts.total, fit_parts.of(own));
+        let held_parts = twin.error(&cand, held)?;
+        let held_after = held_parts.total;
+        let (cur_fit, cur_held) = (self.cur_fit_parts.total, self.cur_held_parts.total);
+        let (own_fit_before, own_held_before) =
+            (self.cur_fit_parts.of(own), self.cur_held_parts.of(own));
+        let own_held_after = held_parts.of(own);
+        let all_parts = twin.error(&cand, all)?;
+        Ok(Trial {
+            name: effect.name().into(),
+            params: named_params(twin, effect, &values, &cand, cx)?,
+            fit_before: cur_fit,
+            fit_after,
+            held_before: cur_held,
+            held_after,
+            error_before: self.cur_all,
+            error_after: all_parts.total,
+            components_after: all_parts,
+            own: own.iter().map(|s| s.to_string()).collect(),
+            own_fit_before,
+            own_fit_after,
+            own_held_before,
+            own_held_after,
+            accepted: accepts(
+                own,
+                (own_fit_before, own_fit_after),
+                (own_held_before, own_held_after),
+                (cur_fit, fit_after),
+                (cur_held, held_after),
+            ),
+            evaluations: evals,
+            seconds: trial_start.elapsed().as_secs_f64(),
+            refits,
+            at_bound: at_bound(effect, &values, cx),
+            effect: Some(effect),
+            values,
+            candidate: Some(cand),
+        })
+    }
+
+    /// An effect that moves a view an accepted effect was fitted on gets that effect
+    /// re-fitted with it before it is judged (e.g. at 1796 rpm a 60 Hz line falls on the 2x
+    /// line an accepted unbalance was fitted to): (candidate, re-fits, evaluations).
+    fn refit_moved(
+        &self,
+        mut cand: SimulationConfig,
+        mut evals: usize,
+    ) -> Result<(SimulationConfig, Vec<Refit>, usize)> {
+        let (twin, cx, fit) = (self.twin, self.cx, self.parts.0);
+        let mut refits = Vec::new();
+        let mut cand_fit_parts = twin.error(&cand, fit)?;
+        for (k, a) in self.accepted.iter().enumerate() {
+            let ae = a.effect.expect("accepted effects carry their effect");
+            let moved = ae
+                .components()
+                .iter()
+                .any(|&c| cand_fit_parts.get(c) > self.cur_fit_parts.get(c) + min_cut(c));
+            if moved {
+                // from its accepted values, so the re-fit only moves what it must
+                let (v, _, n) = search_effect(twin, ae, &cand, Some(&a.values), fit, cx)?;
+                evals += n;
+                cand = ae.apply(&cand, &v, cx);
+                cand_fit_parts = twin.error(&cand, fit)?;
+                refits.push(Refit {
+                    name: a.name.clone(),
+                    params: named_params(twin, ae, &v, &cand, cx)?,
+                    at_bound: at_bound(ae, &v, cx),
+                    index: k,
+                    values: v,
+                });
+            }
+        }
+        Ok((cand, refits, evals))
+    }
+}
+
 /// Run the greedy calibration on measured operating points (from [`super::measured::load`],
 /// split by [`super::measured::checkerboard`]): the library entry point of `rigmon
 /// calibrate`.
@@ -602,7 +756,9 @@ pub fn calibrate_with(
             2.0 * LONGEST_PERIOD_S
         );
     }
+    let started = std::time::Instant::now();
     let twin = Twin::with_options(rig, ops, options)?;
+    let measured_views_wall_s = started.elapsed().as_secs_f64();
     let all: Vec<usize> = (0..ops.len()).collect();
     let fit: Vec<usize> = all.iter().copied().filter(|&i| fit_part[i]).collect();
     let held: Vec<usize> = all.iter().copied().filter(|&i| !fit_part[i]).collect();
@@ -631,83 +787,34 @@ pub fn calibrate_with(
     let mut current = base.clone();
     let mut accepted: Vec<Trial> = Vec::new();
     let mut rounds = Vec::new();
+    let mut round_times = Vec::new();
+    let mut last: Option<(ErrorParts, Vec<Trial>)> = None;
     loop {
         let cur_fit_parts = twin.error(&current, &fit)?;
         let cur_held_parts = twin.error(&current, &held)?;
-        let (cur_fit, cur_held) = (cur_fit_parts.total, cur_held_parts.total);
         let cur_all = twin.error(&current, &all)?.total;
-        let open: Vec<Effect> = ALL
+        let (open, skipped): (Vec<Effect>, Vec<Effect>) = ALL
             .iter()
             .copied()
             .filter(|e| !accepted.iter().any(|t| t.effect == Some(*e)))
-            .collect();
-        let try_effect = |effect: Effect| -> Result<Trial> {
-            let own = effect.components();
-            let (values, _, mut evals) = search_effect(&twin, effect, &current, None, &fit, &cx)?;
-            let mut cand = effect.apply(&current, &values, &cx);
-            // an effect that moves a view an accepted effect was fitted on gets that effect
-            // re-fitted with it before it is judged (e.g. at 1796 rpm a 60 Hz line falls on
-            // the 2x line an accepted unbalance was fitted to)
-            let mut refits = Vec::new();
-            let mut cand_fit_parts = twin.error(&cand, &fit)?;
-            for (k, a) in accepted.iter().enumerate() {
-                let ae = a.effect.expect("accepted effects carry their effect");
-                let moved = ae
-                    .components()
-                    .iter()
-                    .any(|&c| cand_fit_parts.get(c) > cur_fit_parts.get(c) + min_cut(c));
-                if moved {
-                    // from its accepted values, so the re-fit only moves what it must
-                    let (v, _, n) = search_effect(&twin, ae, &cand, Some(&a.values), &fit, &cx)?;
-                    evals += n;
-                    cand = ae.apply(&cand, &v, &cx);
-                    cand_fit_parts = twin.error(&cand, &fit)?;
-                    refits.push(Refit {
-                        name: a.name.clone(),
-                        params: named_params(&twin, ae, &v, &cand, &cx)?,
-                        at_bound: at_bound(ae, &v, &cx),
-                        index: k,
-                        values: v,
-                    });
-                }
-            }
-            let fit_parts = twin.error(&cand, &fit)?;
-            let (fit_after, own_fit_after) = (fit_parts.total, fit_parts.of(own));
-            let held_parts = twin.error(&cand, &held)?;
-            let held_after = held_parts.total;
-            let (own_fit_before, own_held_before) = (cur_fit_parts.of(own), cur_held_parts.of(own));
-            let own_held_after = held_parts.of(own);
-            let all_parts = twin.error(&cand, &all)?;
-            Ok(Trial {
-                name: effect.name().into(),
-                params: named_params(&twin, effect, &values, &cand, &cx)?,
-                fit_before: cur_fit,
-                fit_after,
-                held_before: cur_held,
-                held_after,
-                error_before: cur_all,
-                error_after: all_parts.total,
-                components_after: all_parts,
-                own: own.iter().map(|s| s.to_string()).collect(),
-                own_fit_before,
-                own_fit_after,
-                own_held_before,
-                own_held_after,
-                accepted: accepts(
-                    own,
-                    (own_fit_before, own_fit_after),
-                    (own_held_before, own_held_after),
-                    (cur_fit, fit_after),
-                    (cur_held, held_after),
-                ),
-                evaluations: evals,
-                refits,
-                at_bound: at_bound(effect, &values, &cx),
-                effect: Some(effect),
-                values,
-                candidate: Some(cand),
-            })
+            .partition(|e| {
+                !(options.skip_ruled_out
+                    && last.as_ref().is_some_and(|(parts, trials)| {
+                        ruled_out(*e, trials, parts, &cur_fit_parts)
+                    }))
+            });
+        let round_start = std::time::Instant::now();
+        let round = Round {
+            twin: &twin,
+            current: &current,
+            accepted: &accepted,
+            cur_fit_parts,
+            cur_held_parts,
+            cur_all,
+            parts: (&fit, &held, &all),
+            cx: &cx,
         };
+        let try_effect = |effect: Effect| round.try_effect(effect);
         let mut trials: Vec<Trial> = if twin.options.parallel_trials {
             open.par_iter()
                 .map(|e| try_effect(*e))
@@ -727,7 +834,14 @@ pub fn calibrate_with(
         for (i, t) in trials.iter_mut().enumerate() {
             t.accepted = Some(i) == best;
         }
+        round_times.push(RoundTime {
+            round: rounds.len() + 1,
+            wall_s: round_start.elapsed().as_secs_f64(),
+            trials: trials.iter().map(|t| (t.name.clone(), t.seconds)).collect(),
+            skipped: skipped.iter().map(|e| e.name().to_string()).collect(),
+        });
         rounds.push(trials.clone());
+        last = Some((cur_fit_parts, trials.clone()));
         match best {
             Some(i) => {
                 let mut t = trials.swap_remove(i);
@@ -770,6 +884,12 @@ pub fn calibrate_with(
         views_before,
         views_after,
         timings: twin.timings.totals(),
+        recording_times: twin
+            .timings
+            .per_recording(&ops.iter().map(|m| m.name.clone()).collect::<Vec<_>>()),
+        round_times,
+        measured_views_wall_s,
+        wall_s: started.elapsed().as_secs_f64(),
     })
 }
 
@@ -797,4 +917,32 @@ pub fn round_sig(v: f64) -> f64 {
     let d = 3 - v.abs().log10().floor() as i32;
     let p = 10f64.powi(d);
     (v * p).round() / p
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn an_effect_is_ruled_out_only_when_it_failed_and_its_view_stood_still() {
+        use ErrorComponent as C;
+        let e = Effect::Noise; // own component: floor
+                               // the accepted effect moved another view (bands), not the floor
+        let other = |c: ErrorComponent| if c == C::Bands { -6.0 } else { 0.0 };
+        assert!(ruled_out_by(e, (4.0, 3.9), &other));
+        // a cut that passed the fit part's rule (the held-out part refused it): try again
+        assert!(!ruled_out_by(e, (4.0, 1.0), &other));
+        // the floor moved by more than its smallest meaningful cut: try again
+        let floor = |c: ErrorComponent| {
+            if c == C::Floor {
+                2.0 * min_cut(C::Floor)
+            } else {
+                0.0
+            }
+        };
+        assert!(!ruled_out_by(e, (4.0, 3.9), &floor));
+        // no trial in the last round: nothing rules it out
+        let p = ErrorParts::default();
+        assert!(!ruled_out(e, &[], &p, &p));
+    }
 }

@@ -12,6 +12,7 @@ use crate::recording::Recording;
 use crate::sim::Fault;
 use crate::vocabulary::Condition;
 use anyhow::{bail, Context, Result};
+use rayon::prelude::*;
 use std::path::{Path, PathBuf};
 
 /// Two operating speeds count as different when they differ by more than 5 %: enough to tell
@@ -49,6 +50,17 @@ pub struct Measured {
 type ToLoad = (PathBuf, Option<String>, ImportOptions, Option<(f64, f64)>);
 
 pub fn load(rig: &RigConfig, inputs: &[PathBuf], max_seconds: f64) -> Result<Vec<Measured>> {
+    load_with(rig, inputs, max_seconds, true)
+}
+
+/// [`load`], the files read in parallel or (as before issue 37, `rigmon bench calibrate`'s
+/// comparison) one after the other.
+pub fn load_with(
+    rig: &RigConfig,
+    inputs: &[PathBuf],
+    max_seconds: f64,
+    parallel: bool,
+) -> Result<Vec<Measured>> {
     let mut files: Vec<ToLoad> = Vec::new();
     for p in inputs {
         let is_manifest = p.is_dir() || p.extension().is_some_and(|e| e == "csv") && is_manifest(p);
@@ -61,7 +73,7 @@ pub fn load(rig: &RigConfig, inputs: &[PathBuf], max_seconds: f64) -> Result<Vec
             files.push((p.clone(), None, ImportOptions::default(), None));
         }
     }
-    load_files(rig, files, max_seconds)
+    load_files(rig, files, max_seconds, parallel)
 }
 
 /// [`load`] on manifest rows already read (`rigmon adapt` leaves out a healthy row whose
@@ -82,48 +94,66 @@ pub fn load_entries(
             )
         })
         .collect();
-    load_files(rig, files, max_seconds)
+    load_files(rig, files, max_seconds, true)
 }
 
-fn load_files(rig: &RigConfig, files: Vec<ToLoad>, max_seconds: f64) -> Result<Vec<Measured>> {
+fn load_files(
+    rig: &RigConfig,
+    files: Vec<ToLoad>,
+    max_seconds: f64,
+    parallel: bool,
+) -> Result<Vec<Measured>> {
     if files.is_empty() {
         bail!("no measured recordings given; pass --measured <labels.csv> or recording files");
     }
-    let mut out = Vec::new();
-    for (path, label, opts, span) in files {
-        let mut rec = importers::load(&path, rig, &opts)
-            .with_context(|| format!("loading measured recording {}", path.display()))?;
-        let label = label
-            .or_else(|| rec.metadata.get("label").cloned())
-            .unwrap_or_else(|| Condition::Healthy.as_str().into());
-        let faults =
-            Fault::parse_list(&label).with_context(|| format!("label of {}", path.display()))?;
-        // A manifest row may name part of its file (`start_s`/`end_s`): only that part is
-        // analysed, and at most `max_seconds` of it.
-        let (start_s, end_s) = span.unwrap_or((0.0, f64::INFINITY));
-        cut(&mut rec, start_s, (end_s - start_s).min(max_seconds));
-        if rec.is_empty() {
-            bail!(
+    // each file is read, cut, its speed read and resampled on its own: in parallel
+    if parallel {
+        files
+            .into_par_iter()
+            .map(|f| load_one(rig, f, max_seconds))
+            .collect()
+    } else {
+        files
+            .into_iter()
+            .map(|f| load_one(rig, f, max_seconds))
+            .collect()
+    }
+}
+
+/// Load one recording of [`load_files`].
+fn load_one(rig: &RigConfig, file: ToLoad, max_seconds: f64) -> Result<Measured> {
+    let (path, label, opts, span) = file;
+    let mut rec = importers::load(&path, rig, &opts)
+        .with_context(|| format!("loading measured recording {}", path.display()))?;
+    let label = label
+        .or_else(|| rec.metadata.get("label").cloned())
+        .unwrap_or_else(|| Condition::Healthy.as_str().into());
+    let faults =
+        Fault::parse_list(&label).with_context(|| format!("label of {}", path.display()))?;
+    // A manifest row may name part of its file (`start_s`/`end_s`): only that part is
+    // analysed, and at most `max_seconds` of it.
+    let (start_s, end_s) = span.unwrap_or((0.0, f64::INFINITY));
+    cut(&mut rec, start_s, (end_s - start_s).min(max_seconds));
+    if rec.is_empty() {
+        bail!(
                 "{}: nothing left between start_s {start_s} and end_s {end_s}; the recording is shorter, widen the span in the manifest",
                 path.display()
             );
-        }
-        let rpm = mean_rpm(&rec, rig).with_context(|| format!("speed of {}", path.display()))?;
-        let recorded_sample_rate = rate::to_analysis_rate(&mut rec, rig)
-            .with_context(|| format!("bringing {} to the simulation rate", path.display()))?;
-        out.push(Measured {
-            name: path.file_name().map_or_else(
-                || path.display().to_string(),
-                |n| n.to_string_lossy().into(),
-            ),
-            label,
-            faults,
-            rpm,
-            recording: rec,
-            recorded_sample_rate,
-        });
     }
-    Ok(out)
+    let rpm = mean_rpm(&rec, rig).with_context(|| format!("speed of {}", path.display()))?;
+    let recorded_sample_rate = rate::to_analysis_rate(&mut rec, rig)
+        .with_context(|| format!("bringing {} to the simulation rate", path.display()))?;
+    Ok(Measured {
+        name: path.file_name().map_or_else(
+            || path.display().to_string(),
+            |n| n.to_string_lossy().into(),
+        ),
+        label,
+        faults,
+        rpm,
+        recording: rec,
+        recorded_sample_rate,
+    })
 }
 
 fn is_manifest(p: &Path) -> bool {

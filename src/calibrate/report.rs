@@ -118,6 +118,8 @@ pub fn json(rig: &RigConfig, o: &Outcome, ops: &[Measured], id: &str) -> Value {
         "unexplained": o.unexplained,
         "rounds": o.rounds,
         "split": split,
+        "timings": {"wall_s": o.wall_s, "measured_views_wall_s": o.measured_views_wall_s,
+                    "stages": o.timings, "recordings": o.recording_times, "rounds": o.round_times},
         "acceptance": {"fit_cut_relative": FIT_CUT.0, "fit_cut_min_cuts": FIT_CUT.1,
                         "held_cut_relative": HELD_CUT.0, "held_cut_min_cuts": HELD_CUT.1,
                         "min_cut": ErrorComponent::ALL.iter().map(|&c| (c.name(), min_cut(c))).collect::<std::collections::BTreeMap<_, _>>()},
@@ -162,23 +164,7 @@ pub fn markdown(rig: &RigConfig, o: &Outcome, ops: &[Measured], id: &str) -> Str
             );
         }
     }
-    let _ = writeln!(s, "\n## Every trial, by round\n\n| round | effect | params | fit before -> after | held-out before -> after | accepted |\n|---|---|---|---|---|---|");
-    for (r, round) in o.rounds.iter().enumerate() {
-        for t in round {
-            let _ = writeln!(
-                s,
-                "| {} | {} | {:?} | {:.3} -> {:.3} | {:.3} -> {:.3} | {} |",
-                r + 1,
-                t.name,
-                t.params,
-                t.fit_before,
-                t.fit_after,
-                t.held_before,
-                t.held_after,
-                if t.accepted { "yes" } else { "no" }
-            );
-        }
-    }
+    s.push_str(&trial_table(o));
     let _ = writeln!(s, "\n## Unexplained\n");
     if o.unexplained.is_empty() {
         let _ = writeln!(
@@ -205,6 +191,61 @@ pub fn markdown(rig: &RigConfig, o: &Outcome, ops: &[Measured], id: &str) -> Str
         s,
         "\n![measured vs simulated](spectra.png)\n\n![residual](residual.png)"
     );
+    s.push_str(&time_tables(o));
+    s
+}
+
+/// Every trial of every round, with its wall time.
+fn trial_table(o: &Outcome) -> String {
+    let mut s = String::from("\n## Every trial, by round\n\n| round | effect | params | fit before -> after | held-out before -> after | accepted | wall s |\n|---|---|---|---|---|---|---|\n");
+    for (r, round) in o.rounds.iter().enumerate() {
+        for t in round {
+            let _ = writeln!(
+                s,
+                "| {} | {} | {:?} | {:.3} -> {:.3} | {:.3} -> {:.3} | {} | {:.1} |",
+                r + 1,
+                t.name,
+                t.params,
+                t.fit_before,
+                t.fit_after,
+                t.held_before,
+                t.held_after,
+                if t.accepted { "yes" } else { "no" },
+                t.seconds
+            );
+        }
+    }
+    s
+}
+
+/// Where the time went: wall time of the views and of each round, and per stage and
+/// recording the summed time of every call (over all threads: about CPU time).
+fn time_tables(o: &Outcome) -> String {
+    let mut s = format!(
+        "\n## Where the time went\n\n{:.1} s wall: measured views {:.1} s, then rounds of {}; stages summed over threads (about CPU time): {}.\n\n| recording | measured views s | engine s | sensor s | simulated views s | error s |\n|---|---|---|---|---|---|\n",
+        o.wall_s,
+        o.measured_views_wall_s,
+        o.round_times
+            .iter()
+            .map(|r| match r.skipped.is_empty() {
+                true => format!("{:.1} s", r.wall_s),
+                false => format!("{:.1} s (not tried again: {})", r.wall_s, r.skipped.join(", ")),
+            })
+            .collect::<Vec<_>>()
+            .join(", "),
+        o.timings
+            .iter()
+            .map(|t| format!("{} {:.1} s ({} calls)", t.stage, t.seconds, t.calls))
+            .collect::<Vec<_>>()
+            .join(", ")
+    );
+    for r in &o.recording_times {
+        let _ = writeln!(
+            s,
+            "| {} | {:.1} | {:.1} | {:.1} | {:.1} | {:.2} |",
+            r.recording, r.measured_views_s, r.engine_s, r.sensor_s, r.simulated_views_s, r.error_s
+        );
+    }
     s
 }
 

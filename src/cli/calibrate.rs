@@ -44,14 +44,10 @@ pub fn refuse_overwrite(a: &Args) -> Result<()> {
     Ok(())
 }
 
-pub fn run(a: Args) -> Result<()> {
-    let rig = RigConfig::load(&a.rig)?;
-    let mut ops = measured::load(&rig, &a.measured, a.seconds.unwrap_or(f64::INFINITY))?;
-    if ops.len() == 1 {
-        ops = measured::split_single(&ops[0], &rig)?;
-    }
-    let part = measured::checkerboard(&ops);
-    for (m, p) in ops.iter().zip(&part) {
+/// The recordings as loaded, on stderr: how long loading took, and each one's split.
+fn print_split(ops: &[measured::Measured], part: &[bool], load_s: f64) {
+    eprintln!("loaded {} recordings in {load_s:.1} s", ops.len());
+    for (m, p) in ops.iter().zip(part) {
         eprintln!(
             "split: {:<32} {:<11} {:7.1} rpm  {:6.2} s at {:.3} Hz (recorded at {} Hz)  {}",
             m.name,
@@ -63,6 +59,17 @@ pub fn run(a: Args) -> Result<()> {
             if *p { "fit" } else { "held out" }
         );
     }
+}
+
+pub fn run(a: Args) -> Result<()> {
+    let rig = RigConfig::load(&a.rig)?;
+    let t_load = std::time::Instant::now();
+    let mut ops = measured::load(&rig, &a.measured, a.seconds.unwrap_or(f64::INFINITY))?;
+    if ops.len() == 1 {
+        ops = measured::split_single(&ops[0], &rig)?;
+    }
+    let part = measured::checkerboard(&ops);
+    print_split(&ops, &part, t_load.elapsed().as_secs_f64());
     let t0 = std::time::Instant::now();
     let outcome = fit::calibrate(&rig, &ops, part)?;
     eprintln!(
@@ -75,6 +82,7 @@ pub fn run(a: Args) -> Result<()> {
             .collect::<Vec<_>>()
             .join(", ")
     );
+    let t_report = std::time::Instant::now();
     let id = report::calibration_id(&outcome, &ops);
     std::fs::create_dir_all(&a.report)
         .with_context(|| format!("cannot create report folder {}", a.report.display()))?;
@@ -126,6 +134,8 @@ pub fn run(a: Args) -> Result<()> {
         &outcome.measured_views[worst],
         &outcome.views_after[worst],
     )?;
+    let report_s = t_report.elapsed().as_secs_f64();
+    eprintln!("report and plots written in {report_s:.1} s");
     eprintln!(
         "calibration {id}: error {:.3} -> {:.3}; effects: [{}]; unexplained: {}; wrote {} and {}",
         outcome.before.total,
