@@ -218,8 +218,16 @@ fn a_weak_1x_at_588_rpm_is_read() {
     let x = signal(healthy(588.0), 30.0, hz, 3);
     let now = errors(&windows(&x, settings(None), &hz, true));
     let before = errors(&windows(&x, settings(None), &hz, false));
-    eprintln!("588 steady: {:?} / before {:?}", quantile(&now, 0.95), quantile(&before, 0.95));
-    assert!(quantile(&now, 0.5) <= 0.005, "median {}", quantile(&now, 0.5));
+    eprintln!(
+        "588 steady: {:?} / before {:?}",
+        quantile(&now, 0.95),
+        quantile(&before, 0.95)
+    );
+    assert!(
+        quantile(&now, 0.5) <= 0.005,
+        "median {}",
+        quantile(&now, 0.5)
+    );
     assert!(quantile(&now, 0.95) < quantile(&before, 0.95));
 }
 
