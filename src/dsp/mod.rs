@@ -25,6 +25,7 @@ pub(crate) mod order_tracking;
 pub mod quality;
 pub(crate) mod resample;
 pub mod speed;
+pub(crate) mod speed_comb;
 pub(crate) mod speed_config;
 pub mod speed_estimate;
 pub mod speed_tracker;

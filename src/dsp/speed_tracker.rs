@@ -38,6 +38,7 @@ use super::decimate::Decimator;
 use super::fault_family::{EnvelopeFeed, FamilyEvidence, FamilySettings};
 use super::harmonic_sum::{fundamental, on_mains_harmonic, Whitened, Whitener, HARMONICS};
 use super::speed::SpeedTrack;
+use super::speed_comb::{comb_spans, train_present, unexplained};
 use anyhow::{bail, Result};
 
 /// Revolutions at the rig's lowest speed that the history holds.
@@ -205,6 +206,10 @@ pub struct SpeedTracker {
     env_span: Option<(usize, usize)>,
     /// Spectrum of the newest stretch of the history ([`Self::recent_support`]).
     recent_spec: Whitened,
+    /// The joint reading (a lone 1x line counts, speeds read from the harmonics' own peaks,
+    /// a comb may be a bearing's train: [`super::speed_comb`]); off (the default for now:
+    /// it moved a CWRU record's estimate), the reading before issue 34.
+    joint: bool,
 }
 
 impl SpeedTracker {
@@ -270,7 +275,16 @@ impl SpeedTracker {
             },
             env_span: None,
             recent_spec: Whitened::default(),
+            joint: false,
         })
+    }
+
+    /// Switch the joint reading on or off (off, the default until it passes the real-record
+    /// checks: the reading before issue 34, the mean of five harmonics, the harmonic sum's
+    /// grid maximum, no comb explained as a train). For measuring one against the other.
+    pub fn set_joint(&mut self, on: bool) {
+        self.joint = on;
+        self.spec.lone = on;
     }
 
     /// Seconds of signal the history holds when full ([`HISTORY_REVS`] at the lowest speed).
@@ -417,7 +431,7 @@ impl SpeedTracker {
             if score < SCORE_NOISE {
                 return None;
             }
-            f[k] = refine(&self.spec, line);
+            f[k] = self.refine(line);
         }
         // half centres sit at -3/4 and -1/4 of the span (in warped time)
         let span = (n - 1) as f64 / fs_u;
@@ -495,12 +509,12 @@ impl SpeedTracker {
                 // now show the half speed it could not resolve before
                 let (half, support) = self.spec.odd_support(f / 2.0, 2);
                 if f / 2.0 >= lo && support >= 0.5 * s && support > SCORE_NOISE {
-                    (c.hz, c.score, c.followed) = (half, self.spec.full(half), false);
+                    (c.hz, c.score, c.followed) = (half, self.spec.shaft(half), false);
                     c.held = Some((f, s));
                 }
             }
         }
-        c.hz = refine(&self.spec, c.hz);
+        c.hz = self.refine(c.hz);
         c.rival = self.rival(c.hz);
         self.settle_by_family(&mut c, (first, last), lo);
         // half this speed is in the rig's range but not yet resolvable in this span
@@ -541,8 +555,11 @@ impl SpeedTracker {
                 }
             }
         }
+        if best.is_none() && self.joint {
+            best = self.comb_as_train(g, lo);
+        }
         if let Some((r, _)) = best {
-            let r = refine(&self.spec, r);
+            let r = self.refine(r);
             c.score = self.explained_score(r, g);
             (c.hz, c.rival, c.by_family) = (r, Some(g), true);
             c.followed = self.lock.is_some_and(|l| {
@@ -563,7 +580,7 @@ impl SpeedTracker {
     /// stronger than a rival's lines ([`RIVAL_SUPPORT`]), or r's series scores nearly as well
     /// ([`KEEP_SHARE`]).
     fn shaft_allows(&self, r: f64, g: f64) -> bool {
-        let own = self.spec.full(r);
+        let own = self.spec.shaft(r);
         if own <= SCORE_NOISE {
             return false;
         }
@@ -578,16 +595,50 @@ impl SpeedTracker {
             sum += self.spec.at(f);
             n += 1;
         }
-        n == 0 || sum / n as f64 <= RIVAL_SUPPORT || own >= KEEP_SHARE * self.spec.full(g)
+        n == 0 || sum / n as f64 <= RIVAL_SUPPORT || own >= KEEP_SHARE * self.spec.shaft(g)
+    }
+
+    /// The speed that explains the shaft lines' choice `g` as a bearing's train
+    /// ([`super::speed_comb`]): the clearest shaft line among the speeds whose BPFO, BPFI or
+    /// 2xBSF train would sit on g's comb, whose train the envelope shows, and under which
+    /// the rest of g's series is noise; with its clarity plus the train's support.
+    fn comb_as_train(&self, g: f64, lo: f64) -> Option<(f64, f64)> {
+        let fam = self.families?;
+        let top = KEEP * self.fs_d / 2.0;
+        let mut best: Option<(f64, f64)> = None;
+        for (a, b, order) in comb_spans(g, &fam.orders, lo, self.fmax) {
+            let (c, s) = self.spec.best_in(a, b);
+            if s <= SCORE_NOISE || !train_present(&self.env_spec, order, c, top) {
+                continue;
+            }
+            if unexplained(&self.spec, g, c, order).is_some_and(|u| u > RIVAL_SUPPORT) {
+                continue;
+            }
+            if best.is_none_or(|(_, v)| s > v) {
+                best = Some((c, s));
+            }
+        }
+        best
+    }
+
+    /// The speed near `hz` read from its harmonics' own peaks (joint reading:
+    /// [`Whitened::line_speed`]), else the harmonic sum's maximum between grid points.
+    fn refine(&self, hz: f64) -> f64 {
+        if self.joint {
+            if let Some(f) = self.spec.line_speed(hz) {
+                return f;
+            }
+        }
+        refine(&self.spec, hz)
     }
 
     /// The harmonic prominence behind speed `hz`: its own series, or that of `other` when hz
     /// explains every line of it (other a multiple of hz), whichever is stronger.
     fn explained_score(&self, hz: f64, other: f64) -> f64 {
         let k = other / hz;
-        let own = self.spec.full(hz);
+        let own = self.spec.shaft(hz);
         if k > 1.5 && (k - k.round()).abs() < 0.01 {
-            own.max(self.spec.full(other))
+            own.max(self.spec.shaft(other))
         } else {
             own
         }

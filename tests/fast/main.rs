@@ -32,3 +32,4 @@ mod sim;
 mod snapshots;
 mod speed_cues;
 mod speed_free;
+mod speed_joint;

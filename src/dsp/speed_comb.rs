@@ -1,0 +1,160 @@
+//! A comb of lines that is a bearing's impact train, not a shaft: the joint reading of the
+//! shaft lines and the bearing's families for the streaming tracker ([`super::speed_tracker`]).
+//!
+//! An outer race at 588 rpm (BPFO 4.59 orders) puts a comb at 45, 90, 135 Hz into the
+//! spectrum; read as a shaft series it is 1350 or 1800 rpm (or 2700). The same comb is
+//! explained by a shaft at 9.8 Hz whose BPFO train it is. Of the two, the speed that explains
+//! more is taken: a candidate c = m g / order (g the shaft lines' choice, m = 1-3, the order
+//! of BPFO, BPFI or 2xBSF within the bearing's slip) replaces g when
+//! - c shows a shaft line of its own (the tracker checks its clarity),
+//! - the envelope shows c's train ([`train_support`], as strong as a fault family must be:
+//!   [`FAMILY_PRESENT`]) with its fundamental where the comb's lines are, and
+//! - the lines of g's series that c explains neither as its own harmonics nor as its train
+//!   stay at noise ([`unexplained`]).
+//!
+//! A healthy machine shows no train in the envelope, so nothing changes there; a true shaft
+//! comb has no line at g m / order below it.
+
+use super::fault_family::{FAMILY_PRESENT, SLIP};
+use super::harmonic_sum::{on_mains_harmonic, Whitened, HARMONICS};
+use crate::bearing::FaultOrders;
+
+/// Harmonics of a train scored in the envelope.
+const TRAIN_HARMONICS: usize = 3;
+/// Prominence the train's fundamental needs in the envelope (a noise bin's best over the
+/// slip search reads about 1.3: [`super::fault_family`]).
+const TRAIN_FUNDAMENTAL: f64 = 1.5;
+/// Multiples of g a train's fundamental may sit on (the comb's own fundamental may be read
+/// as the shaft's 1x, 2x or 3x).
+const COMB_MULTIPLES: [f64; 3] = [1.0, 2.0, 3.0];
+
+/// Orders of the trains that make a comb.
+pub fn train_orders(o: &FaultOrders) -> [f64; 3] {
+    [o.bpfo, o.bpfi, o.two_bsf]
+}
+
+/// The speeds (Hz, with the train's order) whose train would put its fundamental on g's
+/// comb, the order scaled by the slip around it: each as (low, high, order), clipped to
+/// [lo, hi]; empty spans are left out.
+pub fn comb_spans(g: f64, o: &FaultOrders, lo: f64, hi: f64) -> Vec<(f64, f64, f64)> {
+    let mut out = Vec::new();
+    for order in train_orders(o) {
+        for m in COMB_MULTIPLES {
+            let c = m * g / order;
+            let (a, b) = ((c * (1.0 - SLIP)).max(lo), (c * (1.0 + SLIP)).min(hi));
+            if a < b {
+                out.push((a, b, order));
+            }
+        }
+    }
+    out
+}
+
+/// The train of `order` at shaft speed `c` in the whitened envelope `env` (valid to `top`
+/// Hz): the best over the slip of its harmonics' summed prominence over sqrt of their number,
+/// where the fundamental stands [`TRAIN_FUNDAMENTAL`] out and leads its harmonics (an impact
+/// train's envelope falls off with harmonic number); -inf when it never does.
+pub fn train_support(env: &Whitened, order: f64, c: f64, top: f64) -> f64 {
+    let mut best = f64::NEG_INFINITY;
+    let f1 = order * c;
+    if f1 * (1.0 + SLIP) * TRAIN_HARMONICS as f64 > top || f1 < 4.0 * env.df {
+        return best;
+    }
+    let step = (env.df / (4.0 * f1 * TRAIN_HARMONICS as f64)).max(1e-5);
+    let mut s = 1.0 - SLIP;
+    while s <= 1.0 + SLIP {
+        let p1 = env.at(f1 * s);
+        if p1 >= TRAIN_FUNDAMENTAL && !on_mains_harmonic(f1 * s, 1.5 * env.df) {
+            let lines = (1..=TRAIN_HARMONICS).map(|h| env.at(h as f64 * f1 * s));
+            if lines.clone().all(|p| p1 >= p - std::f64::consts::LN_2) {
+                best = best.max(lines.sum::<f64>() / (TRAIN_HARMONICS as f64).sqrt());
+            }
+        }
+        s += step;
+    }
+    best
+}
+
+/// The train is present ([`FAMILY_PRESENT`]).
+pub fn train_present(env: &Whitened, order: f64, c: f64, top: f64) -> bool {
+    train_support(env, order, c, top) >= FAMILY_PRESENT
+}
+
+/// Mean prominence, in the shaft spectrum `w`, of the harmonics of `g` (1-[`HARMONICS`], off
+/// the mains lines) that speed `c` explains neither as its own harmonics nor as harmonics of
+/// its train of `order` (within the slip); None when c explains them all.
+pub fn unexplained(w: &Whitened, g: f64, c: f64, order: f64) -> Option<f64> {
+    let near = |f: f64, base: f64, tol: f64| {
+        let k = (f / base).round();
+        k >= 1.0 && (f - k * base).abs() <= tol
+    };
+    let (mut sum, mut n) = (0.0, 0);
+    for k in 1..=HARMONICS {
+        let f = k as f64 * g;
+        if on_mains_harmonic(f, 1.5 * w.df)
+            || near(f, c, 0.005 * f + w.df)
+            || near(f, order * c, SLIP * f + w.df)
+        {
+            continue;
+        }
+        sum += w.at(f);
+        n += 1;
+    }
+    (n > 0).then(|| sum / n as f64)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::bearing::BearingGeometry;
+
+    fn lut() -> FaultOrders {
+        BearingGeometry {
+            balls: 11,
+            ball_diameter_mm: 7.94,
+            pitch_diameter_mm: 48.0,
+            contact_angle_deg: 0.0,
+        }
+        .fault_orders()
+    }
+
+    fn spectrum(lines: &[f64], p: f64) -> Whitened {
+        let df = 0.1;
+        let mut w = Whitened {
+            df,
+            prom: vec![0.0; 4000],
+            interpolate: true,
+            ..Whitened::default()
+        };
+        for &f in lines {
+            let i = (f / df).round() as usize;
+            w.prom[i] = p;
+        }
+        w
+    }
+
+    /// A BPFO comb at 588 rpm is that speed's train; 9.8 Hz is among the comb's speeds, and
+    /// 22.5 Hz (half the comb) leaves nothing unexplained by it.
+    #[test]
+    fn an_outer_race_comb_is_the_train_of_the_slow_shaft() {
+        let o = lut();
+        let c = 9.8;
+        let comb: Vec<f64> = (1..=4).map(|h| h as f64 * o.bpfo * c).collect();
+        let env = spectrum(&comb, 3.0);
+        assert!(train_present(&env, o.bpfo, c, 300.0));
+        assert!(!train_present(&env, o.bpfi, c, 300.0));
+        let g = o.bpfo * c / 2.0;
+        assert!(comb_spans(g, &o, 5.0, 60.0)
+            .iter()
+            .any(|&(a, b, order)| order == o.bpfo && a <= c && c <= b));
+        let raw = spectrum(&comb, 3.0);
+        let u = unexplained(&raw, g, c, o.bpfo).unwrap();
+        assert!(u < 0.5, "{u}");
+    }
+
+    #[test]
+    fn no_envelope_lines_no_train() {
+        let env = spectrum(&[], 0.0);
+        assert!(!train_present(&env, lut().bpfo, 9.8, 300.0));
+    }
+}

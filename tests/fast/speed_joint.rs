@@ -1,0 +1,308 @@
+//! The speed from the vibration read jointly from every cue (issue 34 items 1-3, 7), on an
+//! independent generator of the seed's rig built here from simple physics, not from any
+//! shared record and not from the project's simulator: one accelerometer axis at 10 kHz,
+//! no tacho, the tracker as `[speed] source = "estimate"` runs it (300-3600 rpm, the rig's
+//! bearing, 1 s windows every 0.5 s).
+//!
+//! The machine: shaft lines at 1x and 2x (an accelerometer's 1x at 588 rpm stands about 24x
+//! its floor in a 20 s spectrum, 2x about 9x: amplitudes 0.11 and 0.041 against unit white
+//! noise; at 1188 rpm an acceleration four times larger), and, for a damaged bearing, impacts
+//! at the fault rate (the kinematic order, each interval jittered 1 % by slip) through two
+//! structural modes: one at 3 kHz (ζ = 0.05, the carrier the envelope sees) and one at 400 Hz
+//! (ζ = 0.1) whose response below it puts the impact train's comb into the raw spectrum, as
+//! strong as the shaft's own lines or stronger. An inner race's impacts are modulated by the
+//! load zone once per revolution. Speed laws: steady, a slow drift, and a fluctuation of
+//! +-2 % (4 % peak to peak) at 0.3 Hz.
+//!
+//! Errors are the window's mean speed (its last second) against the truth's mean over the
+//! same second, over every window once the tracker's history (4 s at 300 rpm) is full.
+
+use rigmon::bearing::{BearingGeometry, FaultOrders};
+use rigmon::dsp::fault_family::FamilySettings;
+use rigmon::dsp::speed_tracker::{SpeedHint, SpeedTracker, TrackedSpeed, TrackerSettings};
+use std::f64::consts::TAU;
+
+const FS: f64 = 10_000.0;
+const HOP: usize = 5_000;
+const RANGE: (f64, f64) = (300.0, 3600.0);
+
+/// The seed rig's bearing (SKF 6007: BPFO 4.59 orders).
+fn orders() -> FaultOrders {
+    BearingGeometry {
+        balls: 11,
+        ball_diameter_mm: 7.94,
+        pitch_diameter_mm: 48.0,
+        contact_angle_deg: 0.0,
+    }
+    .fault_orders()
+}
+
+#[derive(Clone, Copy)]
+enum Fault {
+    Outer,
+    Inner,
+}
+
+/// What the machine shows.
+#[derive(Clone, Copy)]
+struct Machine {
+    /// Shaft 1x and 2x amplitudes.
+    shaft: (f64, f64),
+    /// A damaged bearing and its impacts' peak response (in units of the noise).
+    fault: Option<(Fault, f64)>,
+}
+
+/// A second-order resonator driven by impulses: a structural mode at `hz`, damping `zeta`,
+/// whose response to a unit impact peaks near 1.
+struct Mode {
+    a1: f64,
+    a2: f64,
+    b: f64,
+    y: [f64; 2],
+}
+
+impl Mode {
+    fn new(hz: f64, zeta: f64) -> Mode {
+        let r = (-zeta * TAU * hz / FS).exp();
+        let th = TAU * hz * (1.0 - zeta * zeta).sqrt() / FS;
+        Mode {
+            a1: 2.0 * r * th.cos(),
+            a2: -r * r,
+            b: th.sin(),
+            y: [0.0; 2],
+        }
+    }
+
+    fn step(&mut self, x: f64) -> f64 {
+        let y = self.a1 * self.y[0] + self.a2 * self.y[1] + self.b * x;
+        self.y = [y, self.y[0]];
+        y
+    }
+}
+
+/// Xorshift uniform (0, 1) and Gaussian samples.
+struct Rng(u64);
+
+impl Rng {
+    fn uniform(&mut self) -> f64 {
+        self.0 ^= self.0 << 13;
+        self.0 ^= self.0 >> 7;
+        self.0 ^= self.0 << 17;
+        ((self.0 >> 11) as f64 + 0.5) / (1u64 << 53) as f64
+    }
+
+    fn gauss(&mut self) -> f64 {
+        (-2.0 * self.uniform().ln()).sqrt() * (TAU * self.uniform()).cos()
+    }
+}
+
+/// `seconds` of the machine turning along `hz(t)`.
+fn signal(m: Machine, seconds: f64, hz: impl Fn(f64) -> f64, seed: u64) -> Vec<f32> {
+    let mut rng = Rng(seed);
+    let o = orders();
+    let (mut high, mut low) = (Mode::new(3_000.0, 0.05), Mode::new(400.0, 0.1));
+    let (mut theta, mut fault_phase) = (0.0, 0.0);
+    let mut next_impact = 1.0;
+    (0..(FS * seconds) as usize)
+        .map(|i| {
+            let t = i as f64 / FS;
+            let f = hz(t);
+            theta += f / FS;
+            let mut v = rng.gauss();
+            v += m.shaft.0 * (TAU * theta).sin() + m.shaft.1 * (TAU * 2.0 * theta + 1.0).sin();
+            let mut kick = 0.0;
+            if let Some((fault, amp)) = m.fault {
+                let order = match fault {
+                    Fault::Outer => o.bpfo,
+                    Fault::Inner => o.bpfi,
+                };
+                fault_phase += order * f / FS;
+                if fault_phase >= next_impact {
+                    next_impact += 1.0 + 0.01 * rng.gauss();
+                    kick = match fault {
+                        Fault::Outer => amp,
+                        Fault::Inner => amp * (0.3 + 0.7 * (0.5 + 0.5 * (TAU * theta).cos())),
+                    };
+                }
+            }
+            v += high.step(kick) + 0.5 * low.step(kick);
+            v as f32
+        })
+        .collect()
+}
+
+fn settings(hint: Option<SpeedHint>) -> TrackerSettings {
+    TrackerSettings {
+        min_rpm: RANGE.0,
+        max_rpm: RANGE.1,
+        hint,
+        families: Some(FamilySettings {
+            orders: orders(),
+            band_top_hz: 4_000.0,
+        }),
+    }
+}
+
+/// Every window's speed once the history is full, with the truth's mean over its last
+/// second; `joint` false reads as before issue 34.
+fn windows(
+    x: &[f32],
+    s: TrackerSettings,
+    hz: &dyn Fn(f64) -> f64,
+    joint: bool,
+) -> Vec<(f64, TrackedSpeed, f64)> {
+    let mut tr = SpeedTracker::new(s, FS).unwrap();
+    tr.set_joint(joint);
+    let full = tr.history_s();
+    let mut out = Vec::new();
+    for (k, c) in x.chunks(HOP).enumerate() {
+        tr.push((k * HOP) as u64, c);
+        let t = ((k + 1) * HOP) as f64 / FS;
+        if let Ok(e) = tr.estimate() {
+            if t >= full {
+                let truth = (0..100)
+                    .map(|j| hz(t - 1.0 + j as f64 / 100.0))
+                    .sum::<f64>()
+                    * 0.6;
+                out.push((t, e, truth));
+            }
+        }
+    }
+    out
+}
+
+/// Relative errors of the windows' mean speeds over their last second, sorted.
+fn errors(w: &[(f64, TrackedSpeed, f64)]) -> Vec<f64> {
+    let mut e: Vec<f64> = w
+        .iter()
+        .map(|(t, s, truth)| (s.track.mean_rpm(t - 1.0, *t) / truth - 1.0).abs())
+        .collect();
+    e.sort_by(f64::total_cmp);
+    e
+}
+
+fn quantile(e: &[f64], q: f64) -> f64 {
+    e[((e.len() as f64 * q).ceil() as usize).clamp(1, e.len()) - 1]
+}
+
+fn healthy(rpm: f64) -> Machine {
+    let a = 0.11 * (rpm / 588.0).powi(2);
+    Machine {
+        shaft: (a, 0.37 * a),
+        fault: None,
+    }
+}
+
+/// Runs one case both ways and returns (p95 now, p95 before); prints both.
+fn p95(name: &str, m: Machine, hz: &dyn Fn(f64) -> f64, seed: u64) -> (f64, f64) {
+    let x = signal(m, 30.0, hz, seed);
+    let now = errors(&windows(&x, settings(None), hz, true));
+    let before = errors(&windows(&x, settings(None), hz, false));
+    let (a, b) = (quantile(&now, 0.95), quantile(&before, 0.95));
+    eprintln!(
+        "{name}: p95 {:.3} % (before {:.3} %), median {:.3} % (before {:.3} %)",
+        100.0 * a,
+        100.0 * b,
+        100.0 * quantile(&now, 0.5),
+        100.0 * quantile(&before, 0.5)
+    );
+    (a, b)
+}
+
+/// A healthy machine at 588 rpm, steady: the joint reading's median within 0.5 % and its
+/// p95 below the reading before (its windows jump to other lines). Issue 34's target (p95
+/// <= 0.5 %) is not met yet: see docs/speed.md.
+#[test]
+fn a_weak_1x_at_588_rpm_is_read() {
+    let hz = |_: f64| 588.0 / 60.0;
+    let x = signal(healthy(588.0), 30.0, hz, 3);
+    let now = errors(&windows(&x, settings(None), &hz, true));
+    let before = errors(&windows(&x, settings(None), &hz, false));
+    eprintln!(
+        "588 steady: {:?} / before {:?}",
+        quantile(&now, 0.95),
+        quantile(&before, 0.95)
+    );
+    assert!(
+        quantile(&now, 0.5) <= 0.005,
+        "median {}",
+        quantile(&now, 0.5)
+    );
+    assert!(quantile(&now, 0.95) < quantile(&before, 0.95));
+}
+
+/// The same with the speed fluctuating +-2 % at 0.3 Hz: better than before (target p95
+/// <= 1.5 % not met yet).
+#[test]
+fn a_fluctuating_speed_is_read_better_than_before() {
+    let hz = |t: f64| 588.0 / 60.0 * (1.0 + 0.02 * (TAU * 0.3 * t).sin());
+    let (now, before) = p95("healthy 588 fluctuating", healthy(588.0), &hz, 5);
+    assert!(now < before, "p95 {now} against {before}");
+}
+
+/// A clean 1x line alone at 1188 rpm is read without bias: the median within 0.1 %.
+#[test]
+fn a_clean_line_is_read_without_bias() {
+    let hz = |_: f64| 1188.0 / 60.0;
+    let m = Machine {
+        shaft: (0.44, 0.0),
+        fault: None,
+    };
+    let x = signal(m, 30.0, hz, 7);
+    let e = errors(&windows(&x, settings(None), &hz, true));
+    let before = errors(&windows(&x, settings(None), &hz, false));
+    eprintln!(
+        "clean 1188: median {:.3} % (before {:.3} %)",
+        100.0 * quantile(&e, 0.5),
+        100.0 * quantile(&before, 0.5)
+    );
+    assert!(quantile(&e, 0.5) <= 0.001, "median {}", quantile(&e, 0.5));
+}
+
+/// An outer race at 588 rpm whose BPFO comb (45, 90, 135 Hz) stands above the shaft lines:
+/// the shaft is 9.8 Hz with the comb its train, not a shaft at 22.5, 30 or 45 Hz.
+#[test]
+fn a_bearing_comb_does_not_become_the_shaft() {
+    let hz = |_: f64| 588.0 / 60.0;
+    let m = Machine {
+        fault: Some((Fault::Outer, 6.0)),
+        ..healthy(588.0)
+    };
+    // a shaft read from the comb is 30 % or more off (1350, 1800 or 2700 rpm)
+    let (now, _) = p95("outer race 588", m, &hz, 9);
+    assert!(now < 0.1, "p95 {now}");
+}
+
+/// An impulsive inner race with a weak shaft line at 588 rpm.
+#[test]
+fn an_impulsive_inner_race_keeps_the_shaft() {
+    let hz = |_: f64| 588.0 / 60.0;
+    let m = Machine {
+        fault: Some((Fault::Inner, 6.0)),
+        ..healthy(588.0)
+    };
+    let (now, _) = p95("inner race 588", m, &hz, 13);
+    assert!(now < 0.1, "p95 {now}");
+}
+
+/// A slow drift 588 -> 700 rpm over 30 s is followed better than before (target 0.5 % not met).
+#[test]
+fn a_slow_drift_is_followed() {
+    let hz = |t: f64| (588.0 + 112.0 * t / 30.0) / 60.0;
+    let (now, before) = p95("drift 588-700", healthy(600.0), &hz, 17);
+    assert!(now < before, "p95 {now} against {before}");
+}
+
+/// A healthy record without any line is never a confident speed.
+#[test]
+fn no_lines_no_speed() {
+    let hz = |_: f64| 10.0;
+    let m = Machine {
+        shaft: (0.0, 0.0),
+        fault: None,
+    };
+    let x = signal(m, 20.0, hz, 19);
+    for (t, e, _) in windows(&x, settings(None), &hz, true) {
+        assert!(e.uncertain(), "at {t} s: {e:?}");
+    }
+}
