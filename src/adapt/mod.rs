@@ -296,7 +296,9 @@ pub fn align_to_recordings(
     let windows = ndarray::concatenate(ndarray::Axis(0), &views)?;
     let names: Vec<String> = recs.iter().map(|r| r.path_text.clone()).collect();
     let kurtosis = healthy_kurtosis(&recs);
-    align_to_healthy(model, windows.view(), Some(&kurtosis), &names)
+    let mut aligned = align_to_healthy(model, windows.view(), Some(&kurtosis), &names)?;
+    crate::model::align::store_healthy_indicators(&mut aligned, healthy, rig)?;
+    Ok(aligned)
 }
 
 /// The healthy recordings' excess kurtosis per window, in the row order of their
