@@ -26,7 +26,7 @@ for b in 1_1 1_2 2_1 2_2 3_1 3_2; do
   "$RIGMON" replay "$dir" --rig config/femto.toml --rpm "$(rpm $b)" --model "$OUT/m$b.onnx" \
     --allow-foreign-model --json 2>/dev/null >"$OUT/r$b.jsonl"
   e=$(date +%s.%N)
-  first=$(jq -c 'select(.indicators.departure.departed_since_s != null) | [.window.end_s, .state]' "$OUT/r$b.jsonl" | head -1)
+  first=$(jq -c -n 'first(inputs | select(.indicators.departure.departed_since_s != null) | [.window.end_s, .state])' "$OUT/r$b.jsonl")
   jq -r --arg b "$b" --arg first "$first" --arg wall "$(echo "$e - $s" | bc)" \
     '[$b, .windows, (.end_s/3600*1000|round/1000), (.alarm_s//null|if . then ./3600*1000|round/1000 else "-" end),
       (.lead_s//null|if . then ./3600*1000|round/1000 else "-" end),

@@ -227,6 +227,7 @@ impl Departure {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::model::indicators::LEVEL_FLOOR;
 
     fn ind(rms: f32, kurtosis: f32) -> Indicators {
         Indicators {
