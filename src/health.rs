@@ -864,7 +864,7 @@ mod tests {
         let healthy: Vec<Indicators> = (0..60).map(|i| ind(1.0, i)).collect();
         let labels = labels();
         let mut sm = HealthStateMachine::new(HealthPolicy::default(), &labels).unwrap();
-        sm.set_indicator_baseline(IndicatorBaseline::fit(&healthy, MEDIAN_OF));
+        sm.set_indicator_baseline(crate::model::departure::fit_baseline(&healthy, MEDIAN_OF));
         let p = probs_for("healthy");
         levels
             .iter()

@@ -7,7 +7,7 @@
 //! the end of the recording.
 
 use crate::config::RigConfig;
-use crate::model::departure::{Departure, DepartureSettings, MEDIAN_OF};
+use crate::model::departure::{fit_baseline, Departure, DepartureSettings, MEDIAN_OF};
 use crate::model::indicator_series::{indicator_series, IndicatorWindow};
 use crate::model::indicators::{Indicator, IndicatorBaseline, PerIndicator};
 use crate::model::rms_rule::{rms_three_sigma, RmsRule};
@@ -100,7 +100,7 @@ fn rigmon_alarm(
     settings: DepartureSettings,
 ) -> (RigmonAlarm, Vec<[f32; 4]>) {
     let healthy: Vec<_> = w[..base].iter().filter_map(|x| x.indicators).collect();
-    let baseline = IndicatorBaseline::fit(&healthy, MEDIAN_OF);
+    let baseline = fit_baseline(&healthy, MEDIAN_OF);
     let mut out = RigmonAlarm {
         baseline,
         settings,

@@ -8,19 +8,14 @@
 //! the per-feature offset (a reference level) changes, so the model file keeps its layout.
 //! The same healthy windows fit the machine's healthy-baseline gate ([`HealthyBaseline`]): a
 //! window far from them is never called healthy. The same recordings' windows fit the
-//! machine's healthy indicator baseline ([`store_healthy_indicators`]), which the departure
+//! machine's healthy indicator baseline (`adapt::align_to_recordings`), which the departure
 //! test of the health state machine reads.
 
 use super::baseline::HealthyBaseline;
 use super::classifier::TrainedModel;
-use super::departure::MEDIAN_OF;
 use super::impulsiveness::ImpulseBaseline;
-use super::indicator_series::indicator_series;
-use super::indicators::IndicatorBaseline;
 use super::preprocess::Preprocess;
-use crate::config::RigConfig;
-use crate::manifest::ManifestEntry;
-use anyhow::{bail, Context, Result};
+use anyhow::{bail, Result};
 use ndarray::{Array1, ArrayView2, Axis};
 use serde::Serialize;
 
@@ -123,30 +118,6 @@ pub fn align_to_healthy(
     out.meta.alignment = serde_json::to_string(&info)?;
     out.meta.sha256.clear();
     Ok(out)
-}
-
-/// Fit the machine's healthy indicator baseline on the windows of its `healthy` recordings
-/// (each within its manifest span, in manifest and time order) and store it in `model`'s
-/// alignment (`healthy_indicators`). Returns the baseline, or None when the recordings hold
-/// too few sound windows to smooth once (the model then carries none, as before).
-pub fn store_healthy_indicators(
-    model: &mut TrainedModel,
-    healthy: &[ManifestEntry],
-    rig: &RigConfig,
-) -> Result<Option<IndicatorBaseline>> {
-    let mut windows = Vec::new();
-    for e in healthy {
-        let series = indicator_series(&e.path, rig, &e.import_options(), |a, b| {
-            e.keeps_window(a, b)
-        })
-        .with_context(|| format!("health indicators of {}", e.path.display()))?;
-        windows.extend(series.iter().filter_map(|w| w.indicators));
-    }
-    let Some(b) = IndicatorBaseline::fit(&windows, MEDIAN_OF) else {
-        return Ok(None);
-    };
-    model.meta.alignment = b.store_in(&model.meta.alignment)?;
-    Ok(Some(b))
 }
 
 #[cfg(test)]

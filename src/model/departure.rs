@@ -130,6 +130,19 @@ pub fn healthy_max<'a>(
     PerIndicator::from_array(top.map(|t| if t.is_finite() { t } else { 0.0 }))
 }
 
+/// The machine's healthy indicator baseline from its healthy windows' indicators, in time
+/// order: the levels ([`IndicatorBaseline::fit`]) and the highest smoothed score each
+/// indicator reached over them (None: fewer sound windows than `median_of`).
+pub fn fit_baseline(healthy: &[Indicators], median_of: usize) -> Option<IndicatorBaseline> {
+    let mut b = IndicatorBaseline::fit(healthy, median_of)?;
+    let top = healthy_max(&b, healthy.iter().filter(|i| i.is_sound()));
+    b.rms.healthy_max = top.rms;
+    b.crest.healthy_max = top.crest;
+    b.kurtosis.healthy_max = top.kurtosis;
+    b.resonance.healthy_max = top.resonance;
+    Some(b)
+}
+
 /// What one window says about the departure.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct DepartureReading {
@@ -227,7 +240,7 @@ impl Departure {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::model::indicators::LEVEL_FLOOR;
+    use crate::model::indicators::LEVEL_FLOOR as FLOOR;
 
     fn ind(rms: f32, kurtosis: f32) -> Indicators {
         Indicators {
@@ -265,7 +278,7 @@ mod tests {
             x.rms *= 2.0;
             x.resonance *= 2.0;
         }
-        let b = IndicatorBaseline::fit(&h, MEDIAN_OF).unwrap();
+        let b = fit_baseline(&h, MEDIAN_OF).unwrap();
         let out = run(b, &h);
         assert!(out.iter().all(|r| r.departed_since_s.is_none()));
         assert!(out.iter().all(|r| r.excess.is_none_or(|e| e <= 0.0)));
@@ -274,7 +287,7 @@ mod tests {
     #[test]
     fn a_burst_shorter_than_half_the_median_never_counts_and_a_lasting_rise_holds() {
         let h = healthy(100);
-        let b = IndicatorBaseline::fit(&h, MEDIAN_OF).unwrap();
+        let b = fit_baseline(&h, MEDIAN_OF).unwrap();
         let mut seq = h.clone();
         // 15 loud windows (< 31 / 2) in a row, then healthy again
         seq.extend((0..15).map(|_| ind(50.0, 40.0)));
@@ -309,11 +322,11 @@ mod tests {
     #[test]
     fn a_fall_or_a_drift_within_the_margin_is_no_departure() {
         let h = healthy(100);
-        let b = IndicatorBaseline::fit(&h, MEDIAN_OF).unwrap();
+        let b = fit_baseline(&h, MEDIAN_OF).unwrap();
         // the level falls to a third (warming up), and drifts up by 2 spreads over 500 windows
         let mut seq: Vec<Indicators> = (0..200).map(|_| ind(0.33, 0.0)).collect();
         seq.extend((0..500).map(|i| {
-            let f = (LEVEL_FLOOR * 2.0 * i as f32 / 500.0).exp();
+            let f = (FLOOR * 2.0 * i as f32 / 500.0).exp();
             ind(f, 0.0)
         }));
         let out = run(b, &seq);

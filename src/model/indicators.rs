@@ -106,7 +106,7 @@ impl Indicators {
         ]
     }
 
-    fn is_sound(&self) -> bool {
+    pub fn is_sound(&self) -> bool {
         self.rms > 0.0 && self.scaled().iter().all(|v| v.is_finite())
     }
 }
@@ -220,8 +220,9 @@ pub struct IndicatorBaseline {
 }
 
 impl IndicatorBaseline {
-    /// Fit on the healthy windows' indicators, in time order, for scores smoothed over
-    /// `median_of` windows (None: fewer sound windows than that, too few to smooth once).
+    /// The levels (median, spread) of the healthy windows' indicators, for scores smoothed
+    /// over `median_of` windows (None: fewer sound windows than that, too few to smooth once);
+    /// each `healthy_max` is left 0: [`super::departure::fit_baseline`] fits the whole.
     pub fn fit(healthy: &[Indicators], median_of: usize) -> Option<Self> {
         let median_of = median_of.max(1);
         let sound: Vec<&Indicators> = healthy.iter().filter(|i| i.is_sound()).collect();
@@ -243,20 +244,14 @@ impl IndicatorBaseline {
             level.center = center;
             level.spread = (1.4826 * median(&mut dev)).max(floors[j]);
         }
-        let mut b = IndicatorBaseline {
+        Some(IndicatorBaseline {
             rms: levels[0],
             crest: levels[1],
             kurtosis: levels[2],
             resonance: levels[3],
             windows: sound.len(),
             median_of,
-        };
-        let highest = super::departure::healthy_max(&b, sound.iter().copied());
-        b.rms.healthy_max = highest.rms;
-        b.crest.healthy_max = highest.crest;
-        b.kurtosis.healthy_max = highest.kurtosis;
-        b.resonance.healthy_max = highest.resonance;
-        Some(b)
+        })
     }
 
     /// From an aligned model's metadata; None for a model not aligned, or aligned before the
