@@ -14,14 +14,25 @@
 //! votes say the data cannot be trusted). Before the first vote is won the smoothed state is
 //! `unknown`.
 //!
+//! Where the model carries the machine's healthy indicator baseline
+//! ([`crate::model::indicators`]), each window's speed-free indicators also feed the
+//! departure test ([`crate::model::departure`]): once the indicators have left the healthy
+//! baseline for good, the smoothed state is a fault and stays one (named by the fault the
+//! vote holds or the window's class when either is a fault, else [`UNNAMED_FAULT`]); it may
+//! move to another fault by the vote, never back to `healthy` or `unknown`, until a new
+//! baseline is loaded.
+//!
 //! The published message is in [`message`]; the ISO 20816-3 velocity zones in [`iso20816`].
 
 pub mod iso20816;
 pub mod message;
 pub mod verdict;
 
+use crate::model::departure::{Departure, DepartureReading, DepartureSettings};
 use crate::model::evidence::{EvidenceHistory, FamilyEvidence};
 use crate::model::impulsiveness::{window_cap, Impulse, ImpulseHistory};
+use crate::model::indicators::{IndicatorBaseline, Indicators};
+use crate::vocabulary::Condition;
 use anyhow::{bail, Result};
 use serde::{Deserialize, Serialize};
 use std::collections::VecDeque;
@@ -70,6 +81,10 @@ pub struct HealthPolicy {
     /// ISO 20816-3 zone limits for the velocity RMS advisory.
     #[serde(default)]
     pub iso20816: iso20816::ZoneConfig,
+    /// When the health indicators have left the healthy baseline for good (models carrying
+    /// the indicator baseline; [`crate::model::departure`]).
+    #[serde(default)]
+    pub departure: DepartureSettings,
 }
 
 fn default_n() -> usize {
@@ -120,6 +135,7 @@ impl Default for HealthPolicy {
             evidence_z: default_evidence_z(),
             impulse_z: default_impulse_z(),
             iso20816: iso20816::ZoneConfig::default(),
+            departure: DepartureSettings::default(),
         }
     }
 }
@@ -169,6 +185,7 @@ impl HealthPolicy {
                 self.impulse_z
             );
         }
+        self.departure.validate()?;
         self.iso20816.validate()
     }
 }
@@ -206,6 +223,9 @@ pub struct Smoothed {
     /// The impulsiveness the verdict used: the capped mean over the last `vote_n` places
     /// ([`ImpulseHistory`]; None: the model carries no kurtosis baseline).
     pub impulse: Option<Impulse>,
+    /// The window's health indicators and the departure test's reading (None: no indicator
+    /// baseline, or the window had no indicators).
+    pub departure: Option<DepartureReading>,
     /// The smoothed state after this window.
     pub state: String,
     /// Mean probability of the smoothed state over the vote history (for `unknown`: the
@@ -239,6 +259,9 @@ pub struct HealthStateMachine {
     /// The last `vote_n` windows' impulsiveness.
     impulse: ImpulseHistory,
     hop_fraction: f64,
+    /// The departure test (None: no indicator baseline) and the fault it holds once departed.
+    departure: Option<Departure>,
+    held: Option<usize>,
 }
 
 impl HealthStateMachine {
@@ -264,6 +287,8 @@ impl HealthStateMachine {
             evidence: EvidenceHistory::new(n),
             impulse: ImpulseHistory::new(n),
             hop_fraction: 0.5,
+            departure: None,
+            held: None,
         })
     }
 
@@ -297,10 +322,91 @@ impl HealthStateMachine {
             // another model or policy: its evidence starts afresh
             self.evidence = fresh.evidence;
             self.impulse = fresh.impulse;
+            // the departure keeps its history; its settings are the new policy's
+            if let Some(d) = self.departure.as_mut() {
+                if d.settings() != self.policy.departure {
+                    *d = Departure::new(*d.baseline(), self.policy.departure);
+                    self.held = None;
+                }
+            }
         } else {
             *self = fresh;
         }
         Ok(())
+    }
+
+    /// Load the machine's healthy indicator baseline (None: the model carries none). The
+    /// departure test starts afresh, and a held fault is released, only when the baseline
+    /// differs from the one in force.
+    pub fn set_indicator_baseline(&mut self, baseline: Option<IndicatorBaseline>) {
+        let current = self.departure.as_ref().map(|d| *d.baseline());
+        if current != baseline {
+            self.departure = baseline.map(|b| Departure::new(b, self.policy.departure));
+            self.held = None;
+        }
+    }
+
+    /// [`Self::observe`] with the window's health indicators (None: the window had none),
+    /// fed to the departure test first; once the machine has departed, the state is held at a
+    /// fault (module doc).
+    pub fn observe_indicators(
+        &mut self,
+        t_end: f64,
+        w: &WindowInput,
+        indicators: Option<&Indicators>,
+    ) -> Smoothed {
+        let reading = self
+            .departure
+            .as_mut()
+            .zip(indicators)
+            .map(|(d, i)| d.push(t_end, i));
+        let before = (self.state, self.since_s);
+        let mut s = self.observe(t_end, w);
+        s.departure = reading;
+        self.hold_departure(t_end, before, &mut s, w.labels);
+        s
+    }
+
+    /// Once departed, keep the smoothed state at a fault.
+    fn hold_departure(
+        &mut self,
+        t_end: f64,
+        before: (usize, f64),
+        s: &mut Smoothed,
+        labels: &[String],
+    ) {
+        if self
+            .departure
+            .as_ref()
+            .and_then(Departure::departed_since)
+            .is_none()
+        {
+            return;
+        }
+        let is_fault = |name: &str| name != UNKNOWN && !Condition::is_healthy(name);
+        let held = if is_fault(&self.names[self.state]) {
+            self.state
+        } else if let Some(h) = self.held {
+            h
+        } else {
+            let name = match s.window.class.as_deref() {
+                Some(c) if is_fault(c) => c.to_string(),
+                _ => UNNAMED_FAULT.to_string(),
+            };
+            self.intern(&name)
+        };
+        self.held = Some(held);
+        if self.state != held {
+            self.state = held;
+            // back to the state held before this window: since then, unchanged
+            self.since_s = if held == before.0 { before.1 } else { t_end };
+            self.started = true;
+            self.candidate = None;
+        }
+        s.changed = self.state != before.0;
+        s.state = self.names[self.state].clone();
+        s.since_s = self.since_s;
+        s.confidence = self.confidence(labels);
     }
 
     /// Judge one window ending at `t_end` ([`verdict::judge`] under this machine's policy)
@@ -401,6 +507,7 @@ impl HealthStateMachine {
             window_state: self.names[vote].clone(),
             evidence: None,
             impulse: None,
+            departure: None,
             window: verdict,
             state: self.names[self.state].clone(),
             confidence: self.confidence(labels),
@@ -741,6 +848,75 @@ mod tests {
         // Gaussian-like windows with an uncertain speed: never an alarm, unknown
         let out = uncertain_run(0.05, 8);
         assert!(out.iter().all(|s| s.state == UNKNOWN), "{:?}", states(&out));
+    }
+
+    /// Windows the classifier calls healthy, each with indicators at `level` x the healthy
+    /// RMS; returns every answer.
+    fn departing_run(levels: &[f32]) -> Vec<Smoothed> {
+        use crate::model::departure::MEDIAN_OF;
+        let ind = |level: f32, i: usize| Indicators {
+            rms: level * (1.0 + 0.01 * (i % 3) as f32),
+            crest: 3.0,
+            kurtosis: 0.0,
+            resonance: 0.5 * level,
+            samples: 2560,
+        };
+        let healthy: Vec<Indicators> = (0..60).map(|i| ind(1.0, i)).collect();
+        let labels = labels();
+        let mut sm = HealthStateMachine::new(HealthPolicy::default(), &labels).unwrap();
+        sm.set_indicator_baseline(crate::model::departure::fit_baseline(&healthy, MEDIAN_OF));
+        let p = probs_for("healthy");
+        levels
+            .iter()
+            .enumerate()
+            .map(|(i, &level)| {
+                let w = WindowInput {
+                    labels: &labels,
+                    probs: &p,
+                    novelty: 0.1,
+                    model_novelty_threshold: 1.0,
+                    quality: None,
+                    beyond_baseline: None,
+                    evidence: None,
+                    impulse: None,
+                    rule: None,
+                };
+                sm.observe_indicators(10.0 * (i + 1) as f64, &w, Some(&ind(level, i)))
+            })
+            .collect()
+    }
+
+    #[test]
+    fn once_the_indicators_have_departed_the_state_is_a_fault_and_stays_one() {
+        // healthy, 80 windows at 3x the RMS, then healthy again: the classifier says healthy
+        // throughout, the state is held at a fault from the departure on
+        let mut levels = vec![1.0f32; 60];
+        levels.extend([3.0; 80]);
+        levels.extend([1.0; 40]);
+        let out = departing_run(&levels);
+        let first = out
+            .iter()
+            .position(|s| s.state == UNNAMED_FAULT)
+            .expect("departed");
+        assert_eq!(first, 60 + 15 + 29, "{:?}", states(&out));
+        assert!(out[first].changed && out[first].since_s == 10.0 * (first + 1) as f64);
+        assert!(out[..first].iter().all(|s| s.state != UNNAMED_FAULT));
+        assert!(
+            out[first..].iter().all(|s| s.state == UNNAMED_FAULT),
+            "{:?}",
+            states(&out)
+        );
+        assert!(out[first + 1..].iter().all(|s| !s.changed));
+        let d = out.last().unwrap().departure.unwrap();
+        assert_eq!(d.departed_since_s, Some(10.0 * (first + 1) as f64));
+        // a burst of 15 loud windows never departs
+        let mut levels = vec![1.0f32; 60];
+        levels.extend([30.0; 15]);
+        levels.extend([1.0; 60]);
+        let out = departing_run(&levels);
+        assert!(out
+            .iter()
+            .all(|s| s.state == "healthy" || s.state == UNKNOWN));
     }
 
     #[test]

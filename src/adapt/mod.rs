@@ -296,7 +296,38 @@ pub fn align_to_recordings(
     let windows = ndarray::concatenate(ndarray::Axis(0), &views)?;
     let names: Vec<String> = recs.iter().map(|r| r.path_text.clone()).collect();
     let kurtosis = healthy_kurtosis(&recs);
-    align_to_healthy(model, windows.view(), Some(&kurtosis), &names)
+    let mut aligned = align_to_healthy(model, windows.view(), Some(&kurtosis), &names)?;
+    store_healthy_indicators(&mut aligned, healthy, rig)?;
+    Ok(aligned)
+}
+
+/// Fit the machine's healthy indicator baseline on the windows of its `healthy` recordings
+/// (each within its manifest span, in manifest and time order) and store it in `model`'s
+/// alignment (`healthy_indicators`). Returns the baseline, or None when the recordings hold
+/// too few sound windows to smooth once (the model then carries none, as before).
+fn store_healthy_indicators(
+    model: &mut TrainedModel,
+    healthy: &[ManifestEntry],
+    rig: &RigConfig,
+) -> Result<Option<crate::model::indicators::IndicatorBaseline>> {
+    let mut windows = Vec::new();
+    for e in healthy {
+        let series = crate::model::indicator_series::indicator_series(
+            &e.path,
+            rig,
+            &e.import_options(),
+            |a, b| e.keeps_window(a, b),
+        )
+        .with_context(|| format!("health indicators of {}", e.path.display()))?;
+        windows.extend(series.iter().filter_map(|w| w.indicators));
+    }
+    let Some(b) =
+        crate::model::departure::fit_baseline(&windows, crate::model::departure::MEDIAN_OF)
+    else {
+        return Ok(None);
+    };
+    model.meta.alignment = b.store_in(&model.meta.alignment)?;
+    Ok(Some(b))
 }
 
 /// The healthy recordings' excess kurtosis per window, in the row order of their

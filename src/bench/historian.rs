@@ -91,6 +91,7 @@ fn window(tag: &str, i: usize, seq: u64, run_ns: u64) -> HealthMessage {
             ball: 0.1 - wobble,
         }),
         impulse: None,
+        indicators: None,
         state: labels[0].clone(),
         state_since_s: 0.5,
         state_changed: seq == 1,

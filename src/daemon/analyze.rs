@@ -10,12 +10,14 @@ use crate::config::RigConfig;
 use crate::dsp::features::FeatureWindow;
 use crate::dsp::quality::Quality;
 use crate::health::message::{
-    FaultBands, HealthMessage, ModelInfo, QualityReport, WindowTimes, SCHEMA, SCHEMA_VERSION,
+    FaultBands, HealthIndicators, HealthMessage, ModelInfo, QualityReport, WindowTimes, SCHEMA,
+    SCHEMA_VERSION,
 };
 use crate::health::verdict::{novelty_threshold, quality_problem, speed_only};
 use crate::health::{HealthPolicy, HealthStateMachine, Smoothed, UnknownReason, WindowInput};
 use crate::model::evidence::{BaselineSpread, FamilyBins, FamilyEvidence};
 use crate::model::impulsiveness::{Impulse, ImpulseBaseline};
+use crate::model::indicators::{IndicatorBaseline, IndicatorMeter, Indicators};
 use crate::model::onnx::OnnxClassifier;
 use crate::model::rule::{EnvelopeRule, RuleReading, RuleSettings};
 use crate::vocabulary::QualityFlag;
@@ -48,6 +50,8 @@ pub struct Analyzer {
     spread: Option<BaselineSpread>,
     /// The aligned model's healthy kurtosis (None: the model gives no impulsiveness).
     impulse_baseline: Option<ImpulseBaseline>,
+    /// Measures each window's speed-free health indicators (classifier channel).
+    meter: IndicatorMeter,
     /// The rule baseline at the rig's bearing (its reading is one input of the verdict).
     rule: EnvelopeRule,
     sample_rate: f64,
@@ -76,6 +80,7 @@ impl Analyzer {
             .with_context(|| format!("model {model_id}"))?;
         let mut health = HealthStateMachine::new(policy, &model.meta().labels)?;
         health.set_hop_fraction(rig.features.hop_s / rig.features.window_s);
+        health.set_indicator_baseline(IndicatorBaseline::of(model.meta()));
         let chans: Vec<(String, String)> = rig
             .acceleration_channels()
             .map(|c| (c.name.clone(), c.unit.to_string()))
@@ -98,6 +103,7 @@ impl Analyzer {
         Ok(Analyzer {
             spread: BaselineSpread::of(model.meta()),
             impulse_baseline: ImpulseBaseline::of(model.meta()),
+            meter: IndicatorMeter::new(sample_rate, rig.features.lowpass_hz),
             stage: AnalysisStage::new(rig, sample_rate, &chans, absent, speed)?,
             foreign: foreign_to(&model, rig),
             model,
@@ -144,6 +150,8 @@ impl Analyzer {
         self.foreign = foreign_to(&model, &self.rig);
         self.spread = BaselineSpread::of(model.meta());
         self.impulse_baseline = ImpulseBaseline::of(model.meta());
+        self.health
+            .set_indicator_baseline(IndicatorBaseline::of(model.meta()));
         self.model = model;
         self.model_id = model_id.to_string();
         Ok(())
@@ -158,7 +166,8 @@ impl Analyzer {
         let features = c.features.take();
         let model_threshold = self.model.meta().novelty_threshold;
         let threshold = novelty_threshold(self.health.policy(), model_threshold);
-        let smoothed = self.health.observe(
+        let indicators = self.meter.measure(view.channels[self.classifier]);
+        let smoothed = self.health.observe_indicators(
             view.t_end,
             &WindowInput {
                 labels: &labels,
@@ -171,8 +180,16 @@ impl Analyzer {
                 impulse: c.impulse,
                 rule: c.rule,
             },
+            indicators.as_ref(),
         );
-        let health = self.message(view, c, features.as_ref(), labels, smoothed, threshold);
+        let health = self.message(
+            view,
+            c,
+            features.as_ref(),
+            (labels, indicators),
+            smoothed,
+            threshold,
+        );
         WindowOutput { features, health }
     }
 
@@ -310,7 +327,7 @@ impl Analyzer {
         view: &WindowView,
         c: Classified,
         features: Option<&FeatureWindow>,
-        labels: Vec<String>,
+        (labels, indicators): (Vec<String>, Option<Indicators>),
         smoothed: Smoothed,
         threshold: f32,
     ) -> HealthMessage {
@@ -356,6 +373,10 @@ impl Analyzer {
             overruled: smoothed.window.overruled,
             evidence: smoothed.evidence,
             impulse: smoothed.impulse,
+            indicators: indicators.map(|values| HealthIndicators {
+                values,
+                departure: smoothed.departure,
+            }),
             state: smoothed.state,
             state_since_s: smoothed.since_s,
             state_changed: smoothed.changed,

@@ -5,8 +5,10 @@
 
 use super::iso20816::Zone;
 use super::{Basis, UnknownReason};
+use crate::model::departure::DepartureReading;
 use crate::model::evidence::FamilyEvidence;
 use crate::model::impulsiveness::Impulse;
+use crate::model::indicators::Indicators;
 use crate::vocabulary::QualityFlag;
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
@@ -74,6 +76,10 @@ pub struct HealthMessage {
     /// (aligned models carrying the kurtosis baseline only).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub impulse: Option<Impulse>,
+    /// The classifier channel's speed-free health indicators and, against the machine's
+    /// healthy baseline, the departure test (added in schema version 1).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub indicators: Option<HealthIndicators>,
     /// The smoothed state (k-of-n voting with dwell time).
     pub state: String,
     /// Window-end time (s, sample clock) at which `state` was entered.
@@ -162,6 +168,19 @@ pub struct FaultBands {
     pub floor: f32,
 }
 
+/// One window's health indicators and the departure test's reading.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct HealthIndicators {
+    /// RMS, crest factor, excess kurtosis, resonance-band RMS of the classifier channel
+    /// ([`crate::model::indicators`]).
+    pub values: Indicators,
+    /// Against the machine's healthy baseline (models carrying the indicator baseline;
+    /// [`crate::model::departure`]): once `departed_since_s` is set the state is held at a
+    /// fault.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub departure: Option<DepartureReading>,
+}
+
 /// Which model produced the probabilities.
 #[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
 pub struct ModelInfo {
@@ -224,6 +243,10 @@ impl HealthMessage {
         }
         if let Some(r) = self.order_resolution() {
             let _ = write!(s, "  res {r:.2} ord");
+        }
+        let departure = self.indicators.and_then(|i| i.departure);
+        if let Some(t) = departure.and_then(|d| d.departed_since_s) {
+            let _ = write!(s, "  departed at {t:.0} s");
         }
         if !self.model.foreign.is_empty() {
             s.push_str("  FOREIGN MODEL");
@@ -303,6 +326,7 @@ mod tests {
                 beyond_healthy: 7.5,
                 beyond_gaussian: 6.0,
             }),
+            indicators: None,
             state: "outer_race".into(),
             state_since_s: 2.0,
             state_changed: false,

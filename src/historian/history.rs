@@ -132,9 +132,8 @@ fn message_of(r: &Row) -> serde_json::Value {
             clipped_samples: u(42),
             nan_samples: u(43),
             dropout_samples: u(44),
-            flat_channels: Vec::new(),
             missing_tacho_pulses: u(45),
-            dsp: serde_json::Value::Null,
+            ..Default::default()
         },
         probabilities,
         window_state: r.get(11),
@@ -144,6 +143,7 @@ fn message_of(r: &Row) -> serde_json::Value {
         overruled: r.get(52),
         evidence: evidence(r, 53),
         impulse: impulse(r, 59),
+        indicators: None,
         state: r.get(7),
         state_since_s: secs(ns_of(r.get::<_, SystemTime>(8))),
         state_changed: r.get(9),

@@ -7,7 +7,9 @@
 //! spectrum. Nothing is trained: the network, the novelty detector and the labels stay; only
 //! the per-feature offset (a reference level) changes, so the model file keeps its layout.
 //! The same healthy windows fit the machine's healthy-baseline gate ([`HealthyBaseline`]): a
-//! window far from them is never called healthy.
+//! window far from them is never called healthy. The same recordings' windows fit the
+//! machine's healthy indicator baseline (`adapt::align_to_recordings`), which the departure
+//! test of the health state machine reads.
 
 use super::baseline::HealthyBaseline;
 use super::classifier::TrainedModel;

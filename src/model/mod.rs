@@ -7,17 +7,22 @@
 //! ([`impulsiveness`]) against that baseline. The
 //! envelope-order rule every model is compared
 //! with ([`rule`]), and its statistic under kurtogram-chosen envelope bands ([`band_ratios`]);
-//! the classic RMS 3-sigma early-warning rule ([`rms_rule`]).
+//! the classic RMS 3-sigma early-warning rule ([`rms_rule`]); the speed-free health indicators
+//! against the healthy baseline ([`indicators`], per window of a recording:
+//! [`indicator_series`]) and when they have left it for good ([`departure`]).
 
 pub mod align;
 pub(crate) mod band_ratios;
 pub mod baseline;
 pub mod classifier;
+pub mod departure;
 pub(crate) mod digest;
 pub mod evidence;
 pub mod export;
 pub mod identity;
 pub mod impulsiveness;
+pub mod indicator_series;
+pub mod indicators;
 pub mod meta;
 pub mod mlp;
 pub mod novelty;

@@ -17,6 +17,7 @@ mod access;
 mod acquire;
 mod daemon;
 mod dsp;
+mod early_warning;
 mod estimate_mode;
 mod faults;
 mod features_identity;

@@ -1129,6 +1129,7 @@ fn every_field_set(run_ns: u64, seq: u64) -> rigmon::health::message::HealthMess
             beyond_healthy: 12.5,
             beyond_gaussian: 7.25,
         }),
+        indicators: None,
         state: "inner_race".into(),
         state_since_s: 2.5,
         state_changed: seq == 1,
