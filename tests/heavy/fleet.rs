@@ -7,8 +7,7 @@
 //! exactly once, and its 1-minute aggregates must count each window once.
 
 use super::historian::{
-    bin, every_field_set, free_port, loopback_client, loopback_router, repo, wait_until, Guard,
-    Postgres,
+    bin, every_field_set, loopback_client, loopback_router, repo, wait_until, Guard, Postgres,
 };
 use rigmon::historian::status::HistorianStatus;
 use std::collections::BTreeMap;
@@ -20,6 +19,13 @@ use std::time::{Duration, Instant};
 use zenoh::Wait;
 
 const POINTS: usize = 8;
+
+fn now_ns() -> u64 {
+    std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .unwrap()
+        .as_nanos() as u64
+}
 const TICKS: u64 = 40;
 
 /// `psql -v ... -f file` against `pg`'s database `db`; panics with its output on failure.
@@ -99,7 +105,7 @@ fn message(site: &str, i: usize, seq: u64, run_ns: u64) -> Vec<u8> {
     m.rig = format!("{site}-{i}");
     m.site = Some(site.to_string());
     m.state_changed = seq == 1;
-    m.publish_time_ns = rigmon::publish::time_range::now_ns();
+    m.publish_time_ns = now_ns();
     serde_json::to_vec(&m).unwrap()
 }
 
@@ -135,7 +141,7 @@ fn two_sites_replicate_every_window_exactly_once_into_one_central_database() {
         .iter()
         .map(|_| Postgres::start_with("-c wal_level=logical"))
         .collect();
-    let central = Postgres::start();
+    let central = Postgres::start_with("");
     for pg in &site_pg {
         let (rt, c) = pg.client("postgres");
         rt.block_on(c.batch_execute("CREATE DATABASE fleet"))
@@ -209,7 +215,7 @@ fn two_sites_replicate_every_window_exactly_once_into_one_central_database() {
     }
 
     // Publish; restart the north site's database a third of the way through.
-    let run_ns = rigmon::publish::time_range::now_ns() - 10_000_000_000;
+    let run_ns = now_ns() - 10_000_000_000;
     let pubs: Vec<Vec<zenoh::pubsub::Publisher>> = sites
         .iter()
         .enumerate()
