@@ -164,7 +164,10 @@ async fn clean(c: &tokio_postgres::Client, tag: &str) -> Result<()> {
     Ok(())
 }
 
-/// The baseline: `points` x `ticks` rows written by the writer in this process, rows/s.
+/// The database-only baseline: `points` x `ticks` rows written by the historian's own writer
+/// in this process (the same binary COPY path and session settings, no Zenoh, no JSON
+/// decode: the rows are made before the clock starts), rows/s. The first tick registers the
+/// points and is not timed.
 async fn baseline(
     target: &Target,
     tag: &str,
@@ -173,6 +176,7 @@ async fn baseline(
     max_rows: usize,
 ) -> Result<f64> {
     let (mut w, _) = Writer::open(target).await?;
+    w.set_synchronous_commit(false).await?;
     let run = now_ns() - 3_600_000_000_000;
     let mut rows: Vec<WindowRow> = Vec::new();
     for seq in 1..=ticks {
@@ -182,13 +186,80 @@ async fn baseline(
             rows.push(WindowRow::parse(&serde_json::to_vec(&m)?, tag)?);
         }
     }
+    let (first, rest) = rows.split_at_mut(points);
+    w.write(first, &[]).await?;
     let t0 = Instant::now();
-    for chunk in rows.chunks_mut(max_rows) {
+    for chunk in rest.chunks_mut(max_rows) {
         w.write(chunk, &[]).await?;
     }
-    let rate = rows.len() as f64 / t0.elapsed().as_secs_f64();
+    let rate = rest.len() as f64 / t0.elapsed().as_secs_f64();
     clean(w.client(), tag).await?;
     Ok(rate)
+}
+
+/// Which published windows are not in the database, and which of those the historian
+/// counted as lost (its last status lists every range).
+#[derive(Debug, Default, serde::Serialize)]
+struct Missing {
+    /// Not in the database.
+    total: u64,
+    /// ...of which in the historian's loss ledger (point and seq range).
+    counted: u64,
+    /// The first few not accounted for: `<point> seq <n>`.
+    unaccounted_examples: Vec<String>,
+}
+
+/// Compare the database with what was published (`ticks` windows of each point).
+async fn missing(
+    c: &tokio_postgres::Client,
+    tag: &str,
+    points: usize,
+    ticks: u64,
+    lost: &crate::historian::losses::LostSummary,
+) -> Result<Missing> {
+    let rows = c
+        .query(
+            "SELECT p.key, w.seq FROM windows w JOIN points p USING (point_id) WHERE p.key LIKE $1",
+            &[&format!("{tag}-%")],
+        )
+        .await?;
+    let mut have: std::collections::HashMap<String, Vec<bool>> = Default::default();
+    for r in &rows {
+        let seq: i64 = r.get(1);
+        let v = have
+            .entry(r.get(0))
+            .or_insert_with(|| vec![false; ticks as usize + 1]);
+        if let Some(slot) = usize::try_from(seq).ok().and_then(|s| v.get_mut(s)) {
+            *slot = true;
+        }
+    }
+    let mut ledger: std::collections::HashMap<&str, Vec<(u64, u64)>> = Default::default();
+    for r in &lost.ranges {
+        ledger
+            .entry(r.point.as_str())
+            .or_default()
+            .push((r.first, r.last));
+    }
+    let mut m = Missing::default();
+    for i in 0..points {
+        let key = format!("{tag}-{i}/shaft/nde");
+        let got = have.get(&key);
+        for seq in 1..=ticks {
+            if got.is_some_and(|v| v[seq as usize]) {
+                continue;
+            }
+            m.total += 1;
+            let counted = ledger
+                .get(key.as_str())
+                .is_some_and(|rs| rs.iter().any(|&(f, l)| (f..=l).contains(&seq)));
+            if counted {
+                m.counted += 1;
+            } else if m.unaccounted_examples.len() < 5 {
+                m.unaccounted_examples.push(format!("{key} seq {seq}"));
+            }
+        }
+    }
+    Ok(m)
 }
 
 /// Results.
@@ -200,12 +271,22 @@ struct Report {
     published: u64,
     publisher_late_s: f64,
     rows_in_db: i64,
+    /// Published and not in the database ...
     lost: i64,
+    /// ... of which the historian counted by point and seq range (its status and log),
+    lost_counted: u64,
+    /// ... and of which it said nothing.
+    lost_unaccounted: u64,
+    lost_unaccounted_examples: Vec<String>,
+    /// Ranges in the historian's loss ledger.
+    historian_lost_ranges: u64,
     rows_per_s_offered: f64,
     rows_per_s_committed: f64,
     catch_up_s: f64,
     baseline_rows_per_s: f64,
     offered_over_baseline: f64,
+    /// Committed while publishing over the database-only baseline.
+    committed_over_baseline: f64,
     latency_p50_s: f64,
     latency_p99_s: f64,
     latency_max_s: f64,
@@ -214,6 +295,7 @@ struct Report {
     historian_rss_peak_mb: f64,
     bench_cpu_percent: f64,
     dropped: u64,
+    spilled: u64,
     sustained: bool,
 }
 
@@ -241,13 +323,9 @@ pub fn run(points: usize, seconds: f64, json: bool) -> Result<()> {
         anyhow::Ok(())
     })??;
     let ticks = (seconds * RATE).round() as u64;
-    let base_rate = database::block_on(baseline(
-        &target,
-        &format!("{tag}base"),
-        points,
-        (20_000 / points.max(1)).clamp(2, 200) as u64,
-        5000,
-    ))??;
+    let base_ticks = (40_000 / points.max(1)).clamp(3, 200) as u64;
+    let base_tag = format!("{tag}base");
+    let base_rate = database::block_on(baseline(&target, &base_tag, points, base_ticks, 20_000))??;
     let dir = tempfile::tempdir()?;
     let port = free_port()?;
     let endpoint = format!("tcp/127.0.0.1:{port}");
@@ -336,17 +414,9 @@ pub fn run(points: usize, seconds: f64, json: bool) -> Result<()> {
     let publish_s = t0.elapsed().as_secs_f64();
     let (cpu1, bench_cpu1) = (cpu_seconds(pid)?, cpu_seconds(std::process::id())?);
     let (rss, peak) = (status_mb(pid, "VmRSS:"), status_mb(pid, "VmHWM:"));
-    let (in_db, at_end, catch_up) = database::block_on(async {
-        let c = target.connect().await?;
-        let at_end = count_rows(&c, &tag).await?;
-        let t = Instant::now();
-        let mut n = at_end;
-        while (n as u64) < published && t.elapsed() < Duration::from_secs(60) {
-            tokio::time::sleep(Duration::from_millis(100)).await;
-            n = count_rows(&c, &tag).await?;
-        }
-        anyhow::Ok((n, at_end, t.elapsed().as_secs_f64()))
-    })??;
+    let limit = Duration::from_secs_f64(seconds.max(60.0) * 3.0);
+    let (at_end, catch_up) =
+        database::block_on(wait_caught_up(&target, &tag, published, &status_sub, limit))??;
     // SAFETY: plain kill(2) on our own child.
     unsafe { libc::kill(pid as i32, libc::SIGTERM) };
     let mut child = guard.0.take().expect("child");
@@ -355,15 +425,19 @@ pub fn run(points: usize, seconds: f64, json: bool) -> Result<()> {
     let _ = child.wait();
     let last: HistorianStatus = serde_json::from_str(out.trim())
         .with_context(|| format!("the historian's last status: {out:?}"))?;
-    database::block_on(async {
+    let (in_db, miss) = database::block_on(async {
         let c = target.connect().await?;
-        clean(&c, &tag).await
+        let n = count_rows(&c, &tag).await?;
+        let m = missing(&c, &tag, points, ticks, &last.lost).await?;
+        clean(&c, &tag).await?;
+        anyhow::Ok((n, m))
     })??;
     drop(pubs);
     let _ = publisher.close().wait();
     let _ = router.close().wait();
     let wall = publish_s;
     let lost = published as i64 - in_db;
+    let unaccounted = miss.total - miss.counted;
     let report = Report {
         machine: machine_line(),
         points,
@@ -372,11 +446,16 @@ pub fn run(points: usize, seconds: f64, json: bool) -> Result<()> {
         publisher_late_s: late,
         rows_in_db: in_db,
         lost,
+        lost_counted: miss.counted,
+        lost_unaccounted: unaccounted,
+        lost_unaccounted_examples: miss.unaccounted_examples,
+        historian_lost_ranges: last.lost.ranges.len() as u64 + last.lost.ranges_left_off,
         rows_per_s_offered: published as f64 / wall,
         rows_per_s_committed: at_end as f64 / wall,
         catch_up_s: catch_up,
         baseline_rows_per_s: base_rate,
         offered_over_baseline: (published as f64 / wall) / base_rate,
+        committed_over_baseline: (at_end as f64 / wall) / base_rate,
         latency_p50_s: last.latency.p50_s,
         latency_p99_s: last.latency.p99_s,
         latency_max_s: last.latency.max_s,
@@ -385,17 +464,50 @@ pub fn run(points: usize, seconds: f64, json: bool) -> Result<()> {
         historian_rss_peak_mb: peak,
         bench_cpu_percent: 100.0 * (bench_cpu1 - bench_cpu0) / wall,
         dropped: last.buffer.dropped,
+        spilled: last.buffer.spilled_total,
         sustained: lost == 0 && catch_up < 2.0 && late < 1.0,
     };
     print(&report, json)
 }
 
+type StatusSub =
+    zenoh::pubsub::Subscriber<zenoh::handlers::FifoChannelHandler<zenoh::sample::Sample>>;
+
+/// After the last publish: wait until every row is in the database, or the historian has
+/// nothing left to write (buffer and spill empty, nothing committed for 3 s: the rest is
+/// lost and its ledger says which), at most `limit`. Returns (rows in the database when
+/// publishing ended, seconds waited).
+async fn wait_caught_up(
+    target: &Target,
+    tag: &str,
+    published: u64,
+    status: &StatusSub,
+    limit: Duration,
+) -> Result<(i64, f64)> {
+    let c = target.connect().await?;
+    let at_end = count_rows(&c, tag).await?;
+    let t = Instant::now();
+    let (mut n, mut last_committed, mut still_since) = (at_end, 0u64, Instant::now());
+    while (n as u64) < published && t.elapsed() < limit {
+        tokio::time::sleep(Duration::from_millis(200)).await;
+        n = count_rows(&c, tag).await?;
+        let mut latest = None;
+        while let Ok(Some(sample)) = status.try_recv() {
+            latest = serde_json::from_slice::<HistorianStatus>(&sample.payload().to_bytes()).ok();
+        }
+        if let Some(st) = latest {
+            if st.rows.committed != last_committed || st.buffer.memory + st.buffer.spilled > 0 {
+                (last_committed, still_since) = (st.rows.committed, Instant::now());
+            } else if still_since.elapsed() > Duration::from_secs(3) {
+                break;
+            }
+        }
+    }
+    Ok((at_end, t.elapsed().as_secs_f64()))
+}
+
 /// Wait for the historian's first status saying its database is connected.
-fn wait_ready(
-    sub: &zenoh::pubsub::Subscriber<zenoh::handlers::FifoChannelHandler<zenoh::sample::Sample>>,
-    guard: &mut ChildGuard,
-    log: &std::path::Path,
-) -> Result<()> {
+fn wait_ready(sub: &StatusSub, guard: &mut ChildGuard, log: &std::path::Path) -> Result<()> {
     let t = Instant::now();
     while t.elapsed() < Duration::from_secs(60) {
         if let Some(c) = guard.0.as_mut() {
@@ -421,21 +533,37 @@ fn print(r: &Report, json: bool) -> Result<()> {
         println!("machine: {}", r.machine);
         println!("offered: {} points x {RATE} windows/s for {:.1} s = {} rows ({:.0} rows/s; publisher late by at most {:.3} s)", r.points, r.seconds, r.published, r.rows_per_s_offered, r.publisher_late_s);
         println!("committed while publishing: {:.0} rows/s; all committed {:.2} s after the last publish", r.rows_per_s_committed, r.catch_up_s);
-        println!("baseline (writer alone, in process, same rows): {:.0} rows/s; offered load = {:.2} x baseline", r.baseline_rows_per_s, r.offered_over_baseline);
+        println!("database alone (the historian's writer in this process, same binary COPY, no Zenoh, no decode): {:.0} rows/s; offered = {:.2} x, committed while publishing = {:.2} x that", r.baseline_rows_per_s, r.offered_over_baseline, r.committed_over_baseline);
         println!(
             "publish-to-committed: p50 {:.3} s, p99 {:.3} s, max {:.3} s",
             r.latency_p50_s, r.latency_p99_s, r.latency_max_s
         );
         println!("historian: CPU {:.1} % of one core, RSS {:.1} MB (peak {:.1} MB); bench process (router + publishers) CPU {:.1} %", r.historian_cpu_percent, r.historian_rss_mb, r.historian_rss_peak_mb, r.bench_cpu_percent);
         println!(
-            "rows in the database {} of {} published; dropped by the historian's buffer {}",
-            r.rows_in_db, r.published, r.dropped
+            "rows in the database {} of {} published; spilled to disk {}, dropped by the historian's buffer {}",
+            r.rows_in_db, r.published, r.spilled, r.dropped
+        );
+        println!(
+            "not in the database {}: counted lost by the historian with point and seq range {} ({} ranges in its status), not accounted for {}{}",
+            r.lost,
+            r.lost_counted,
+            r.historian_lost_ranges,
+            r.lost_unaccounted,
+            if r.lost_unaccounted_examples.is_empty() {
+                String::new()
+            } else {
+                format!(" (e.g. {})", r.lost_unaccounted_examples.join(", "))
+            }
         );
     }
+    let lost = format!(
+        "{} lost ({} counted by point and seq range, {} unaccounted)",
+        r.lost, r.lost_counted, r.lost_unaccounted
+    );
     if r.sustained {
-        println!("historian: {} points x 2 windows/s sustained, p99 publish-to-committed {:.2} s, {} lost", r.points, r.latency_p99_s, r.lost);
+        println!("historian: {} points x 2 windows/s sustained, p99 publish-to-committed {:.2} s, {lost}", r.points, r.latency_p99_s);
     } else {
-        println!("historian: {} points x 2 windows/s NOT sustained (caught up {:.1} s after the end), p99 publish-to-committed {:.2} s, {} lost", r.points, r.catch_up_s, r.latency_p99_s, r.lost);
+        println!("historian: {} points x 2 windows/s NOT sustained (caught up {:.1} s after the end), p99 publish-to-committed {:.2} s, {lost}", r.points, r.catch_up_s, r.latency_p99_s);
     }
     Ok(())
 }

@@ -53,6 +53,8 @@ pub struct Buffer {
     spill_max_bytes: u64,
     pub counters: BufferCounters,
     pub notify: tokio::sync::Notify,
+    /// Where a dropped window is entered by its point and seq.
+    ledger: Option<std::sync::Arc<super::losses::LossLedger>>,
 }
 
 /// What the buffer holds now.
@@ -97,7 +99,20 @@ impl Buffer {
             spill_max_bytes,
             counters: BufferCounters::default(),
             notify: tokio::sync::Notify::new(),
+            ledger: None,
         })
+    }
+
+    /// Enter every health window this buffer drops in `ledger` (by point and seq).
+    pub fn with_ledger(mut self, ledger: std::sync::Arc<super::losses::LossLedger>) -> Self {
+        self.ledger = Some(ledger);
+        self
+    }
+
+    fn enter_dropped(&self, m: &Incoming) {
+        if let (Kind::Health, Some(l)) = (m.kind, self.ledger.as_ref()) {
+            l.dropped(&m.payload);
+        }
     }
 
     /// Take a message (from Zenoh's callback thread; never blocks on the database).
@@ -106,6 +121,7 @@ impl Buffer {
             return;
         };
         let size = m.size();
+        let mut dropped = None;
         if !g.spilling
             && g.memory.len() < self.memory_cap
             && g.memory_bytes + size <= self.memory_max_bytes
@@ -128,15 +144,20 @@ impl Buffer {
                         tracing::error!("cannot spill ({n} errors so far): {e:#}");
                     }
                     self.counters.dropped.fetch_add(1, Ordering::Relaxed);
+                    dropped = Some(m);
                 }
             }
         } else {
+            dropped = Some(m);
             let n = self.counters.dropped.fetch_add(1, Ordering::Relaxed) + 1;
             if n == 1 || n.is_power_of_two() {
                 tracing::warn!("buffer and spill full: {n} messages dropped so far (raise [buffer] memory_messages / spill_max_mb)");
             }
         }
         drop(g);
+        if let Some(m) = dropped {
+            self.enter_dropped(&m);
+        }
         self.notify.notify_one();
     }
 
@@ -155,14 +176,23 @@ impl Buffer {
             .unwrap_or_default()
     }
 
-    /// Up to `max` of the oldest messages (memory first: it is older than the spill). The
+    /// Up to `max` of the oldest messages, and from memory at most `max_bytes` of them (at
+    /// least one; memory first: it is older than the spill). The
     /// batch stays owed until [`commit`](Self::commit); taking again before that returns the
     /// same spill records, so callers retry the batch they hold instead.
-    pub fn take(&self, max: usize) -> Batch {
+    pub fn take(&self, max: usize, max_bytes: u64) -> Batch {
         let mut g = self.inner.lock().expect("buffer lock");
         g.in_flight = true;
         if !g.memory.is_empty() {
-            let n = g.memory.len().min(max);
+            let mut n = 0;
+            let mut bytes = 0;
+            for m in g.memory.iter().take(max) {
+                bytes += m.size();
+                if n > 0 && bytes > max_bytes {
+                    break;
+                }
+                n += 1;
+            }
             let messages: Vec<Incoming> = g.memory.drain(..n).collect();
             g.memory_bytes -= messages.iter().map(Incoming::size).sum::<u64>();
             return Batch {
@@ -219,18 +249,26 @@ impl Buffer {
         rest.extend(g.memory.drain(..));
         g.memory_bytes = 0;
         let Some(s) = g.spill.as_mut() else {
+            drop(g);
+            for m in &rest {
+                self.enter_dropped(m);
+            }
             return rest.len() as u64;
         };
         // What is in memory may be older than what is spilled already; it goes behind it.
         // Rows carry their own times and the primary key drops repeats, so only the order
         // in which a restart writes them changes.
-        let mut lost = 0;
+        let mut lost = Vec::new();
         for m in &rest {
             if s.append(m).is_err() {
-                lost += 1;
+                lost.push(m);
             }
         }
-        lost
+        drop(g);
+        for m in &lost {
+            self.enter_dropped(m);
+        }
+        lost.len() as u64
     }
 }
 
@@ -262,7 +300,7 @@ mod tests {
         assert_eq!(b.counters.dropped.load(Ordering::Relaxed), 1);
         let mut seen = Vec::new();
         loop {
-            let batch = b.take(3);
+            let batch = b.take(3, u64::MAX);
             if batch.messages.is_empty() {
                 break;
             }
@@ -297,13 +335,13 @@ mod tests {
         let l = b.level();
         assert_eq!((l.memory, l.spilled), (4, 26), "4 x 2 MB fit under 10 MB");
         assert!(l.memory_bytes <= 10 << 20, "{}", l.memory_bytes);
-        let batch = b.take(100);
+        let batch = b.take(100, u64::MAX);
         assert_eq!(batch.messages.len(), 4);
         assert_eq!(b.level().memory_bytes, 0);
         b.commit(&batch);
         let mut n = 4;
         loop {
-            let batch = b.take(7);
+            let batch = b.take(7, u64::MAX);
             if batch.messages.is_empty() {
                 break;
             }

@@ -85,6 +85,14 @@ pub struct BatchSettings {
     /// Longest a message waits for its batch to fill, ms.
     #[serde(default = "default_max_delay_ms")]
     pub max_delay_ms: u64,
+    /// Message bytes per transaction at most (batching by bytes as well as rows), MB.
+    #[serde(default = "default_max_batch_mb")]
+    pub max_mb: f64,
+    /// Wait for each commit's WAL flush (`true`), or not (`false`, the default: PostgreSQL's
+    /// `synchronous_commit = off` for this session only; a database crash may forget the
+    /// last ~0.6 s of commits, which the gap tracker asks again of the daemons).
+    #[serde(default)]
+    pub synchronous_commit: bool,
 }
 
 /// `[retention]`: partitions older than these are dropped (hourly and at start).
@@ -156,7 +164,10 @@ fn default_spill_max_mb() -> f64 {
     1024.0
 }
 fn default_max_rows() -> usize {
-    5000
+    20000
+}
+fn default_max_batch_mb() -> f64 {
+    32.0
 }
 fn default_max_delay_ms() -> u64 {
     250
@@ -200,6 +211,8 @@ impl Default for BatchSettings {
         BatchSettings {
             max_rows: default_max_rows(),
             max_delay_ms: default_max_delay_ms(),
+            max_mb: default_max_batch_mb(),
+            synchronous_commit: false,
         }
     }
 }
@@ -331,6 +344,12 @@ impl HistorianConfig {
         if self.batch.max_rows == 0 || self.batch.max_delay_ms == 0 {
             bail!("batch.max_rows and batch.max_delay_ms must be at least 1");
         }
+        if !positive(self.batch.max_mb) {
+            bail!(
+                "batch.max_mb = {}: must be a positive number of MB",
+                self.batch.max_mb
+            );
+        }
         if self.retention.windows_days == 0 || self.retention.minutes_days == 0 {
             bail!("retention.windows_days and retention.minutes_days must be at least 1 (days)");
         }
@@ -376,6 +395,11 @@ impl HistorianConfig {
             prefix: self.zenoh.key_prefix.clone(),
             max_future_ns: (self.intake.max_future_s * 1e9) as u64,
         }
+    }
+
+    /// Message bytes one batch may hold.
+    pub fn batch_max_bytes(&self) -> u64 {
+        (self.batch.max_mb * 1024.0 * 1024.0) as u64
     }
 
     /// Spill bytes allowed.

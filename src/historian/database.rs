@@ -25,6 +25,11 @@ pub struct DatabaseSettings {
     /// A file whose first line is the password (else `PGPASSFILE` / `~/.pgpass`).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub password_file: Option<PathBuf>,
+    /// The PostgreSQL schema the historian's tables live in (made if missing; default: the
+    /// server's `search_path`, i.e. `public`). One per site when sites replicate into one
+    /// central database (docs/fleet.md): the names then never collide there.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub schema: Option<String>,
 }
 
 /// A resolved connection target (its Debug leaves the password out).
@@ -32,6 +37,7 @@ pub struct DatabaseSettings {
 pub struct Target {
     config: Config,
     describe: String,
+    schema: Option<String>,
 }
 
 impl DatabaseSettings {
@@ -45,6 +51,15 @@ impl DatabaseSettings {
                 bail!("database.url carries a password: remove it from the URL and put it in a file (database.password_file, or a pgpass file named by PGPASSFILE)");
             }
             check_ssl(c.get_ssl_mode(), "database.url sslmode")?;
+        }
+        if let Some(s) = &self.schema {
+            let plain = s.len() <= 63
+                && s.starts_with(|c: char| c.is_ascii_lowercase() || c == '_')
+                && s.chars()
+                    .all(|c| c.is_ascii_lowercase() || c.is_ascii_digit() || c == '_');
+            if !plain || s.starts_with("pg_") {
+                bail!("database.schema = {s:?}: a plain lower-case name (a-z, 0-9, _, at most 63 characters, not pg_...), e.g. \"site_north\"");
+            }
         }
         Ok(())
     }
@@ -69,13 +84,20 @@ impl DatabaseSettings {
             c = without_ports(&c);
         }
         fill_from_env(&mut c, env)?;
-        let describe = describe(&c);
+        if let Some(schema) = &self.schema {
+            c.options(format!("-c search_path={schema}").as_str());
+        }
+        let describe = match &self.schema {
+            Some(s) => format!("{} (schema {s})", describe(&c)),
+            None => describe(&c),
+        };
         if let Some(pw) = self.password(&c, env)? {
             c.password(pw);
         }
         Ok(Target {
             config: c,
             describe,
+            schema: self.schema.clone(),
         })
     }
 
@@ -256,6 +278,11 @@ impl Target {
     /// `user@host:port/db`, for logs and errors.
     pub fn describe(&self) -> &str {
         &self.describe
+    }
+
+    /// The schema named by `[database] schema`, if any.
+    pub fn schema(&self) -> Option<&str> {
+        self.schema.as_deref()
     }
 
     /// Connect; the connection's own task runs on the current tokio runtime.

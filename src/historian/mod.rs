@@ -4,7 +4,8 @@
 //! tree, one typed row per window keyed on (point, window time), 1-minute aggregates,
 //! partitions for retention, state-change events with the full JSON). Between the two a
 //! bounded [`buffer`] with a disk [`spill`] rides out a slow or absent database; a [`recovery`]
-//! tracker fetches what was missed from the daemons' recent history. History goes back out
+//! tracker fetches what was missed from the daemons' recent history, and what neither could
+//! keep is entered by point and seq range in the [`losses`] ledger. History goes back out
 //! over Zenoh ([`history`], `rigmon history`), alarms are listed and acknowledged
 //! ([`alarms`]), and [`trend_png`] draws a point's trend. [`service`] wires it together.
 //!
@@ -21,6 +22,7 @@ pub mod history;
 pub mod incoming;
 pub(crate) mod intake;
 pub(crate) mod latency;
+pub mod losses;
 pub mod migrations;
 pub mod partitions;
 pub mod pgpass;

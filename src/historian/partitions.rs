@@ -147,7 +147,8 @@ pub async fn apply_retention(
         .query(
             "SELECT c.relname, p.relname FROM pg_inherits i
              JOIN pg_class c ON c.oid = i.inhrelid JOIN pg_class p ON p.oid = i.inhparent
-             WHERE p.relname IN ('windows', 'minutes')",
+             WHERE p.relname IN ('windows', 'minutes')
+               AND p.relnamespace = current_schema()::regnamespace",
             &[],
         )
         .await

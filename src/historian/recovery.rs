@@ -10,6 +10,7 @@
 //! tail); the new run is recovered from its first window.
 
 use super::buffer::{Buffer, Incoming, Kind};
+use super::losses::LossLedger;
 use super::status::Counters;
 use crate::publish::recent::{same_run, RecentQuery, SUFFIX};
 use std::collections::{HashMap, HashSet};
@@ -158,6 +159,7 @@ pub async fn recover(
     let found = got.len() as u64;
     let missing = gap.len().saturating_sub(found);
     if gap.counted {
+        enter(&counters.losses, &gap, &got);
         Counters::add(&counters.recovered, found);
         Counters::add(&counters.lost, missing);
         if missing > 0 {
@@ -176,6 +178,23 @@ pub async fn recover(
     } else {
         Counters::add(&counters.backfilled, found);
         Counters::add(&counters.not_backfilled, missing);
+    }
+}
+
+/// Enter a counted gap in the loss ledger: what was found comes out of it, the rest goes in.
+fn enter(ledger: &LossLedger, gap: &Gap, got: &HashSet<u64>) {
+    let mut found: Vec<u64> = got.iter().copied().collect();
+    found.sort_unstable();
+    let mut next = gap.first;
+    for &seq in &found {
+        ledger.recovered(&gap.key, gap.run_start_ns, seq);
+        if seq > next {
+            ledger.add(&gap.key, gap.run_start_ns, next, seq - 1);
+        }
+        next = seq.saturating_add(1);
+    }
+    if next <= gap.last && (found.last() != Some(&u64::MAX)) {
+        ledger.add(&gap.key, gap.run_start_ns, next, gap.last);
     }
 }
 
@@ -227,6 +246,29 @@ mod tests {
         let g = t.observe("n/a/p", 7, 30).unwrap();
         assert_eq!((g.first, g.last, g.counted), (1, 29, false));
         assert_eq!(t.observe("o/a/p", 7, 1), None);
+    }
+
+    /// What a gap's daemon still had comes out of the loss ledger, the rest goes in, by seq
+    /// range; the same gap found twice is entered once.
+    #[test]
+    fn a_gap_enters_the_ledger_by_seq_range_less_what_was_recovered() {
+        let ledger = LossLedger::default();
+        let gap = Gap {
+            key: "m/a/p".into(),
+            run_start_ns: 9,
+            first: 10,
+            last: 19,
+            counted: true,
+        };
+        ledger.add("m/a/p", 9, 12, 12);
+        enter(&ledger, &gap, &[12, 13, 17].into());
+        enter(&ledger, &gap, &[12, 13, 17].into());
+        let s = ledger.summary(10);
+        let got: Vec<(u64, u64)> = s.ranges.iter().map(|r| (r.first, r.last)).collect();
+        assert_eq!(got, [(10, 11), (14, 16), (18, 19)]);
+        assert_eq!(s.windows, 7);
+        enter(&ledger, &gap, &(10..=19).collect());
+        assert_eq!(ledger.total(), 0, "all recovered after all");
     }
 
     /// Issue 38, F2: a forged seq of 2^64-1 wrapped `high + 1` to 0, so every later window

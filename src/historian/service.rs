@@ -43,6 +43,8 @@ struct Shared {
     heartbeat_ms: AtomicU64,
     /// Stop taking new work; write what is buffered and return.
     draining: AtomicBool,
+    /// Stop writing at once; return the batch in hand.
+    abandon: AtomicBool,
     started: Instant,
 }
 
@@ -51,12 +53,16 @@ pub fn run(cfg: HistorianConfig, opts: RunOptions) -> Result<HistorianStatus> {
     cfg.zenoh_config()?;
     let target = cfg.database.resolve()?;
     let spill_dir = (cfg.spill_max_bytes() > 0).then_some(cfg.buffer.spill_dir.as_path());
-    let buffer = Arc::new(Buffer::open(
-        cfg.buffer.memory_messages,
-        cfg.memory_max_bytes(),
-        spill_dir,
-        cfg.spill_max_bytes(),
-    )?);
+    let counters = Arc::new(Counters::default());
+    let buffer = Arc::new(
+        Buffer::open(
+            cfg.buffer.memory_messages,
+            cfg.memory_max_bytes(),
+            spill_dir,
+            cfg.spill_max_bytes(),
+        )?
+        .with_ledger(counters.losses.clone()),
+    );
     let rt = tokio::runtime::Builder::new_multi_thread()
         .worker_threads(2)
         .enable_all()
@@ -67,10 +73,11 @@ pub fn run(cfg: HistorianConfig, opts: RunOptions) -> Result<HistorianStatus> {
         cfg,
         target,
         buffer,
-        counters: Arc::default(),
+        counters,
         latency: Mutex::default(),
         heartbeat_ms: AtomicU64::new(0),
         draining: AtomicBool::new(false),
+        abandon: AtomicBool::new(false),
         started: Instant::now(),
     });
     if opts.use_signals {
@@ -131,6 +138,7 @@ async fn serve(sh: Arc<Shared>, opts: RunOptions) -> Result<HistorianStatus> {
                 tracing::debug!("publishing the historian status: {e}");
             }
             notifier.status(&s.systemd_line());
+            sh.counters.losses.log_new();
             last_status = Instant::now();
         }
         let beat = sh.heartbeat_ms.load(Ordering::Relaxed);
@@ -148,20 +156,35 @@ async fn serve(sh: Arc<Shared>, opts: RunOptions) -> Result<HistorianStatus> {
     let _ = status_pub
         .put(serde_json::to_vec(&snapshot(&sh, Phase::Stopping))?)
         .await;
-    let pending = match tokio::time::timeout(Duration::from_secs(15), writer).await {
-        Ok(Ok(p)) => p,
-        _ => Vec::new(),
-    };
+    let pending = drain(&sh, writer).await;
     let unkept = sh.buffer.persist(pending);
     if unkept > 0 {
         tracing::warn!("{unkept} buffered messages could not be kept (no spill folder): the daemons' recent history has them for the next start");
     }
     history_task.abort();
+    sh.counters.losses.log_new();
     let last = snapshot(&sh, Phase::Finished);
     let _ = status_pub.put(serde_json::to_vec(&last)?).await;
     drop(status_pub);
     let _ = session.close().await;
     Ok(last)
+}
+
+/// Wait for the write loop to write what is buffered (up to 15 s); if it is still writing
+/// then, let it finish the batch in hand (a write gives up after 30 s) and take that batch
+/// back, so it goes to the spill rather than being lost.
+async fn drain(sh: &Shared, mut writer: tokio::task::JoinHandle<Vec<Incoming>>) -> Vec<Incoming> {
+    match tokio::time::timeout(Duration::from_secs(15), &mut writer).await {
+        Ok(Ok(p)) => p,
+        Ok(Err(_)) => Vec::new(),
+        Err(_) => {
+            sh.abandon.store(true, Ordering::SeqCst);
+            match tokio::time::timeout(Duration::from_secs(35), writer).await {
+                Ok(Ok(p)) => p,
+                _ => Vec::new(),
+            }
+        }
+    }
 }
 
 async fn open_session(cfg: &HistorianConfig) -> Result<zenoh::Session> {
@@ -237,6 +260,10 @@ fn snapshot(sh: &Shared, phase: Phase) -> HistorianStatus {
             rows_sent: g(&c.history_rows_sent),
         },
         software_version: env!("CARGO_PKG_VERSION").to_string(),
+        lost: c.losses.summary(match phase {
+            Phase::Finished => usize::MAX,
+            _ => super::losses::STATUS_RANGES,
+        }),
     }
 }
 
@@ -328,6 +355,7 @@ async fn gather(sh: &Shared) -> bool {
     let t0 = Instant::now();
     while t0.elapsed() < max_delay
         && (sh.buffer.level().memory as usize) < sh.cfg.batch.max_rows
+        && sh.buffer.level().memory_bytes < sh.cfg.batch_max_bytes()
         && sh.buffer.level().spilled == 0
     {
         tokio::time::sleep(Duration::from_millis(10).min(max_delay)).await;
@@ -351,6 +379,9 @@ async fn write_loop(
         sh.heartbeat_ms
             .store(sh.started.elapsed().as_millis() as u64, Ordering::Relaxed);
         let draining = sh.draining.load(Ordering::SeqCst);
+        if sh.abandon.load(Ordering::SeqCst) {
+            return pending.map(|p| p.batch.messages).unwrap_or_default();
+        }
         if writer.as_ref().is_some_and(|w| w.is_closed()) {
             note_down(
                 &sh,
@@ -362,7 +393,7 @@ async fn write_loop(
         if writer.is_none() {
             match connect(&sh).await {
                 Ok((w, seed)) => {
-                    tracker.get_or_insert_with(|| Tracker::seeded(seed));
+                    tracker = Some(reseeded(seed, pending.as_ref(), &gaps, &sh));
                     writer = Some(w);
                     backoff = Duration::from_millis(250);
                 }
@@ -397,7 +428,9 @@ async fn write_loop(
                 }
                 continue;
             }
-            let batch = sh.buffer.take(sh.cfg.batch.max_rows);
+            let batch = sh
+                .buffer
+                .take(sh.cfg.batch.max_rows, sh.cfg.batch_max_bytes());
             let t = tracker.get_or_insert_with(Tracker::default);
             pending = Some(parse(&sh, batch, t, &gaps));
         }
@@ -407,18 +440,7 @@ async fn write_loop(
         match result {
             Ok(Ok(outcome)) => {
                 committed(&sh, p, &outcome);
-                for (id, key) in outcome.new_points {
-                    let (s, prefix, tx) = (
-                        session.clone(),
-                        sh.cfg.zenoh.key_prefix.clone(),
-                        limits_tx.clone(),
-                    );
-                    tokio::spawn(async move {
-                        if let Some(l) = point_config::iso_limits(&s, &prefix, &key).await {
-                            let _ = tx.send((id, l));
-                        }
-                    });
-                }
+                ask_limits(&sh, &session, &limits_tx, outcome.new_points);
                 sh.buffer.commit(&p.batch);
                 pending = None;
             }
@@ -444,9 +466,52 @@ async fn write_loop(
     }
 }
 
+/// The gap tracker after a (re)connect: where each point stands in the database, then the
+/// batch still waiting to be written. A commit the database acknowledged and then lost (it
+/// crashed within `synchronous_commit = off`'s window, see [`Writer::open`]) shows up as a
+/// gap when the point's next window arrives, and is asked of its daemon like any other.
+fn reseeded(
+    seed: std::collections::HashMap<String, (u64, u64)>,
+    pending: Option<&Pending>,
+    gaps: &UnboundedSender<Gap>,
+    sh: &Shared,
+) -> Tracker {
+    let mut t = Tracker::seeded(seed);
+    for r in pending.map_or(&[][..], |p| &p.rows) {
+        if let Some(g) = t.observe(&r.point.key(), r.run_start_ns, r.seq) {
+            Counters::add(&sh.counters.gaps, 1);
+            let _ = gaps.send(g);
+        }
+    }
+    t
+}
+
+/// Ask each new point's daemon for its ISO 20816-3 zone limits (stored when they come).
+fn ask_limits(
+    sh: &Shared,
+    session: &zenoh::Session,
+    limits: &UnboundedSender<(i32, [f64; 3])>,
+    new_points: Vec<(i32, String)>,
+) {
+    for (id, key) in new_points {
+        let (s, prefix, tx) = (
+            session.clone(),
+            sh.cfg.zenoh.key_prefix.clone(),
+            limits.clone(),
+        );
+        tokio::spawn(async move {
+            if let Some(l) = point_config::iso_limits(&s, &prefix, &key).await {
+                let _ = tx.send((id, l));
+            }
+        });
+    }
+}
+
 /// Open a writer and read where each point stands in the database.
 async fn connect(sh: &Shared) -> Result<(Writer, std::collections::HashMap<String, (u64, u64)>)> {
     let (mut w, version) = Writer::open(&sh.target).await?;
+    w.set_synchronous_commit(sh.cfg.batch.synchronous_commit)
+        .await?;
     w.load_points().await?;
     let seed = w.last_positions().await?;
     sh.counters

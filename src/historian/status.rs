@@ -1,7 +1,8 @@
 //! The historian's status (`<prefix>/@historian/<name>/status`, JSON, schema
 //! `rigmon.historian.status` version 1; the `@` chunk keeps it out of `rigmon/**`): the
 //! database connection, what was received, refused (by reason), committed, buffered, spilled,
-//! dropped, damaged, rejected, recovered and lost, and publish-to-committed latency. Also the
+//! dropped, damaged, rejected, recovered and lost (every lost window by point and seq range),
+//! and publish-to-committed latency. Also the
 //! systemd STATUS= line.
 
 use super::latency::LatencySummary;
@@ -49,6 +50,8 @@ pub struct Counters {
     pub queries_answered: AtomicU64,
     pub history_rows_sent: AtomicU64,
     pub last_error: Mutex<Option<String>>,
+    /// Every window lost, by point and seq range (the buffer enters its drops here too).
+    pub losses: std::sync::Arc<super::losses::LossLedger>,
 }
 
 impl Counters {
@@ -105,6 +108,11 @@ pub struct HistorianStatus {
     pub latency: LatencySummary,
     pub history: HistoryAnswers,
     pub software_version: String,
+    /// Every window the historian could not keep, by point and seq range
+    /// ([`super::losses`]): dropped when memory and spill were full, or missed and no longer
+    /// in the daemon's recent history.
+    #[serde(default)]
+    pub lost: super::losses::LostSummary,
 }
 
 #[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
@@ -214,7 +222,7 @@ impl HistorianStatus {
             self.received.rejected,
             self.buffer.spill_damaged,
             self.recovery.recovered,
-            self.recovery.lost,
+            self.lost.windows,
             self.latency.p99_s
         )
     }

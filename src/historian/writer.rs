@@ -79,19 +79,35 @@ pub struct Writer {
     insert_sql: String,
 }
 
-const POINT_UPSERT: &str = "
-WITH s AS (INSERT INTO sites (name) VALUES ($1)
-           ON CONFLICT (name) DO UPDATE SET name = excluded.name RETURNING site_id),
-     m AS (INSERT INTO machines (site_id, name) SELECT site_id, $2 FROM s
-           ON CONFLICT (name) DO UPDATE SET site_id = excluded.site_id RETURNING machine_id),
-     a AS (INSERT INTO assets (machine_id, name) SELECT machine_id, $3 FROM m
-           ON CONFLICT (machine_id, name) DO UPDATE SET name = excluded.name RETURNING asset_id)
+/// Every new or changed point of a batch registered in one statement (sites, machines, assets,
+/// points), instead of one round trip per point: 5,000 new points took seconds before.
+/// Input arrays: site, machine, asset, point, key, band channel, band orders, calibration,
+/// software version; one element per distinct key.
+const POINTS_UPSERT: &str = "
+WITH i AS (SELECT * FROM unnest($1::text[], $2::text[], $3::text[], $4::text[], $5::text[],
+                                $6::text[], $7::jsonb[], $8::text[], $9::text[])
+           AS t(site, machine, asset, point, key, band_channel, band_orders, calibration_id,
+                software_version)),
+     s AS (INSERT INTO sites (name) SELECT DISTINCT site FROM i ORDER BY 1
+           ON CONFLICT (name) DO UPDATE SET name = excluded.name RETURNING site_id, name),
+     m AS (INSERT INTO machines (site_id, name)
+           SELECT DISTINCT ON (i.machine) s.site_id, i.machine FROM i JOIN s ON s.name = i.site
+           ORDER BY i.machine
+           ON CONFLICT (name) DO UPDATE SET site_id = excluded.site_id
+           RETURNING machine_id, name),
+     a AS (INSERT INTO assets (machine_id, name)
+           SELECT DISTINCT m.machine_id, i.asset FROM i JOIN m ON m.name = i.machine ORDER BY 1, 2
+           ON CONFLICT (machine_id, name) DO UPDATE SET name = excluded.name
+           RETURNING asset_id, machine_id, name)
 INSERT INTO points (asset_id, name, key, band_channel, band_orders, calibration_id, software_version)
-SELECT asset_id, $4, $5, $6, $7, $8, $9 FROM a
+SELECT a.asset_id, i.point, i.key, i.band_channel, i.band_orders, i.calibration_id,
+       i.software_version
+FROM i JOIN m ON m.name = i.machine JOIN a ON a.machine_id = m.machine_id AND a.name = i.asset
+ORDER BY i.key
 ON CONFLICT (key) DO UPDATE SET asset_id = excluded.asset_id, band_channel = excluded.band_channel,
     band_orders = excluded.band_orders, calibration_id = excluded.calibration_id,
     software_version = excluded.software_version
-RETURNING point_id, (xmax = 0) AS created";
+RETURNING point_id, key";
 
 const MODEL_UPSERT: &str = "INSERT INTO models (name, sha256, labels) VALUES ($1, $2, $3)
     ON CONFLICT (name, sha256, labels) DO UPDATE SET name = excluded.name RETURNING model_id";
@@ -178,9 +194,16 @@ SELECT count(*) FROM ins"
 }
 
 impl Writer {
-    /// Connect, apply the migrations, prepare the staging table. Returns the schema version.
+    /// Connect, apply the migrations (in `[database] schema`, made if missing), prepare the
+    /// staging table. Returns the schema version.
     pub async fn open(target: &Target) -> Result<(Writer, i32)> {
         let mut client = target.connect().await?;
+        if let Some(schema) = target.schema() {
+            client
+                .batch_execute(&format!("CREATE SCHEMA IF NOT EXISTS \"{schema}\""))
+                .await
+                .with_context(|| format!("creating schema {schema} ([database] schema)"))?;
+        }
         migrations::apply(&mut client).await?;
         let version = migrations::current(&client).await?;
         client
@@ -206,6 +229,19 @@ impl Writer {
             },
             version,
         ))
+    }
+
+    /// `synchronous_commit` for this session. `off` is PostgreSQL's documented trade for bulk
+    /// ingest: a commit returns before its WAL is flushed, so a database *crash* can forget
+    /// the last ~0.6 s (3 x `wal_writer_delay`) of acknowledged batches, never corrupt
+    /// anything; the service re-seeds its gap tracker from the database on every reconnect,
+    /// so such windows are asked again of the daemons' recent history.
+    pub async fn set_synchronous_commit(&self, on: bool) -> Result<()> {
+        let v = if on { "on" } else { "off" };
+        self.client
+            .batch_execute(&format!("SET synchronous_commit = {v}"))
+            .await
+            .with_context(|| format!("SET synchronous_commit = {v}"))
     }
 
     pub fn client(&self) -> &Client {
@@ -235,41 +271,72 @@ impl Writer {
             .collect())
     }
 
-    async fn point_id(
+    /// Register the batch's new or changed points in one statement; fill in every row's id.
+    async fn point_ids(
         &mut self,
-        info: &PointInfo,
+        rows: &mut [WindowRow],
         new_points: &mut Vec<(i32, String)>,
-    ) -> Result<i32> {
-        let key = info.key();
-        if let Some((id, known)) = self.points.get(&key) {
-            if known == info {
-                return Ok(*id);
+    ) -> Result<()> {
+        let mut todo: HashMap<String, &PointInfo> = HashMap::new();
+        for r in rows.iter() {
+            let key = r.point.key();
+            let known = self.points.get(&key).is_some_and(|(_, p)| *p == r.point);
+            if !known {
+                todo.insert(key, &r.point);
             }
         }
-        let row = self
-            .client
-            .query_one(
-                POINT_UPSERT,
-                &[
-                    &info.site,
-                    &info.machine,
-                    &info.asset,
-                    &info.point,
-                    &key,
-                    &info.band_channel,
-                    &info.band_orders,
-                    &info.calibration_id,
-                    &info.software_version,
-                ],
-            )
-            .await
-            .with_context(|| format!("registering point {key} in the asset tree"))?;
-        let id: i32 = row.get(0);
-        if !self.points.contains_key(&key) {
-            new_points.push((id, key.clone()));
+        if !todo.is_empty() {
+            let mut list: Vec<(String, PointInfo)> =
+                todo.into_iter().map(|(k, p)| (k, p.clone())).collect();
+            list.sort_by(|a, b| a.0.cmp(&b.0));
+            let col =
+                |f: fn(&PointInfo) -> String| list.iter().map(|(_, p)| f(p)).collect::<Vec<_>>();
+            let keys: Vec<String> = list.iter().map(|(k, _)| k.clone()).collect();
+            let orders: Vec<serde_json::Value> =
+                list.iter().map(|(_, p)| p.band_orders.clone()).collect();
+            let calibration: Vec<Option<String>> =
+                list.iter().map(|(_, p)| p.calibration_id.clone()).collect();
+            let (site, machine, asset, point, channel, version) = (
+                col(|p| p.site.clone()),
+                col(|p| p.machine.clone()),
+                col(|p| p.asset.clone()),
+                col(|p| p.point.clone()),
+                col(|p| p.band_channel.clone()),
+                col(|p| p.software_version.clone()),
+            );
+            let got = self
+                .client
+                .query(
+                    POINTS_UPSERT,
+                    &[
+                        &site,
+                        &machine,
+                        &asset,
+                        &point,
+                        &keys,
+                        &channel,
+                        &orders,
+                        &calibration,
+                        &version,
+                    ],
+                )
+                .await
+                .with_context(|| format!("registering {} points in the asset tree", keys.len()))?;
+            let ids: HashMap<String, i32> = got.iter().map(|r| (r.get(1), r.get(0))).collect();
+            for (key, info) in list {
+                let Some(&id) = ids.get(&key) else {
+                    anyhow::bail!("registering point {key} in the asset tree returned no id");
+                };
+                if !self.points.contains_key(&key) {
+                    new_points.push((id, key.clone()));
+                }
+                self.points.insert(key, (id, info));
+            }
         }
-        self.points.insert(key, (id, info.clone()));
-        Ok(id)
+        for r in rows.iter_mut() {
+            r.point_id = self.points.get(&r.point.key()).map_or(0, |p| p.0);
+        }
+        Ok(())
     }
 
     async fn model_id(&mut self, m: &ModelKey) -> Result<i32> {
@@ -323,8 +390,8 @@ impl Writer {
         statuses: &[StatusRow],
     ) -> Result<Outcome> {
         let mut out = Outcome::default();
+        self.point_ids(rows, &mut out.new_points).await?;
         for r in rows.iter_mut() {
-            r.point_id = self.point_id(&r.point, &mut out.new_points).await?;
             r.model_id = self.model_id(&r.model).await?;
         }
         self.partitions

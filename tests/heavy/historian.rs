@@ -20,15 +20,15 @@ use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 use zenoh::Wait;
 
-fn repo() -> PathBuf {
+pub(crate) fn repo() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR"))
 }
 
-fn bin() -> &'static str {
+pub(crate) fn bin() -> &'static str {
     env!("CARGO_BIN_EXE_rigmon")
 }
 
-fn free_port() -> u16 {
+pub(crate) fn free_port() -> u16 {
     std::net::TcpListener::bind("127.0.0.1:0")
         .unwrap()
         .local_addr()
@@ -37,7 +37,7 @@ fn free_port() -> u16 {
 }
 
 /// Kills a child when dropped (a failing assertion must not leave processes behind).
-struct Guard(Child);
+pub(crate) struct Guard(pub(crate) Child);
 impl Drop for Guard {
     fn drop(&mut self) {
         let _ = self.0.kill();
@@ -46,7 +46,7 @@ impl Drop for Guard {
 }
 
 /// Wait for `cond`, polling; panics naming `what` at the deadline.
-fn wait_until(what: &str, timeout: Duration, mut cond: impl FnMut() -> bool) {
+pub(crate) fn wait_until(what: &str, timeout: Duration, mut cond: impl FnMut() -> bool) {
     let t = Instant::now();
     while !cond() {
         assert!(
@@ -58,12 +58,14 @@ fn wait_until(what: &str, timeout: Duration, mut cond: impl FnMut() -> bool) {
 }
 
 /// A throwaway PostgreSQL server: its own folder, port and superuser `rigmon` with a password.
-struct Postgres {
+pub(crate) struct Postgres {
     dir: tempfile::TempDir,
     bin: PathBuf,
     port: u16,
     password: String,
     passfile: PathBuf,
+    /// Extra server options (`-c name=value ...`).
+    opts: String,
 }
 
 fn postgres_bin() -> PathBuf {
@@ -100,6 +102,11 @@ fn as_postgres(args: &[&str]) -> Output {
 
 impl Postgres {
     fn start() -> Postgres {
+        Postgres::start_with("")
+    }
+
+    /// A server started with extra options, e.g. `-c wal_level=logical`.
+    pub(crate) fn start_with(opts: &str) -> Postgres {
         let bin = postgres_bin();
         let dir = tempfile::tempdir().unwrap();
         let password = format!("pw-{}-{}", std::process::id(), free_port());
@@ -137,6 +144,7 @@ impl Postgres {
             port,
             password,
             passfile,
+            opts: opts.to_string(),
         };
         pg.start_server();
         pg
@@ -153,12 +161,35 @@ impl Postgres {
             d.join("pg.log").to_str().unwrap(),
             "-o",
             &format!(
-                "-p {} -k {} -c listen_addresses=127.0.0.1",
+                "-p {} -k {} -c listen_addresses=127.0.0.1 {}",
                 self.port,
-                d.display()
+                d.display(),
+                self.opts
             ),
             "start",
         ]);
+    }
+
+    pub(crate) fn port(&self) -> u16 {
+        self.port
+    }
+
+    /// This server's line for a pgpass file (user `rigmon`, any database).
+    pub(crate) fn pgpass_line(&self) -> String {
+        format!("127.0.0.1:{}:*:rigmon:{}\n", self.port, self.password)
+    }
+
+    /// Stop the server cleanly (`-m fast`: sessions ended, WAL flushed) and start it again.
+    pub(crate) fn restart(&self) {
+        as_postgres(&[
+            self.bin.join("pg_ctl").to_str().unwrap(),
+            "-D",
+            self.dir.path().join("data").to_str().unwrap(),
+            "-m",
+            "fast",
+            "stop",
+        ]);
+        self.start_server();
     }
 
     /// Kill the server the hard way (no shutdown checkpoint), as a crash would.
@@ -173,7 +204,7 @@ impl Postgres {
         ]);
     }
 
-    fn env(&self, db: &str) -> Vec<(String, String)> {
+    pub(crate) fn env(&self, db: &str) -> Vec<(String, String)> {
         vec![
             ("PGHOST".into(), "127.0.0.1".into()),
             ("PGPORT".into(), self.port.to_string()),
@@ -183,7 +214,7 @@ impl Postgres {
         ]
     }
 
-    fn client(&self, db: &str) -> (tokio::runtime::Runtime, tokio_postgres::Client) {
+    pub(crate) fn client(&self, db: &str) -> (tokio::runtime::Runtime, tokio_postgres::Client) {
         let rt = tokio::runtime::Builder::new_current_thread()
             .enable_all()
             .build()
@@ -205,7 +236,7 @@ impl Postgres {
 
 impl Postgres {
     /// A server with an empty `fleet` database, as the historian's config names it.
-    fn with_fleet_database() -> Postgres {
+    pub(crate) fn with_fleet_database() -> Postgres {
         let pg = Postgres::start();
         let (rt, c) = pg.client("postgres");
         rt.block_on(c.batch_execute("CREATE DATABASE fleet"))
@@ -234,7 +265,7 @@ impl Drop for Postgres {
 /// A daemon config replaying `file` in real time, looping, as a Zenoh client of the router.
 /// A Zenoh router in this process on a free loopback port (multicast scouting off, as every
 /// [`ZenohSettings`] has it), and its endpoint.
-fn loopback_router() -> (String, zenoh::Session) {
+pub(crate) fn loopback_router() -> (String, zenoh::Session) {
     let router_ep = format!("tcp/127.0.0.1:{}", free_port());
     let router = ZenohSettings {
         mode: rigmon::vocabulary::ZenohMode::Router,
@@ -247,7 +278,7 @@ fn loopback_router() -> (String, zenoh::Session) {
 }
 
 /// A client session of that router.
-fn loopback_client(router_ep: &str) -> zenoh::Session {
+pub(crate) fn loopback_client(router_ep: &str) -> zenoh::Session {
     ZenohSettings {
         mode: rigmon::vocabulary::ZenohMode::Client,
         connect: vec![router_ep.to_string()],
@@ -259,7 +290,7 @@ fn loopback_client(router_ep: &str) -> zenoh::Session {
 
 /// The test historian's last status (`rigmon/@historian/test/status`), kept as it arrives;
 /// the subscriber must stay alive as long as it is read.
-fn historian_status(
+pub(crate) fn historian_status(
     client: &zenoh::Session,
 ) -> (
     zenoh::pubsub::Subscriber<()>,
@@ -1074,7 +1105,7 @@ fn version_1_database(
 /// speed read from the vibration with its confidence and rival, a foreign model allowed on
 /// purpose. Not stored, so left empty: `quality.dsp` and `quality.flat_channels`. The
 /// numbers are exact in `real` where the column is `real`.
-fn every_field_set(run_ns: u64, seq: u64) -> rigmon::health::message::HealthMessage {
+pub(crate) fn every_field_set(run_ns: u64, seq: u64) -> rigmon::health::message::HealthMessage {
     use rigmon::health::message::*;
     let labels: Vec<String> = rigmon::model::ALL_LABELS
         .iter()
