@@ -102,7 +102,7 @@ fn a_defect_that_grows_alarms_and_holds_and_nothing_else_does() {
     // within the median's (16 windows) and the persistence's (30) reach of it
     let at = capture_at(alarm);
     assert!(
-        at >= ONSET + 45 && at < ONSET + 75,
+        (ONSET + 45..ONSET + 75).contains(&at),
         "alarm at capture {at}: {g}"
     );
     assert!(g["beyond_after"].as_f64().unwrap() >= 0.9, "{g}");
