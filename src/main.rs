@@ -73,11 +73,7 @@ enum Command {
 
 fn main() -> std::process::ExitCode {
     let cli = Cli::parse();
-    let filter = std::env::var("RUST_LOG").unwrap_or_else(|_| cli.log.clone());
-    tracing_subscriber::fmt()
-        .with_env_filter(filter)
-        .with_writer(std::io::stderr)
-        .init();
+    cli::run::init_logging(&cli.log);
     let result = match cli.command {
         Command::Import(a) => cli::import::refuse_overwrite(&a).and_then(|()| cli::import::run(a)),
         Command::Repair(a) => cli::repair::refuse_overwrite(&a).and_then(|()| cli::repair::run(a)),

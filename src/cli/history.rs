@@ -7,7 +7,7 @@
 
 use crate::health::iso20816::ZoneConfig;
 use crate::health::message::HealthMessage;
-use crate::historian::trend_png;
+use crate::plots::point_trend;
 use crate::publish::time_range::{now_ns, parse_duration, TimeRange, PARAMETER};
 use crate::publish::zenoh::{connected_nodes, error_text, ZenohArgs, ZenohSettings};
 use crate::vocabulary::ZenohMode;
@@ -201,7 +201,7 @@ fn draw(
         None => (ZoneConfig::default().limits(), false),
     };
     let msgs: Vec<HealthMessage> = windows.values().map(|(_, r)| r.health.clone()).collect();
-    trend_png::draw(png, &msgs, limits)?;
+    point_trend::draw(png, &msgs, limits)?;
     eprintln!(
         "trend of {} windows written to {}",
         msgs.len(),

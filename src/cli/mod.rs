@@ -21,7 +21,7 @@ pub mod model;
 pub(crate) mod read_args;
 pub mod repair;
 pub mod replay;
-pub mod run;
+pub use rigmon_runtime::run;
 pub mod same_file;
 pub mod simulate;
 pub mod train;

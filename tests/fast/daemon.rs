@@ -61,7 +61,7 @@ fn replays() -> Vec<(PathBuf, String)> {
     out
 }
 
-fn free_port() -> u16 {
+pub(crate) fn free_port() -> u16 {
     std::net::TcpListener::bind("127.0.0.1:0")
         .unwrap()
         .local_addr()

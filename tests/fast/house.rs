@@ -4,8 +4,10 @@
 //! from the stream's runtime (`acquire`, `record`, `recorder`, `daemon`), and no function is
 //! longer than the house allows (`.ci/fn-lengths`, exceptions in `.ci/long-functions.txt`).
 //! Reads every `use` tree
-//! and every inline `crate::`/`super::` path under `src/` (comments and string literals
-//! removed) and resolves each to the module file it names.
+//! and every inline `crate::`/`super::`/`rigmon_*::` path under `src/` and each workspace
+//! crate's `crates/*/src/` (comments and string literals removed) as one tree (the `rigmon`
+//! package's re-exports) and resolves each to the module file it names. The crate
+//! boundaries themselves are the compiler's: a lower crate cannot name a higher one.
 
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Path, PathBuf};
@@ -322,39 +324,95 @@ struct Tree {
     edges: BTreeMap<(Module, Module), BTreeSet<String>>,
 }
 
+/// Where the sources are: the `rigmon` package's own `src/` and each workspace crate's, with
+/// the module path the crate's root has in the one tree the rules read (`rigmon`'s
+/// re-exports: the core, runtime and lab modules at the top, the historian as `historian`).
+const SOURCE_ROOTS: &[(&str, &str, &[&str])] = &[
+    ("src", "rigmon", &[]),
+    ("crates/core/src", "rigmon_core", &[]),
+    ("crates/runtime/src", "rigmon_runtime", &[]),
+    ("crates/lab/src", "rigmon_lab", &[]),
+    ("crates/historian/src", "rigmon_historian", &["historian"]),
+];
+
+/// A file's text with the workspace's crate names written as the one tree's paths: a
+/// historian file's `crate::x` is `crate::historian::x`, `rigmon_core::x` is `crate::x`.
+fn as_one_tree(text: &str, prefix: &[&str]) -> String {
+    let mut t = text.to_string();
+    if !prefix.is_empty() {
+        t = t.replace("crate::", &format!("crate::{}::", prefix.join("::")));
+    }
+    for (_, krate, pre) in SOURCE_ROOTS {
+        let to = if pre.is_empty() {
+            "crate::".to_string()
+        } else {
+            format!("crate::{}::", pre.join("::"))
+        };
+        t = t.replace(&format!("{krate}::"), &to);
+    }
+    t
+}
+
 fn read_tree() -> Tree {
-    let src = Path::new(env!("CARGO_MANIFEST_DIR")).join("src");
-    let mut files = Vec::new();
-    rs_files(&src, &mut files);
+    let repo = Path::new(env!("CARGO_MANIFEST_DIR"));
     let mut modules = BTreeMap::new();
     let mut dirs = BTreeSet::new();
-    for f in &files {
-        let rel = f.strip_prefix(&src).unwrap();
-        if rel == Path::new("main.rs") {
-            continue; // the binary is its own crate
+    let mut files = Vec::new();
+    for (dir, _, prefix) in SOURCE_ROOTS {
+        let src = repo.join(dir);
+        let mut found = Vec::new();
+        rs_files(&src, &mut found);
+        for f in found {
+            let rel = f.strip_prefix(&src).unwrap().to_path_buf();
+            if rel == Path::new("main.rs") {
+                continue; // a binary is its own crate
+            }
+            let mut m: Module = prefix.iter().map(|s| s.to_string()).collect();
+            m.extend(module_of(&rel));
+            if rel.ends_with("mod.rs") || rel == Path::new("lib.rs") {
+                dirs.insert(m.clone());
+            }
+            let shown = format!("{dir}/{}", rel.display());
+            files.push((m.clone(), f.clone(), shown, *prefix));
+            modules.insert(m, f);
         }
-        let m = module_of(rel);
-        if rel.ends_with("mod.rs") || rel == Path::new("lib.rs") {
-            dirs.insert(m.clone());
-        }
-        modules.insert(m, f.clone());
     }
     let mut edges: BTreeMap<(Module, Module), BTreeSet<String>> = BTreeMap::new();
-    for (m, f) in &modules {
-        let text = std::fs::read_to_string(f).unwrap();
-        let rel = f.strip_prefix(&src).unwrap().display().to_string();
+    for (m, f, shown, prefix) in &files {
+        let text = as_one_tree(&std::fs::read_to_string(f).unwrap(), prefix);
         for (from, p) in paths_in(&code_only(&text), m) {
             if let Some(t) = resolve(&from, &p, &modules, &dirs) {
                 if &t != m {
                     edges
                         .entry((m.clone(), t))
                         .or_default()
-                        .insert(format!("src/{rel}: {p}"));
+                        .insert(format!("{shown}: {p}"));
                 }
             }
         }
     }
     Tree { edges }
+}
+
+/// Every top-level module of the one tree (a file or a folder of a crate's `src/`), by name.
+fn top_level_modules() -> BTreeSet<String> {
+    let repo = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let mut out = BTreeSet::new();
+    for (dir, _, prefix) in SOURCE_ROOTS {
+        if let Some(p) = prefix.first() {
+            out.insert(p.to_string());
+            continue;
+        }
+        for entry in std::fs::read_dir(repo.join(dir)).unwrap() {
+            let path = entry.unwrap().path();
+            let name = path.file_stem().unwrap().to_string_lossy().to_string();
+            let is_module = path.is_dir() || path.extension().is_some_and(|e| e == "rs");
+            if is_module && name != "main" && name != "lib" {
+                out.insert(name);
+            }
+        }
+    }
+    out
 }
 
 /// The parser finds what it must: a known import is seen, so an empty result means something.
@@ -556,15 +614,10 @@ fn every_module_imports_only_from_lower_floors() {
         "README.md must list the floors (lines `floor N  module, module  what they do`)"
     );
     let tree = read_tree();
-    let src = Path::new(env!("CARGO_MANIFEST_DIR")).join("src");
-    let mut missing = Vec::new();
-    for e in std::fs::read_dir(&src).unwrap() {
-        let p = e.unwrap().path();
-        let m = p.file_stem().unwrap().to_string_lossy().into_owned();
-        if m != "main" && m != "lib" && !floor_of.contains_key(&m) {
-            missing.push(m);
-        }
-    }
+    let mut missing: Vec<String> = top_level_modules()
+        .into_iter()
+        .filter(|m| !floor_of.contains_key(m))
+        .collect();
     missing.sort();
     missing.dedup();
     assert!(
@@ -622,13 +675,20 @@ fn no_function_is_longer_than_the_house_allows() {
     let repo = Path::new(env!("CARGO_MANIFEST_DIR"));
     let out = std::process::Command::new("python3")
         .arg(repo.join(".ci/fn-lengths"))
-        .args(["src", "--max", "80", "--allow", ".ci/long-functions.txt"])
+        .args([
+            "src",
+            "crates",
+            "--max",
+            "80",
+            "--allow",
+            ".ci/long-functions.txt",
+        ])
         .current_dir(repo)
         .output()
         .expect("python3 runs .ci/fn-lengths; install python3");
     assert!(
         out.status.success(),
-        ".ci/fn-lengths src --max 80 --allow .ci/long-functions.txt failed; split the functions it lists:\n{}{}",
+        ".ci/fn-lengths src crates --max 80 --allow .ci/long-functions.txt failed; split the functions it lists:\n{}{}",
         String::from_utf8_lossy(&out.stdout),
         String::from_utf8_lossy(&out.stderr)
     );
@@ -697,23 +757,47 @@ fn readme_layout() -> BTreeSet<String> {
 /// in the README's layout block, and the block names nothing that is not there.
 #[test]
 fn the_readme_layout_names_every_module() {
-    let src = Path::new(env!("CARGO_MANIFEST_DIR")).join("src");
-    let mut modules = BTreeSet::new();
-    for entry in std::fs::read_dir(&src).unwrap() {
-        let path = entry.unwrap().path();
-        let name = path.file_stem().unwrap().to_string_lossy().to_string();
-        if path.is_dir() || path.extension().is_some_and(|e| e == "rs") {
-            modules.insert(name);
-        }
-    }
+    let mut modules = top_level_modules();
+    modules.extend(workspace_crates());
+    modules.extend(["main".to_string(), "lib".to_string()]);
     let layout = readme_layout();
     let missing: Vec<_> = modules.difference(&layout).collect();
     let stale: Vec<_> = layout.difference(&modules).collect();
     assert!(
         missing.is_empty() && stale.is_empty(),
         "README.md's layout block (section `How the code is laid out`) is out of date: \
-         not named {missing:?}; named but not in src/ {stale:?}. Add or remove the lines."
+         not named {missing:?}; named but not in a crate's src/ {stale:?}. Add or remove the lines."
     );
+}
+
+/// The workspace's crates (folders of `crates/`), as the layout block names them (`core/`).
+fn workspace_crates() -> BTreeSet<String> {
+    let crates = Path::new(env!("CARGO_MANIFEST_DIR")).join("crates");
+    std::fs::read_dir(crates)
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .filter(|p| p.join("Cargo.toml").exists())
+        .map(|p| p.file_name().unwrap().to_string_lossy().into_owned())
+        .collect()
+}
+
+/// Every crate of `crates/` is a member of the workspace and each member's `src/` is one the
+/// house rules read (a crate added without telling them would escape every rule).
+#[test]
+fn the_house_rules_read_every_workspace_crate() {
+    let manifest =
+        std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("Cargo.toml")).unwrap();
+    for c in workspace_crates() {
+        assert!(
+            manifest.contains(&format!("\"crates/{c}\"")),
+            "crates/{c} is not a member of the workspace (root Cargo.toml [workspace] members)"
+        );
+        let src = format!("crates/{c}/src");
+        assert!(
+            SOURCE_ROOTS.iter().any(|(d, _, _)| *d == src),
+            "{src} is not in tests/fast/house.rs SOURCE_ROOTS: the house rules would not read it"
+        );
+    }
 }
 
 /// Docs that cannot drift: every subcommand `rigmon --help` lists is in the README's tour

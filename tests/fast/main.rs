@@ -29,6 +29,7 @@ mod novel_faults;
 mod opendaq;
 mod real_files;
 mod rule_agreement;
+mod service_binary;
 mod sim;
 mod snapshots;
 mod speed_cues;
