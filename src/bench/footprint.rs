@@ -16,8 +16,8 @@
 
 use super::{abs, cpu_seconds, free_port, machine_line, percentile, BenchOptions};
 use crate::config::{RigConfig, SpeedConfig};
-use crate::health::message::HealthMessage;
 use crate::publish::zenoh::{ZenohSettings, ZenohSubscriber};
+use crate::wire::health::HealthMessage;
 use anyhow::{bail, Context, Result};
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};

@@ -11,9 +11,6 @@
 
 use super::{cpu_seconds, free_port, machine_line};
 use crate::health::iso20816::Zone;
-use crate::health::message::{
-    FaultBands, HealthMessage, ModelInfo, QualityReport, WindowTimes, SCHEMA, SCHEMA_VERSION,
-};
 use crate::health::Basis;
 use crate::historian::database::{self, DatabaseSettings, Target};
 use crate::historian::row::WindowRow;
@@ -24,6 +21,9 @@ use crate::publish::time_range::now_ns;
 use crate::publish::zenoh::ZenohSettings;
 use crate::vocabulary::Condition;
 use crate::vocabulary::ZenohMode;
+use crate::wire::health::{
+    FaultBands, HealthMessage, ModelInfo, QualityReport, WindowTimes, SCHEMA, SCHEMA_VERSION,
+};
 use anyhow::{anyhow, bail, Context, Result};
 use std::io::Read;
 use std::process::{Child, Command, Stdio};

@@ -6,11 +6,11 @@
 //! refused), reachable but no historian answering, or the historian refusing, each said so.
 
 use crate::health::iso20816::ZoneConfig;
-use crate::health::message::HealthMessage;
 use crate::plots::point_trend;
 use crate::publish::time_range::{now_ns, parse_duration, TimeRange, PARAMETER};
 use crate::publish::zenoh::{connected_nodes, error_text, ZenohArgs, ZenohSettings};
 use crate::vocabulary::ZenohMode;
+use crate::wire::health::HealthMessage;
 use anyhow::{anyhow, bail, Result};
 use serde::Deserialize;
 use std::collections::BTreeMap;

@@ -4,8 +4,8 @@
 //! Within [`UNREACHABLE_AFTER`] it says when nothing is reachable at the endpoint (and keeps
 //! waiting); it never claims a connection it does not have.
 
-use crate::health::message::HealthMessage;
 use crate::publish::zenoh::{ZenohArgs, ZenohSettings, ZenohSubscriber, DEFAULT_PORT};
+use crate::wire::health::HealthMessage;
 use anyhow::{bail, Result};
 use std::collections::BTreeMap;
 use std::io::Write;

@@ -6,7 +6,7 @@
 use crate::daemon_harness::{bin, daemon_config, lines, repo, signal, wait_exit, Guard};
 use crate::wrong_shape;
 
-use rigmon::health::message::HealthMessage;
+use rigmon::wire::health::HealthMessage;
 use std::collections::BTreeMap;
 use std::io::{BufRead, BufReader, Read};
 use std::os::unix::net::UnixDatagram;

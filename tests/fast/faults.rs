@@ -10,9 +10,9 @@ use crate::daemon_harness as harness;
 use crate::wrong_shape;
 
 use harness::*;
-use rigmon::health::message::HealthMessage;
 use rigmon::recording::mcap::{read_recording, write_recording};
 use rigmon::recording::{Recording, Tacho};
+use rigmon::wire::health::HealthMessage;
 use std::os::unix::net::UnixDatagram;
 use std::os::unix::process::CommandExt;
 use std::path::{Path, PathBuf};

@@ -1105,8 +1105,8 @@ fn version_1_database(
 /// speed read from the vibration with its confidence and rival, a foreign model allowed on
 /// purpose. Not stored, so left empty: `quality.dsp` and `quality.flat_channels`. The
 /// numbers are exact in `real` where the column is `real`.
-pub(crate) fn every_field_set(run_ns: u64, seq: u64) -> rigmon::health::message::HealthMessage {
-    use rigmon::health::message::*;
+pub(crate) fn every_field_set(run_ns: u64, seq: u64) -> rigmon::wire::health::HealthMessage {
+    use rigmon::wire::health::*;
     let labels: Vec<String> = rigmon::model::ALL_LABELS
         .iter()
         .map(|s| s.to_string())
@@ -1312,7 +1312,7 @@ fn every_health_field_survives_the_historian_and_a_version_1_database_is_upgrade
         "{}",
         String::from_utf8_lossy(&out.stderr)
     );
-    let back: Vec<rigmon::health::message::HealthMessage> = String::from_utf8_lossy(&out.stdout)
+    let back: Vec<rigmon::wire::health::HealthMessage> = String::from_utf8_lossy(&out.stdout)
         .lines()
         .map(|l| serde_json::from_str(l).unwrap())
         .collect();

@@ -22,10 +22,10 @@
 //! move to another fault by the vote, never back to `healthy` or `unknown`, until a new
 //! baseline is loaded.
 //!
-//! The published message is in [`message`]; the ISO 20816-3 velocity zones in [`iso20816`].
+//! The published message is [`crate::wire::health`]; the ISO 20816-3 velocity zones in
+//! [`iso20816`].
 
 pub mod iso20816;
-pub mod message;
 pub mod verdict;
 
 use crate::model::departure::{Departure, DepartureReading, DepartureSettings};

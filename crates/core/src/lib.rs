@@ -5,7 +5,8 @@
 //! and [`usage`] (CPU time and load). On them: [`dsp`] (speed and shaft angle, envelope,
 //! order spectra, quality), [`config`] (rig files), [`importers`] (files -> recordings),
 //! [`analysis`] (the one analysis stage: the same code for training and serving), [`model`]
-//! (inference) and [`health`] (the window verdict, the state machine and the wire messages).
+//! (inference), [`health`] (the window verdict and the state machine) and [`wire`] (the
+//! health, status and spectrum messages, one definition each).
 //! Lower modules never import higher ones (README "Floors"); nothing here names the daemon's
 //! runtime, the lab or the historian, which sit on this crate.
 
@@ -19,3 +20,4 @@ pub mod model;
 pub mod recording;
 pub mod usage;
 pub mod vocabulary;
+pub mod wire;

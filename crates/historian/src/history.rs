@@ -10,13 +10,13 @@ use super::row::ns_of;
 use super::status::Counters;
 use anyhow::{anyhow, Result};
 use rigmon_core::health::iso20816::Zone;
-use rigmon_core::health::message::{
-    FaultBands, HealthMessage, ModelInfo, QualityReport, WindowTimes, SCHEMA, SCHEMA_VERSION,
-};
 use rigmon_core::health::{Basis, UnknownReason};
 use rigmon_core::model::evidence::FamilyEvidence;
 use rigmon_core::model::impulsiveness::Impulse;
 use rigmon_core::vocabulary::Condition;
+use rigmon_core::wire::health::{
+    FaultBands, HealthMessage, ModelInfo, QualityReport, WindowTimes, SCHEMA, SCHEMA_VERSION,
+};
 use rigmon_runtime::publish::time_range::{now_ns, TimeRange, PARAMETER as TIME};
 use rigmon_runtime::publish::zenoh::error_text;
 use std::collections::BTreeMap;

@@ -3,8 +3,9 @@
 //! that produced it and, on a state change, the full JSON for the event.
 
 use anyhow::{bail, Result};
-use rigmon_core::health::message::HealthMessage;
+use rigmon_core::health::UnknownReason;
 use rigmon_core::vocabulary::Condition;
+use rigmon_core::wire::health::HealthMessage;
 use rigmon_runtime::publish::recent::run_start_ns;
 use std::time::{Duration, SystemTime, UNIX_EPOCH};
 use tokio_postgres::types::{ToSql, Type};
@@ -185,7 +186,7 @@ impl WindowRow {
     pub fn parse(payload: &[u8], default_site: &str) -> Result<WindowRow> {
         let m: HealthMessage = serde_json::from_slice(payload)
             .map_err(|e| anyhow::anyhow!("not a rigmon.health message: {e}"))?;
-        if m.schema != rigmon_core::health::message::SCHEMA {
+        if m.schema != rigmon_core::wire::health::SCHEMA {
             bail!("schema {:?} where rigmon.health was expected", m.schema);
         }
         let message = m
@@ -210,8 +211,7 @@ impl WindowRow {
             .collect();
         let fb = &m.fault_bands;
         let q = &m.quality;
-        let label =
-            |r: Option<rigmon_core::health::UnknownReason>| r.map(|r| r.as_str().to_string());
+        let label = |r: Option<UnknownReason>| r.map(|r| r.as_str().to_string());
         WindowRow {
             point: PointInfo {
                 site: m.site.clone().unwrap_or_else(|| default_site.to_string()),

@@ -12,7 +12,7 @@ use super::row::{ns_of, time_of, ModelKey, PointInfo, WindowRow, COLUMNS};
 use anyhow::{Context, Result};
 use rigmon_core::health::UNKNOWN;
 use rigmon_core::vocabulary::Condition;
-use rigmon_runtime::daemon::status::StatusMessage;
+use rigmon_core::wire::status::StatusMessage;
 use std::collections::HashMap;
 use std::time::SystemTime;
 use tokio_postgres::binary_copy::BinaryCopyInWriter;

@@ -16,5 +16,5 @@ pub mod sim;
 pub mod train;
 
 use rigmon_core::{
-    analysis, bearing, config, dsp, health, importers, model, recording, usage, vocabulary,
+    analysis, bearing, config, dsp, health, importers, model, recording, usage, vocabulary, wire,
 };

@@ -12,5 +12,5 @@ pub mod recorder;
 pub mod run;
 
 use rigmon_core::{
-    analysis, bearing, config, dsp, health, importers, model, recording, vocabulary,
+    analysis, bearing, config, dsp, health, importers, model, recording, vocabulary, wire,
 };

@@ -3,10 +3,10 @@
 //! and the envelope order-spectrum levels at the fault orders (first harmonic) with the
 //! spectrum's floor.
 
-use crate::health::message::HealthMessage;
 use crate::health::UNKNOWN;
 use crate::plots::ensure_font;
 use crate::vocabulary::Condition;
+use crate::wire::health::HealthMessage;
 use anyhow::{anyhow, bail, Result};
 use plotters::prelude::*;
 use std::path::Path;

@@ -9,10 +9,6 @@ use crate::bearing::FaultOrders;
 use crate::config::RigConfig;
 use crate::dsp::features::FeatureWindow;
 use crate::dsp::quality::Quality;
-use crate::health::message::{
-    FaultBands, HealthIndicators, HealthMessage, ModelInfo, QualityReport, WindowTimes, SCHEMA,
-    SCHEMA_VERSION,
-};
 use crate::health::verdict::{novelty_threshold, quality_problem, speed_only};
 use crate::health::{HealthPolicy, HealthStateMachine, Smoothed, UnknownReason, WindowInput};
 use crate::model::evidence::{BaselineSpread, FamilyBins, FamilyEvidence};
@@ -21,6 +17,10 @@ use crate::model::indicators::{IndicatorBaseline, IndicatorMeter, Indicators};
 use crate::model::onnx::OnnxClassifier;
 use crate::model::rule::{EnvelopeRule, RuleReading, RuleSettings};
 use crate::vocabulary::QualityFlag;
+use crate::wire::health::{
+    FaultBands, HealthIndicators, HealthMessage, ModelInfo, QualityReport, WindowTimes, SCHEMA,
+    SCHEMA_VERSION,
+};
 use anyhow::{Context, Result};
 use std::collections::BTreeMap;
 

@@ -3,8 +3,8 @@
 //! `pipeline.behind` (held for 5 s after the backlog clears) and `pipeline.lag_s` (wall time
 //! minus signal time since the first block). File replays are never behind.
 
-use super::status::PipelineStatus;
 use crate::acquire::SourceStats;
+use crate::wire::status::PipelineStatus;
 use std::sync::atomic::Ordering;
 use std::time::{Duration, Instant};
 

@@ -22,7 +22,7 @@ pub mod reload;
 pub mod signals;
 pub mod sink;
 pub mod sinks;
-pub mod status;
+pub mod source_status;
 pub(crate) mod stdout_sink;
 pub mod summary;
 pub(crate) mod zenoh_sink;

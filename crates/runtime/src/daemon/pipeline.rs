@@ -20,12 +20,12 @@ use super::queued_sink::Delivery;
 use super::reload::{self, Loaded, Reloader};
 use super::sink::{SinkContext, WindowEvent};
 use super::sinks::Sinks;
-use super::status::{self, ModelStatus, Phase, PipelineStatus, SourceStatus, StatusMessage};
 use super::summary::{StateCounts, Summary};
 use crate::acquire::{SampleBlock, Source, SourceStats};
 use crate::analysis::Windower;
 use crate::config::RigConfig;
 use crate::model::onnx::OnnxClassifier;
+use crate::wire::status::{self, ModelStatus, Phase, PipelineStatus, StatusMessage};
 use anyhow::Result;
 use std::path::PathBuf;
 use std::sync::atomic::Ordering;
@@ -343,7 +343,11 @@ impl Pipeline {
             uptime_s: self.started.elapsed().as_secs_f64(),
             phase,
             software_version: env!("CARGO_PKG_VERSION").into(),
-            source: SourceStatus::read(&self.source.describe, &self.stats, finished),
+            source: super::source_status::source_status(
+                &self.source.describe,
+                &self.stats,
+                finished,
+            ),
             pipeline: self.pipe.clone(),
             model: self.model.clone(),
             sinks: sinks.dropped,

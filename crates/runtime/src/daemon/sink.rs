@@ -6,13 +6,13 @@
 use super::config::DaemonConfig;
 use super::intake::SourceInfo;
 use super::queued_sink::Delivery;
-use super::status::{SinkStatus, StatusMessage};
 use crate::acquire::SampleBlock;
 use crate::config::RigConfig;
 use crate::dsp::features::FeatureWindow;
-use crate::health::message::HealthMessage;
-use crate::publish::zenoh::PublishStats;
-use crate::recorder::RecordStats;
+use crate::wire::health::HealthMessage;
+use crate::wire::status::PublishStats;
+use crate::wire::status::RecordStats;
+use crate::wire::status::{SinkStatus, StatusMessage};
 use anyhow::Result;
 use std::sync::Arc;
 use std::time::Duration;

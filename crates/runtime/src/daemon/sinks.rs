@@ -3,9 +3,9 @@
 
 use super::config::DaemonConfig;
 use super::sink::{Sink, SinkConfig, SinkContext, SinkReport, WindowEvent};
-use super::status::StatusMessage;
 use super::stdout_sink::Output;
 use crate::acquire::SampleBlock;
+use crate::wire::status::StatusMessage;
 use anyhow::Result;
 use std::sync::Arc;
 

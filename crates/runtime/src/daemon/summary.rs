@@ -3,8 +3,8 @@
 //! quantiles.
 
 use super::latency::LatencyHistogram;
-use super::status::{SinkStatus, StatusMessage};
-use crate::health::message::HealthMessage;
+use crate::wire::health::HealthMessage;
+use crate::wire::status::{SinkStatus, StatusMessage};
 use serde::Serialize;
 use std::collections::BTreeMap;
 
@@ -175,12 +175,12 @@ impl Summary {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::daemon::status::{ModelStatus, Phase, PipelineStatus, SourceStatus};
+    use crate::wire::status::{ModelStatus, Phase, PipelineStatus, SourceStatus};
 
     #[test]
     fn the_summary_takes_each_counter_from_its_place_in_the_last_status() {
         let last = StatusMessage {
-            schema: crate::daemon::status::SCHEMA.into(),
+            schema: crate::wire::status::SCHEMA.into(),
             schema_version: 1,
             rig: "r".into(),
             asset: "a".into(),

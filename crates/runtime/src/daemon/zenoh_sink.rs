@@ -5,8 +5,10 @@
 use super::config::DaemonConfig;
 use super::queued_sink::{QueueSettings, QueuedSink, Worker};
 use super::sink::{Sink, SinkConfig, SinkContext, SinkReport, WindowEvent};
-use super::status::StatusMessage;
-use crate::publish::zenoh::{PublishStats, ZenohPublisher, ZenohSettings};
+use crate::publish::zenoh::{ZenohPublisher, ZenohSettings};
+use crate::wire::spectrum::{self, SpectrumMessage};
+use crate::wire::status::PublishStats;
+use crate::wire::status::StatusMessage;
 use anyhow::Result;
 
 /// Messages for the Zenoh thread.
@@ -92,14 +94,16 @@ impl Sink for ZenohSink {
             return;
         };
         let msg = w.health;
-        let s = serde_json::json!({
-            "schema": "rigmon.spectrum",
-            "schema_version": 1,
-            "rig": msg.rig, "asset": msg.asset, "point": msg.point,
-            "seq": msg.seq,
-            "bin_width_order": self.bin_width_order,
-            "window": fw,
-        });
+        let s = SpectrumMessage {
+            schema: spectrum::SCHEMA.to_string(),
+            schema_version: spectrum::SCHEMA_VERSION,
+            rig: msg.rig.clone(),
+            asset: msg.asset.clone(),
+            point: msg.point.clone(),
+            seq: msg.seq,
+            bin_width_order: self.bin_width_order,
+            window: fw,
+        };
         self.queue.send(ZenohMsg::Spectrum(
             serde_json::to_vec(&s).unwrap_or_default(),
         ));

@@ -14,6 +14,7 @@
 //! zenoh's errors reach the user without the source paths of the machine that built zenoh.
 
 use crate::vocabulary::ZenohMode;
+use crate::wire::status::PublishStats;
 use anyhow::{anyhow, bail, Context, Result};
 use serde::{Deserialize, Serialize};
 use std::path::PathBuf;
@@ -397,20 +398,6 @@ impl ZenohSettings {
     pub fn base_key(&self, rig: &str, asset: &str, point: &str) -> String {
         format!("{}/{rig}/{asset}/{point}", self.key_prefix)
     }
-}
-
-/// Counters of the publisher (reported in the status topic).
-#[derive(Debug, Default, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
-pub struct PublishStats {
-    pub health: u64,
-    pub spectrum: u64,
-    pub status: u64,
-    pub errors: u64,
-    pub queries_answered: u64,
-    /// Other daemons that appeared publishing under this daemon's base key (the same machine
-    /// id, asset and point) since it started.
-    #[serde(default)]
-    pub duplicates: u64,
 }
 
 /// How long a daemon with `connect` endpoints waits for one of them before it looks for

@@ -10,8 +10,9 @@ use crate::recording::mcap::{
     McapFile, McapFileOptions, RecordingInfo, RecordingWriter, WriterSettings,
 };
 use crate::recording::SampleBlock;
+use crate::wire::status::RecordStats;
 use anyhow::{Context, Result};
-use serde::{Deserialize, Serialize};
+
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
@@ -26,29 +27,6 @@ pub enum RecordEvent {
     Features { t_ns: u64, json: Vec<u8> },
     /// A health message (JSON).
     Health { t_ns: u64, json: Vec<u8> },
-}
-
-/// Counters of the recorder (reported in the status topic).
-#[derive(Debug, Default, Clone, PartialEq, Serialize, Deserialize)]
-pub struct RecordStats {
-    pub segments: u64,
-    pub blocks: u64,
-    pub messages: u64,
-    pub write_errors: u64,
-    /// The last write failed for lack of space (ENOSPC, EDQUOT or EFBIG).
-    pub disk_full: bool,
-    pub last_error: Option<String>,
-    /// Set when a write failed and cleared once a new segment flushed: `<file>: <reason>`
-    /// (reason `disk full` for ENOSPC/EDQUOT/EFBIG), for the status topic and systemd STATUS.
-    #[serde(default)]
-    pub failed: Option<String>,
-    /// Current file.
-    pub file: Option<PathBuf>,
-    /// Events dropped because the recorder was behind or between segments after an error.
-    pub dropped: u64,
-    /// Segments removed after a failed write because they held no complete chunk.
-    #[serde(default)]
-    pub removed_empty: u64,
 }
 
 /// The MCAP writer of a segment: the raw layout's writer (raw recording on), or a plain one.
@@ -532,7 +510,7 @@ fn open_events(path: &Path, chunk_size: u64) -> Result<McapFile> {
 fn add_event_channels(file: &mut McapFile) -> Result<(u16, u16)> {
     let schema = br#"{"type":"object"}"#;
     let fs = file.add_schema("rigmon.FeatureWindow", "jsonschema", schema)?;
-    let hs = file.add_schema(crate::health::message::SCHEMA, "jsonschema", schema)?;
+    let hs = file.add_schema(crate::wire::health::SCHEMA, "jsonschema", schema)?;
     let features = file.add_channel(fs, "/features", "json", &BTreeMap::new())?;
     let health = file.add_channel(hs, "/health", "json", &BTreeMap::new())?;
     Ok((features, health))

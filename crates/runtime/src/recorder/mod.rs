@@ -23,7 +23,7 @@ use anyhow::{bail, Result};
 use serde::{Deserialize, Serialize};
 use std::path::PathBuf;
 
-pub use self::mcap::{RecordEvent, RecordStats, Recorder};
+pub use self::mcap::{RecordEvent, Recorder};
 
 /// `[recording]` section of the daemon config.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]

@@ -1,14 +1,11 @@
 //! The status message (`rigmon/<rig>/<asset>/<point>/status`, JSON, schema `rigmon.status`
-//! version 1): what the daemon is doing and everything it counted — source trouble (bad
+//! version 1; the daemon fills it, `watch`, the historian and `history` read it): what the daemon is doing and everything it counted — source trouble (bad
 //! frames, sequence gaps, reconnects), samples lost or dropped because processing fell
 //! behind, sink drops, reloads, recording errors, and each window's latency budget (what it
 //! waited for after its end, in parts: [`WindowBudget`]).
 
-use crate::acquire::SourceStats;
-use crate::publish::zenoh::PublishStats;
-use crate::recorder::RecordStats;
 use serde::{Deserialize, Serialize};
-use std::sync::atomic::Ordering;
+use std::path::PathBuf;
 
 pub const SCHEMA: &str = "rigmon.status";
 pub const SCHEMA_VERSION: u32 = 1;
@@ -99,31 +96,6 @@ impl StatusMessage {
     }
 }
 
-impl SourceStatus {
-    /// The source's counters now; `finished` is how it ended, once it has.
-    pub fn read(
-        describe: &str,
-        stats: &SourceStats,
-        finished: Option<&anyhow::Result<()>>,
-    ) -> Self {
-        SourceStatus {
-            describe: describe.to_string(),
-            connected: stats.connected.load(Ordering::Relaxed),
-            blocks: stats.blocks.load(Ordering::Relaxed),
-            samples: stats.samples.load(Ordering::Relaxed),
-            bad_frames: stats.bad_frames.load(Ordering::Relaxed),
-            sequence_gaps: stats.sequence_gaps.load(Ordering::Relaxed),
-            samples_lost: stats.samples_lost.load(Ordering::Relaxed),
-            reconnects: stats.reconnects.load(Ordering::Relaxed),
-            finished: finished.is_some(),
-            error: finished
-                .and_then(|r| r.as_ref().err())
-                .map(|e| format!("{e:#}")),
-            file_losses: stats.losses.lock().ok().and_then(|l| l.clone()),
-        }
-    }
-}
-
 #[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
 pub struct PipelineStatus {
     pub windows: u64,
@@ -187,4 +159,41 @@ pub struct ModelStatus {
 pub struct SinkStatus {
     pub zenoh_dropped: u64,
     pub record_dropped: u64,
+}
+
+/// Counters of the publisher (reported in the status topic).
+#[derive(Debug, Default, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub struct PublishStats {
+    pub health: u64,
+    pub spectrum: u64,
+    pub status: u64,
+    pub errors: u64,
+    pub queries_answered: u64,
+    /// Other daemons that appeared publishing under this daemon's base key (the same machine
+    /// id, asset and point) since it started.
+    #[serde(default)]
+    pub duplicates: u64,
+}
+
+/// Counters of the recorder (reported in the status topic).
+#[derive(Debug, Default, Clone, PartialEq, Serialize, Deserialize)]
+pub struct RecordStats {
+    pub segments: u64,
+    pub blocks: u64,
+    pub messages: u64,
+    pub write_errors: u64,
+    /// The last write failed for lack of space (ENOSPC, EDQUOT or EFBIG).
+    pub disk_full: bool,
+    pub last_error: Option<String>,
+    /// Set when a write failed and cleared once a new segment flushed: `<file>: <reason>`
+    /// (reason `disk full` for ENOSPC/EDQUOT/EFBIG), for the status topic and systemd STATUS.
+    #[serde(default)]
+    pub failed: Option<String>,
+    /// Current file.
+    pub file: Option<PathBuf>,
+    /// Events dropped because the recorder was behind or between segments after an error.
+    pub dropped: u64,
+    /// Segments removed after a failed write because they held no complete chunk.
+    #[serde(default)]
+    pub removed_empty: u64,
 }

@@ -3,8 +3,8 @@
 //! `rigmon watch`. The schema is versioned (`schema = "rigmon.health"`, `schema_version`);
 //! fields are only ever added within a version, so readers must ignore unknown fields.
 
-use super::iso20816::Zone;
-use super::{Basis, UnknownReason};
+use crate::health::iso20816::Zone;
+use crate::health::{Basis, UnknownReason};
 use crate::model::departure::DepartureReading;
 use crate::model::evidence::FamilyEvidence;
 use crate::model::impulsiveness::Impulse;
