@@ -1,4 +1,4 @@
-//! `rigmon bench footprint`: the daemon as it runs on the rig — `rigmon run` as a **child
+//! `rigmon bench footprint`: the daemon as it runs on the rig — the service binary `rigmon-daemon` (what `rigmon run` runs) as a **child
 //! process** with a generated config (the shipped replay as a file source at real time,
 //! looping: 3 acceleration channels at 10 kHz + tacho, no recording, spectrum off) publishing
 //! health on Zenoh over loopback TCP to a subscriber in this (the benchmark's) process, once
@@ -239,20 +239,35 @@ fn subscribe(
     })
 }
 
+/// The service binary systemd starts (`rigmon-daemon`, beside this executable): what the
+/// footprint is measured on.
+fn service_binary() -> Result<std::path::PathBuf> {
+    let me = std::env::current_exe().context("cannot find the rigmon executable")?;
+    let exe = me.with_file_name("rigmon-daemon");
+    if !exe.exists() {
+        bail!(
+            "{} is missing: bench footprint measures the service binary; build it beside rigmon \
+             (`cargo build --release --workspace`)",
+            exe.display()
+        );
+    }
+    Ok(exe)
+}
+
 /// Run the daemon for one case: warm-up (sampling the start-up peak), then `seconds` of
 /// measurement, then SIGTERM.
 fn measure(case: &Case, model: &Path, dir: &Path, seconds: f64) -> Result<Measured> {
     let endpoint = format!("tcp/127.0.0.1:{}", free_port()?);
     let cfg = write_config(case, model, &endpoint, dir)?;
-    let exe = std::env::current_exe().context("cannot find the rigmon executable")?;
+    let exe = service_binary()?;
     let child = Command::new(&exe)
-        .args(["run", "--config"])
+        .arg("--config")
         .arg(&cfg)
         .stdin(Stdio::null())
         .stdout(Stdio::null())
         .stderr(Stdio::inherit())
         .spawn()
-        .with_context(|| format!("cannot start {} run", exe.display()))?;
+        .with_context(|| format!("cannot start {}", exe.display()))?;
     let mut child = ChildGuard(child);
     let pid = child.0.id();
     let (counting, stop) = (
@@ -366,7 +381,7 @@ fn report(json: bool, replay: &Path, runs: &[Measured]) {
             "benchmark": "footprint",
             "machine": machine_line(),
             "load_average": crate::usage::load_averages(),
-            "process": "rigmon run (child process)",
+            "process": "rigmon-daemon (child process)",
             "rate": "3 ch x 10 kHz + tacho (replay at real time)",
             "runs": runs,
             "worst": {"cpu_pct": w.cpu, "rss_startup_peak_mb": w.startup, "rss_steady_max_mb": w.steady, "latency_p99_ms": w.p99},
@@ -377,7 +392,7 @@ fn report(json: bool, replay: &Path, runs: &[Measured]) {
         return;
     }
     println!(
-        "footprint: `rigmon run` as a child process, {} replayed at real time (3 ch x 10 kHz + tacho), once per speed source; {}; load average {}",
+        "footprint: the service binary rigmon-daemon as a child process, {} replayed at real time (3 ch x 10 kHz + tacho), once per speed source; {}; load average {}",
         replay.display(),
         machine_line(),
         crate::usage::load_averages()
