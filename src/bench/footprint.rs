@@ -1,7 +1,8 @@
 //! `rigmon bench footprint`: the daemon as it runs on the rig — the service binary
 //! `rigmon-daemon` (the daemon `rigmon run` runs, without the lab) as a **child process**
-//! with a generated config (the shipped replay as a file source at real time, looping: 3 acceleration channels at 10 kHz + tacho, no recording, spectrum off) publishing
-//! health on Zenoh over loopback TCP to a subscriber in this (the benchmark's) process, once
+//! with a generated config (the shipped replay as a file source at real time, looping: 3
+//! acceleration channels at 10 kHz + tacho, no recording, spectrum off) publishing health on
+//! Zenoh over loopback TCP to a subscriber in this (the benchmark's) process, once
 //! per speed source: the rig file's own (`tacho`, the analog tacho), then `edges` (the same
 //! recording with its tacho as edge times in the MCAP), `fixed` and `recording` (its stored
 //! 588 rpm) and `estimate`.
