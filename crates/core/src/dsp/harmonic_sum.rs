@@ -5,6 +5,7 @@
 //! and by the streaming tracker ([`super::speed_tracker`]); plans and buffers are made once.
 
 use crate::dsp::fft_len::fast_len_at_most;
+use crate::dsp::sliding_median::SlidingMedian;
 use realfft::RealFftPlanner;
 use rustfft::num_complex::Complex32;
 
@@ -62,8 +63,13 @@ pub struct Whitener {
     spec: Vec<Complex32>,
     scratch: Vec<Complex32>,
     logm: Vec<f64>,
-    win: Vec<f64>,
+    median: SlidingMedian,
+    /// Hann coefficients of the last few lengths (newest first).
+    hann: Vec<(usize, Vec<f64>)>,
 }
+
+/// Lengths whose Hann coefficients a [`Whitener`] keeps (the tracker uses a handful).
+const HANN_KEPT: usize = 8;
 
 impl Default for Whitener {
     fn default() -> Self {
@@ -79,8 +85,28 @@ impl Whitener {
             spec: Vec::new(),
             scratch: Vec::new(),
             logm: Vec::new(),
-            win: Vec::new(),
+            median: SlidingMedian::default(),
+            hann: Vec::new(),
         }
+    }
+
+    /// The Hann window of length `n` (`0.5 - 0.5 cos(2 pi i / n)`), computed once per length.
+    fn hann(&mut self, n: usize) -> &[f64] {
+        match self.hann.iter().position(|(m, _)| *m == n) {
+            Some(0) => {}
+            Some(i) => {
+                let kept = self.hann.remove(i);
+                self.hann.insert(0, kept);
+            }
+            None => {
+                let w = (0..n)
+                    .map(|i| 0.5 - 0.5 * (2.0 * std::f64::consts::PI * i as f64 / n as f64).cos())
+                    .collect();
+                self.hann.truncate(HANN_KEPT - 1);
+                self.hann.insert(0, (n, w));
+            }
+        }
+        &self.hann[0].1
     }
 
     /// Whitened spectrum of `x` (cut to the largest fast FFT length, Hann window, zero-padded
@@ -99,12 +125,13 @@ impl Whitener {
         let mean = x.iter().map(|&v| v as f64).sum::<f64>() / n as f64;
         let len = n * pad;
         let fft = self.planner.plan_fft_forward(len);
-        self.buf.clear();
-        self.buf.resize(len, 0.0);
-        for (i, (b, &v)) in self.buf.iter_mut().zip(x).enumerate() {
-            let w = 0.5 - 0.5 * (2.0 * std::f64::consts::PI * i as f64 / n as f64).cos();
+        let mut buf = std::mem::take(&mut self.buf);
+        buf.clear();
+        buf.resize(len, 0.0);
+        for ((b, &v), &w) in buf.iter_mut().zip(x).zip(self.hann(n)) {
             *b = ((v as f64 - mean) * w) as f32;
         }
+        self.buf = buf;
         self.spec.clear();
         self.spec.resize(len / 2 + 1, Complex32::default());
         self.scratch.clear();
@@ -121,7 +148,8 @@ impl Whitener {
                 .iter()
                 .map(|c| (c.norm() as f64 + 1e-30).ln()),
         );
-        let (logm, win) = (&self.logm, &mut self.win);
+        let (logm, median) = (&self.logm, &mut self.median);
+        median.reset();
         let stride = stride.max(1);
         let mut med = 0.0;
         out.df = df;
@@ -131,12 +159,8 @@ impl Whitener {
         out.prom.extend((0..=top).map(|i| {
             if i % stride == 0 {
                 let c = (i + stride / 2).min(top);
-                win.clear();
-                win.extend_from_slice(
-                    &logm[c.saturating_sub(half)..(c + half + 1).min(logm.len())],
-                );
-                let mid = win.len() / 2;
-                med = *win.select_nth_unstable_by(mid, |a, b| a.total_cmp(b)).1;
+                let (a, b) = (c.saturating_sub(half), (c + half + 1).min(logm.len()));
+                med = median.median(logm, a, b);
             }
             logm[i] - med
         }));

@@ -24,6 +24,7 @@ pub mod order_spectrum;
 pub(crate) mod order_tracking;
 pub mod quality;
 pub mod resample;
+pub(crate) mod sliding_median;
 pub mod speed;
 pub(crate) mod speed_comb;
 pub mod speed_config;

@@ -111,13 +111,15 @@ impl Indicators {
     }
 }
 
-/// Measures [`Indicators`] of windows of one length (keeps its FFT plan and buffers).
+/// Measures [`Indicators`] of windows of one length (keeps its FFT plan, buffers and scratch:
+/// nothing is allocated per window of the same length).
 pub struct IndicatorMeter {
     sample_rate: f64,
     lowpass_hz: f64,
     fft: Option<Arc<dyn RealToComplex<f32>>>,
     input: Vec<f32>,
     spectrum: Vec<realfft::num_complex::Complex<f32>>,
+    scratch: Vec<realfft::num_complex::Complex<f32>>,
     planner: RealFftPlanner<f32>,
 }
 
@@ -130,6 +132,7 @@ impl IndicatorMeter {
             fft: None,
             input: Vec::new(),
             spectrum: Vec::new(),
+            scratch: Vec::new(),
             planner: RealFftPlanner::new(),
         }
     }
@@ -171,6 +174,7 @@ impl IndicatorMeter {
         if self.input.len() != n || self.fft.is_none() {
             let fft = self.planner.plan_fft_forward(n);
             self.spectrum = fft.make_output_vec();
+            self.scratch = fft.make_scratch_vec();
             self.input = vec![0.0; n];
             self.fft = Some(fft);
         }
@@ -178,7 +182,8 @@ impl IndicatorMeter {
             *o = (f64::from(v) - mean) as f32;
         }
         let fft = self.fft.as_ref()?;
-        fft.process(&mut self.input, &mut self.spectrum).ok()?;
+        fft.process_with_scratch(&mut self.input, &mut self.spectrum, &mut self.scratch)
+            .ok()?;
         let df = self.sample_rate / n as f64;
         let top = self.lowpass_hz.min(self.sample_rate / 2.0);
         let (lo, hi) = (RESONANCE_FROM * top, top);
