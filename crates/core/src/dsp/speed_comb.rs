@@ -6,7 +6,8 @@
 //! explained by a shaft at 9.8 Hz whose BPFO train it is. Of the two, the speed that explains
 //! more is taken: a candidate c = m g / order (g the shaft lines' choice, m = 1-3, the order
 //! of BPFO, BPFI or 2xBSF within the bearing's slip) replaces g when
-//! - c shows a shaft line of its own (the tracker checks its clarity),
+//! - c shows a shaft line of its own ([`own_lines`]: its harmonics off g's series; the
+//!   tracker checks their clarity),
 //! - the envelope shows c's train ([`train_support`], as strong as a fault family must be:
 //!   [`FAMILY_PRESENT`]) with its fundamental where the comb's lines are, and
 //! - the lines of g's series that c explains neither as its own harmonics nor as its train
@@ -14,9 +15,16 @@
 //!
 //! A healthy machine shows no train in the envelope, so nothing changes there; a true shaft
 //! comb has no line at g m / order below it.
+//!
+//! A candidate's own lines must be its own: the train's lines sit on g's series by
+//! construction (order c = m g), and a harmonic of c may fall on g's line too (2xBSF = 4.71
+//! orders, and a harmonic 5c lies within the slip of g: CWRU's 6205 at 1797 rpm, a healthy
+//! shaft at 29.95 Hz, was read as a shaft at 6.0 Hz whose 5th harmonic was g's 1x and whose
+//! "train" in the envelope was g's own 1x modulation). So c's evidence counts only the
+//! lines g does not already explain.
 
 use super::fault_family::{FAMILY_PRESENT, SLIP};
-use super::harmonic_sum::{on_mains_harmonic, Whitened, HARMONICS};
+use super::harmonic_sum::{on_mains_harmonic, Whitened, HARMONICS, LONE_ALLOW};
 use crate::bearing::FaultOrders;
 
 /// Harmonics of a train scored in the envelope.
@@ -78,6 +86,51 @@ pub fn train_support(env: &Whitened, order: f64, c: f64, top: f64) -> f64 {
 /// The train is present ([`FAMILY_PRESENT`]).
 pub fn train_present(env: &Whitened, order: f64, c: f64, top: f64) -> bool {
     train_support(env, order, c, top) >= FAMILY_PRESENT
+}
+
+/// The evidence in the shaft spectrum `w` for a shaft at `c` from its own lines, the ones
+/// g's series does not explain: the mean prominence of c's harmonics 1-[`HARMONICS`] off g's
+/// series and off the mains lines, or (with `w.lone`) its fundamental alone less
+/// [`LONE_ALLOW`] when that is more; -inf when every harmonic of c sits on g's series.
+pub fn own_lines(w: &Whitened, c: f64, g: f64) -> f64 {
+    let on_g = |f: f64| {
+        let k = (f / g).round();
+        k >= 1.0 && (f - k * g).abs() <= 0.005 * f + w.df
+    };
+    let (mut sum, mut n) = (0.0, 0);
+    for k in 1..=HARMONICS {
+        let f = k as f64 * c;
+        if on_g(f) || on_mains_harmonic(f, 1.5 * w.df) {
+            continue;
+        }
+        sum += w.at(f);
+        n += 1;
+    }
+    if n == 0 {
+        return f64::NEG_INFINITY;
+    }
+    let mean = sum / n as f64;
+    if w.lone && !on_g(c) && !w.on_mains(c) {
+        mean.max(w.at(c) - LONE_ALLOW)
+    } else {
+        mean
+    }
+}
+
+/// The speed in [`lo`, `hi`] Hz whose own lines ([`own_lines`] against `g`) stand out most,
+/// on the harmonic-sum search grid: (Hz, evidence).
+pub fn best_own(w: &Whitened, g: f64, lo: f64, hi: f64) -> (f64, f64) {
+    let step = w.df / (2 * HARMONICS) as f64;
+    let mut best = (lo, f64::NEG_INFINITY);
+    let mut f = lo;
+    while f <= hi {
+        let s = own_lines(w, f, g);
+        if s > best.1 {
+            best = (f, s);
+        }
+        f += step;
+    }
+    best
 }
 
 /// Mean prominence, in the shaft spectrum `w`, of the harmonics of `g` (1-[`HARMONICS`], off
@@ -150,6 +203,22 @@ mod tests {
         let raw = spectrum(&comb, 3.0);
         let u = unexplained(&raw, g, c, o.bpfo).unwrap();
         assert!(u < 0.5, "{u}");
+    }
+
+    /// A shaft at g whose 5th subharmonic c lies where a 2xBSF train would put g's comb has
+    /// no evidence of its own at c: c's 5th harmonic is g's own line.
+    #[test]
+    fn a_subharmonic_borrows_no_evidence_from_the_shaft() {
+        let g = 30.0;
+        let mut raw = spectrum(&[g, 2.0 * g, 4.0 * g], 6.0);
+        raw.lone = true;
+        let c = g / 5.0;
+        // read as a series, c scores a fifth of g's own line: above the tracker's noise (1.0)
+        assert!(raw.shaft(c) > 1.0, "the borrowed series: {}", raw.shaft(c));
+        assert!(own_lines(&raw, c, g) < 0.5, "{}", own_lines(&raw, c, g));
+        // a real line at c is its own
+        raw.prom[(c / raw.df).round() as usize] = 4.0;
+        assert!(own_lines(&raw, c, g) > 3.0, "{}", own_lines(&raw, c, g));
     }
 
     #[test]

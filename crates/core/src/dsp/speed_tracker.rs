@@ -27,6 +27,11 @@
 //!   ([`super::fault_family`]). A healthy machine shows no family and keeps what the shaft
 //!   lines say.
 //!
+//! - **the joint reading** (issue 34, off by default for now, [`JointParts`]): a lone strong 1x line
+//!   counts as shaft evidence, the speed is read from the harmonics' own interpolated peaks
+//!   (no bias from the harmonic sum's grid), and a comb may be a bearing's impact train
+//!   ([`super::speed_comb`]) when a slower shaft shows lines of its own beside it.
+//!
 //! A hint (a fixed or nominal speed) narrows the search to a band around it and is used
 //! itself when the vibration shows no clear line there.
 //!
@@ -38,7 +43,7 @@ use super::decimate::Decimator;
 use super::fault_family::{EnvelopeFeed, FamilyEvidence, FamilySettings};
 use super::harmonic_sum::{fundamental, on_mains_harmonic, Whitened, Whitener, HARMONICS};
 use super::speed::SpeedTrack;
-use super::speed_comb::{comb_spans, train_present, unexplained};
+use super::speed_comb::{best_own, comb_spans, train_present, unexplained};
 use anyhow::{bail, Result};
 
 /// Revolutions at the rig's lowest speed that the history holds.
@@ -206,10 +211,32 @@ pub struct SpeedTracker {
     env_span: Option<(usize, usize)>,
     /// Spectrum of the newest stretch of the history ([`Self::recent_support`]).
     recent_spec: Whitened,
-    /// The joint reading (a lone 1x line counts, speeds read from the harmonics' own peaks,
-    /// a comb may be a bearing's train: [`super::speed_comb`]); off (the default for now:
-    /// it moved a CWRU record's estimate), the reading before issue 34.
-    joint: bool,
+    /// The joint reading's parts (a lone 1x line counts, speeds read from the harmonics' own
+    /// peaks, a comb may be a bearing's train: [`super::speed_comb`]).
+    joint: JointParts,
+}
+
+/// The parts of the joint reading (issue 34), each switchable for measuring one against the
+/// others; all off is the reading before issue 34.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct JointParts {
+    /// A lone 1x line counts as shaft evidence ([`Whitened::shaft`]).
+    pub lone: bool,
+    /// The speed is read from the harmonics' own peaks ([`Whitened::line_speed`]).
+    pub line_speed: bool,
+    /// A comb may be a bearing's train ([`super::speed_comb`]).
+    pub comb: bool,
+}
+
+impl JointParts {
+    /// Every part on (`true`) or off.
+    pub fn all(on: bool) -> JointParts {
+        JointParts {
+            lone: on,
+            line_speed: on,
+            comb: on,
+        }
+    }
 }
 
 impl SpeedTracker {
@@ -275,16 +302,22 @@ impl SpeedTracker {
             },
             env_span: None,
             recent_spec: Whitened::default(),
-            joint: false,
+            joint: JointParts::all(false),
         })
     }
 
     /// Switch the joint reading on or off (off, the default until it passes the real-record
-    /// checks: the reading before issue 34, the mean of five harmonics, the harmonic sum's
-    /// grid maximum, no comb explained as a train). For measuring one against the other.
+    /// checks: `dsp::cwru_estimated_speed_within_one_percent` still reads 209_0 at 1480.6 rpm
+    /// with it on; the reading before issue 34, the mean of five harmonics, the harmonic
+    /// sum's grid maximum, no comb explained as a train). For measuring one against the other.
     pub fn set_joint(&mut self, on: bool) {
-        self.joint = on;
-        self.spec.lone = on;
+        self.set_joint_parts(JointParts::all(on));
+    }
+
+    /// Switch the joint reading's parts one by one.
+    pub fn set_joint_parts(&mut self, parts: JointParts) {
+        self.joint = parts;
+        self.spec.lone = parts.lone;
     }
 
     /// Seconds of signal the history holds when full ([`HISTORY_REVS`] at the lowest speed).
@@ -555,7 +588,7 @@ impl SpeedTracker {
                 }
             }
         }
-        if best.is_none() && self.joint {
+        if best.is_none() && self.joint.comb {
             best = self.comb_as_train(g, lo);
         }
         if let Some((r, _)) = best {
@@ -599,7 +632,8 @@ impl SpeedTracker {
     }
 
     /// The speed that explains the shaft lines' choice `g` as a bearing's train
-    /// ([`super::speed_comb`]): the clearest shaft line among the speeds whose BPFO, BPFI or
+    /// ([`super::speed_comb`]): the clearest shaft line of its own (off g's series) among the
+    /// speeds whose BPFO, BPFI or
     /// 2xBSF train would sit on g's comb, whose train the envelope shows, and under which
     /// the rest of g's series is noise; with its clarity plus the train's support.
     fn comb_as_train(&self, g: f64, lo: f64) -> Option<(f64, f64)> {
@@ -607,7 +641,9 @@ impl SpeedTracker {
         let top = KEEP * self.fs_d / 2.0;
         let mut best: Option<(f64, f64)> = None;
         for (a, b, order) in comb_spans(g, &fam.orders, lo, self.fmax) {
-            let (c, s) = self.spec.best_in(a, b);
+            // c's evidence from its own lines only: its train and any harmonic of it that
+            // falls on g's series are g's lines
+            let (c, s) = best_own(&self.spec, g, a, b);
             if s <= SCORE_NOISE || !train_present(&self.env_spec, order, c, top) {
                 continue;
             }
@@ -624,7 +660,7 @@ impl SpeedTracker {
     /// The speed near `hz` read from its harmonics' own peaks (joint reading:
     /// [`Whitened::line_speed`]), else the harmonic sum's maximum between grid points.
     fn refine(&self, hz: f64) -> f64 {
-        if self.joint {
+        if self.joint.line_speed {
             if let Some(f) = self.spec.line_speed(hz) {
                 return f;
             }
