@@ -474,8 +474,10 @@ type StatusSub =
     zenoh::pubsub::Subscriber<zenoh::handlers::FifoChannelHandler<zenoh::sample::Sample>>;
 
 /// After the last publish: wait until every row is in the database, or the historian has
-/// nothing left to write (buffer and spill empty, nothing committed for 3 s: the rest is
-/// lost and its ledger says which), at most `limit`. Returns (rows in the database when
+/// nothing left to write (buffer and spill empty, nothing received and nothing committed for
+/// 3 s: the rest is lost and its ledger says which), at most `limit`. Messages still on their
+/// way through Zenoh count as received only when they arrive, so a historian that is
+/// receiving is waited for. Returns (rows in the database when
 /// publishing ended, seconds waited).
 async fn wait_caught_up(
     target: &Target,
@@ -487,7 +489,7 @@ async fn wait_caught_up(
     let c = target.connect().await?;
     let at_end = count_rows(&c, tag).await?;
     let t = Instant::now();
-    let (mut n, mut last_committed, mut still_since) = (at_end, 0u64, Instant::now());
+    let (mut n, mut last, mut still_since) = (at_end, (0u64, 0u64), Instant::now());
     while (n as u64) < published && t.elapsed() < limit {
         tokio::time::sleep(Duration::from_millis(200)).await;
         n = count_rows(&c, tag).await?;
@@ -496,8 +498,9 @@ async fn wait_caught_up(
             latest = serde_json::from_slice::<HistorianStatus>(&sample.payload().to_bytes()).ok();
         }
         if let Some(st) = latest {
-            if st.rows.committed != last_committed || st.buffer.memory + st.buffer.spilled > 0 {
-                (last_committed, still_since) = (st.rows.committed, Instant::now());
+            let progress = (st.rows.committed, st.received.health);
+            if progress != last || st.buffer.memory + st.buffer.spilled > 0 {
+                (last, still_since) = (progress, Instant::now());
             } else if still_since.elapsed() > Duration::from_secs(3) {
                 break;
             }

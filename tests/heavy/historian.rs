@@ -830,6 +830,46 @@ fn check_history_cli(
     assert!(lines
         .iter()
         .all(|v| v["schema"] == "rigmon.health" && v["site"] == "lut-lab"));
+    // The daemon's health indicators, stored and read back (issue 35 item 3): every window
+    // of the replayed recording has them, and history gives the stored values.
+    let stored_rms: Vec<Option<f32>> = rt
+        .block_on(db.query(
+            "SELECT w.indicator_rms FROM windows w JOIN points p USING (point_id)
+             WHERE p.key = 'lut-rig/shaft/nde' ORDER BY w.seq",
+            &[],
+        ))
+        .unwrap()
+        .iter()
+        .map(|r| r.get(0))
+        .collect();
+    assert!(
+        stored_rms.iter().all(|v| v.is_some_and(|v| v > 0.0)),
+        "every window's indicators stored: {stored_rms:?}"
+    );
+    let back_rms: Vec<Option<f32>> = lines
+        .iter()
+        .map(|v| {
+            let rms = v["indicators"]["values"]["rms"].as_f64()? as f32;
+            let kurtosis = v["indicators"]["values"]["kurtosis"].as_f64()?;
+            kurtosis.is_finite().then_some(rms)
+        })
+        .collect();
+    assert_eq!(back_rms, stored_rms, "history gives the stored indicators");
+    let (n, windows): (i64, i64) = {
+        let r = rt
+            .block_on(db.query_one(
+                "SELECT sum(m.indicators_n)::int8, sum(m.windows)::int8 FROM minutes m
+                 JOIN points p USING (point_id) WHERE p.key = 'lut-rig/shaft/nde'",
+                &[],
+            ))
+            .unwrap();
+        (r.get(0), r.get(1))
+    };
+    assert_eq!(
+        (n, windows),
+        (stored, stored),
+        "the minutes count every window's indicators once"
+    );
     let png = d.join("trend.png");
     let out = rigmon(
         &[
@@ -1160,7 +1200,7 @@ pub(crate) fn every_field_set(run_ns: u64, seq: u64) -> rigmon::wire::health::He
             beyond_healthy: 12.5,
             beyond_gaussian: 7.25,
         }),
-        indicators: None,
+        indicators: Some(every_indicator_set()),
         state: "inner_race".into(),
         state_since_s: 2.5,
         state_changed: seq == 1,
@@ -1193,6 +1233,30 @@ pub(crate) fn every_field_set(run_ns: u64, seq: u64) -> rigmon::wire::health::He
     }
 }
 
+/// Health indicators and a departure reading with every field set (exact in `real`); the
+/// machine departed 2 s into the run.
+fn every_indicator_set() -> rigmon::health::message::HealthIndicators {
+    use rigmon::model::indicators::{Indicator, Indicators, PerIndicator};
+    rigmon::health::message::HealthIndicators {
+        values: Indicators {
+            rms: 0.25,
+            crest: 4.5,
+            kurtosis: 1.75,
+            resonance: 0.125,
+            samples: 2560,
+        },
+        departure: Some(rigmon::model::departure::DepartureReading {
+            scores: PerIndicator::from_array([1.5, -0.5, 6.25, 3.0]),
+            smoothed: Some(PerIndicator::from_array([1.25, -0.25, 5.5, 2.75])),
+            threshold: PerIndicator::from_array([4.0, 4.5, 5.0, 4.25]),
+            leading: Some(Indicator::Kurtosis),
+            excess: Some(0.5),
+            beyond_for: 31,
+            departed_since_s: Some(2.0),
+        }),
+    }
+}
+
 #[test]
 fn every_health_field_survives_the_historian_and_a_version_1_database_is_upgraded() {
     let tmp = tempfile::tempdir().unwrap();
@@ -1221,7 +1285,7 @@ fn every_health_field_survives_the_historian_and_a_version_1_database_is_upgrade
     wait_until(
         "the historian to migrate the version-1 database",
         Duration::from_secs(60),
-        || versions() == [1, 2, 3],
+        || versions() == [1, 2, 3, 4],
     );
 
     // A daemon's two windows: the first with every field set, the second with the optional
@@ -1233,6 +1297,7 @@ fn every_health_field_survives_the_historian_and_a_version_1_database_is_upgrade
     bare.overruled = None;
     bare.evidence = None;
     bare.impulse = None;
+    bare.indicators = None;
     bare.speed_confidence = None;
     bare.speed_rival_rpm = None;
     bare.model.foreign.clear();
@@ -1287,6 +1352,58 @@ fn every_health_field_survives_the_historian_and_a_version_1_database_is_upgrade
     assert_eq!(
         (stored.get::<_, f32>(8), stored.get::<_, f32>(9)),
         (12.5, 7.25)
+    );
+    // schema 4: the indicators and the departure reading in typed columns, and in the
+    // 1-minute aggregates (the bare window has none)
+    let ind = rt
+        .block_on(db.query_one(
+            "SELECT indicator_rms, indicator_kurtosis, indicator_samples, departure_score_kurtosis,
+                    departure_smoothed_kurtosis, departure_threshold_kurtosis, departure_leading,
+                    departure_excess, departure_beyond_for,
+                    extract(epoch FROM departed_since - run_start)::float8
+             FROM windows WHERE seq = 1",
+            &[],
+        ))
+        .unwrap();
+    assert_eq!(
+        (
+            ind.get::<_, f32>(0),
+            ind.get::<_, f32>(1),
+            ind.get::<_, i32>(2)
+        ),
+        (0.25, 1.75, 2560)
+    );
+    assert_eq!(
+        (3..=5).map(|i| ind.get::<_, f32>(i)).collect::<Vec<_>>(),
+        [6.25, 5.5, 5.0]
+    );
+    assert_eq!(ind.get::<_, String>(6), "kurtosis");
+    assert_eq!(
+        (
+            ind.get::<_, f32>(7),
+            ind.get::<_, i32>(8),
+            ind.get::<_, f64>(9)
+        ),
+        (0.5, 31, 2.0)
+    );
+    let agg = rt
+        .block_on(db.query_one(
+            "SELECT sum(indicators_n)::int8, max(indicator_rms_max), sum(indicator_kurtosis_sum),
+                    sum(departed_windows)::int8, sum(windows)::int8
+             FROM minutes WHERE minute > now() - interval '10 minutes'",
+            &[],
+        ))
+        .unwrap();
+    assert_eq!(
+        (
+            agg.get::<_, i64>(0),
+            agg.get::<_, f32>(1),
+            agg.get::<_, f64>(2),
+            agg.get::<_, i64>(3),
+            agg.get::<_, i64>(4)
+        ),
+        (1, 0.25, 1.75, 1, 2),
+        "two windows this run, one with indicators and departed"
     );
     let refused = rt.block_on(db.execute("UPDATE windows SET decision = 'guess'", &[]));
     assert!(
@@ -1347,6 +1464,7 @@ fn every_health_field_survives_the_historian_and_a_version_1_database_is_upgrade
     assert!(
         old.overruled.is_none()
             && old.evidence.is_none()
+            && old.indicators.is_none()
             && old.impulse.is_none()
             && old.speed_confidence.is_none()
             && old.speed_rival_rpm.is_none()

@@ -179,42 +179,55 @@ impl Buffer {
     /// Up to `max` of the oldest messages, and from memory at most `max_bytes` of them (at
     /// least one; memory first: it is older than the spill). The
     /// batch stays owed until [`commit`](Self::commit); taking again before that returns the
-    /// same spill records, so callers retry the batch they hold instead.
+    /// same spill records, so callers retry the batch they hold instead. The spill is read
+    /// outside the lock (a copy of its read position, [`Spill::reader`]): the Zenoh callbacks
+    /// that [`push`](Self::push) never wait for the disk reads of a batch.
     pub fn take(&self, max: usize, max_bytes: u64) -> Batch {
-        let mut g = self.inner.lock().expect("buffer lock");
-        g.in_flight = true;
-        if !g.memory.is_empty() {
-            let mut n = 0;
-            let mut bytes = 0;
-            for m in g.memory.iter().take(max) {
-                bytes += m.size();
-                if n > 0 && bytes > max_bytes {
-                    break;
-                }
-                n += 1;
-            }
-            let messages: Vec<Incoming> = g.memory.drain(..n).collect();
-            g.memory_bytes -= messages.iter().map(Incoming::size).sum::<u64>();
-            return Batch {
-                messages,
-                origin: Origin::Memory,
-            };
-        }
-        if g.spilling {
-            if let Some(s) = g.spill.as_ref() {
-                match s.peek(max) {
-                    Ok((messages, c)) => {
-                        return Batch {
-                            messages,
-                            origin: Origin::Spill(c),
-                        }
-                    }
-                    Err(e) => tracing::error!("reading the spill: {e:#}"),
-                }
-            }
-        }
-        Batch {
+        let empty = || Batch {
             messages: Vec::new(),
+            origin: Origin::Memory,
+        };
+        let reader = {
+            let mut g = self.inner.lock().expect("buffer lock");
+            g.in_flight = true;
+            if !g.memory.is_empty() {
+                return Self::take_memory(&mut g, max, max_bytes);
+            }
+            match g.spill.as_ref().filter(|_| g.spilling) {
+                Some(s) => s.reader(),
+                None => return empty(),
+            }
+        };
+        let read = reader.peek(max);
+        if let Some(s) = self.inner.lock().expect("buffer lock").spill.as_ref() {
+            s.absorb(&reader);
+        }
+        match read {
+            Ok((messages, c)) => Batch {
+                messages,
+                origin: Origin::Spill(c),
+            },
+            Err(e) => {
+                tracing::error!("reading the spill: {e:#}");
+                empty()
+            }
+        }
+    }
+
+    fn take_memory(g: &mut Inner, max: usize, max_bytes: u64) -> Batch {
+        let mut n = 0;
+        let mut bytes = 0;
+        for m in g.memory.iter().take(max) {
+            bytes += m.size();
+            if n > 0 && bytes > max_bytes {
+                break;
+            }
+            n += 1;
+        }
+        let messages: Vec<Incoming> = g.memory.drain(..n).collect();
+        g.memory_bytes -= messages.iter().map(Incoming::size).sum::<u64>();
+        Batch {
+            messages,
             origin: Origin::Memory,
         }
     }

@@ -5,39 +5,32 @@
 //! stored) plus the point's ISO 20816-3 zone limits (`iso_limits_mm_s`). More than `[history]
 //! max_replies` windows is refused with an error reply naming the count.
 
+use super::columns::{self, Read};
 use super::database::Target;
 use super::row::ns_of;
 use super::status::Counters;
-use anyhow::{anyhow, Result};
 use rigmon_core::health::iso20816::Zone;
+use rigmon_core::wire::health::{
+    FaultBands, HealthIndicators, HealthMessage, ModelInfo, QualityReport, WindowTimes, SCHEMA,
+    SCHEMA_VERSION,
+};
 use rigmon_core::health::{Basis, UnknownReason};
+use rigmon_core::model::departure::DepartureReading;
 use rigmon_core::model::evidence::FamilyEvidence;
 use rigmon_core::model::impulsiveness::Impulse;
-use rigmon_core::vocabulary::Condition;
-use rigmon_core::wire::health::{
-    FaultBands, HealthMessage, ModelInfo, QualityReport, WindowTimes, SCHEMA, SCHEMA_VERSION,
-};
+use rigmon_core::model::indicators::{Indicator, Indicators, PerIndicator};
 use rigmon_runtime::publish::time_range::{now_ns, TimeRange, PARAMETER as TIME};
 use rigmon_runtime::publish::zenoh::error_text;
+use rigmon_core::vocabulary::Condition;
+use anyhow::{anyhow, Result};
 use std::collections::BTreeMap;
 use std::sync::Arc;
 use std::time::SystemTime;
 use tokio_postgres::{Client, Row};
 
-/// The columns read back, in the order [`message_of`] takes them.
-const SELECT: &str = "SELECT p.key, t.site, w.time, w.window_s, w.run_start, w.seq, w.publish_time,
-    w.state, w.state_since, w.state_changed, w.confidence, w.window_state, w.unknown_reason,
-    w.alarm_despite, mo.name, mo.sha256, mo.labels, w.p_healthy, w.p_outer_race, w.p_inner_race,
-    w.p_ball, w.p_other, w.novelty, w.novelty_threshold, w.baseline_distance, w.beyond_baseline,
-    w.rpm, w.speed_source, w.velocity_rms_mm_s, w.iso_zone,
-    w.bpfo_1, w.bpfo_2, w.bpfo_3, w.bpfi_1, w.bpfi_2, w.bpfi_3, w.two_bsf_1, w.two_bsf_2,
-    w.two_bsf_3, w.band_floor, w.quality_ok, w.quality_flags, w.clipped_samples,
-    w.nan_samples, w.dropout_samples, w.missing_tacho_pulses,
-    p.band_channel, p.band_orders, p.calibration_id, p.software_version, p.iso_limits_mm_s,
-    w.decision, w.overruled, w.evidence_outer_race, w.evidence_inner_race, w.evidence_ball,
-    w.speed_confidence, w.speed_rival_rpm, w.model_foreign, w.impulse_beyond_healthy,
-    w.impulse_beyond_gaussian
-FROM windows w JOIN points p USING (point_id) JOIN asset_tree t USING (point_id)
+/// Where the history query reads from ([`columns::select`] names the columns).
+const FROM: &str =
+    "FROM windows w JOIN points p USING (point_id) JOIN asset_tree t USING (point_id)
 JOIN models mo USING (model_id)";
 
 /// One point as the queryable matches keys against it.
@@ -54,127 +47,190 @@ fn reason(s: Option<String>) -> Option<UnknownReason> {
     s.and_then(|v| serde_json::from_value(serde_json::Value::String(v)).ok())
 }
 
-/// The fault-family evidence (columns `from`..`from + 3`), when stored.
-fn evidence(r: &Row, from: usize) -> Option<FamilyEvidence> {
+/// Columns `<prefix>rms`, `<prefix>crest`, `<prefix>kurtosis`, `<prefix>resonance`, when
+/// all four are stored.
+fn four(r: &Read, prefix: &str) -> Option<PerIndicator> {
+    let mut a = [0.0; 4];
+    for (v, i) in a.iter_mut().zip(Indicator::ALL) {
+        *v = r.get::<Option<f32>>(&format!("{prefix}{}", i.as_str()))?;
+    }
+    Some(PerIndicator::from_array(a))
+}
+
+/// The health indicators and the departure test's reading, when stored.
+fn indicators(r: &Read, run: u64) -> Option<HealthIndicators> {
+    let v = four(r, "indicator_")?;
+    let samples = r.get::<Option<i32>>("indicator_samples")?;
+    Some(HealthIndicators {
+        values: Indicators {
+            rms: v.rms,
+            crest: v.crest,
+            kurtosis: v.kurtosis,
+            resonance: v.resonance,
+            samples: samples.max(0) as usize,
+        },
+        departure: departure(r, run),
+    })
+}
+
+/// The departure test's reading, when stored.
+fn departure(r: &Read, run: u64) -> Option<DepartureReading> {
+    Some(DepartureReading {
+        scores: four(r, "departure_score_")?,
+        smoothed: four(r, "departure_smoothed_"),
+        threshold: four(r, "departure_threshold_")?,
+        leading: r
+            .get::<Option<String>>("departure_leading")
+            .and_then(|l| serde_json::from_value(serde_json::Value::String(l)).ok()),
+        excess: r.get("departure_excess"),
+        beyond_for: r.get::<Option<i32>>("departure_beyond_for")?.max(0) as usize,
+        departed_since_s: r
+            .get::<Option<SystemTime>>("departed_since")
+            .map(|t| ns_of(t).saturating_sub(run) as f64 / 1e9),
+    })
+}
+
+/// The fault-family evidence, when stored.
+fn evidence(r: &Read) -> Option<FamilyEvidence> {
     Some(FamilyEvidence {
-        outer_race: r.get::<_, Option<f32>>(from)?,
-        inner_race: r.get::<_, Option<f32>>(from + 1)?,
-        ball: r.get::<_, Option<f32>>(from + 2)?,
+        outer_race: r.get::<Option<f32>>("evidence_outer_race")?,
+        inner_race: r.get::<Option<f32>>("evidence_inner_race")?,
+        ball: r.get::<Option<f32>>("evidence_ball")?,
     })
 }
 
-/// The impulsiveness (columns `from`, `from + 1`), when stored.
-fn impulse(r: &Row, from: usize) -> Option<Impulse> {
+/// The impulsiveness, when stored.
+fn impulse(r: &Read) -> Option<Impulse> {
     Some(Impulse {
-        beyond_healthy: r.get::<_, Option<f32>>(from)?,
-        beyond_gaussian: r.get::<_, Option<f32>>(from + 1)?,
+        beyond_healthy: r.get::<Option<f32>>("impulse_beyond_healthy")?,
+        beyond_gaussian: r.get::<Option<f32>>("impulse_beyond_gaussian")?,
     })
 }
 
-fn bands(r: &Row, from: usize) -> Vec<f32> {
-    (from..from + 3)
-        .map(|i| r.get::<_, Option<f32>>(i))
+/// A fault order's harmonics 1-3 (`<family>_1`..`<family>_3`), when all are stored.
+fn bands(r: &Read, family: &str) -> Vec<f32> {
+    (1..=3)
+        .map(|h| r.get::<Option<f32>>(&format!("{family}_{h}")))
         .collect::<Option<Vec<f32>>>()
         .unwrap_or_default()
 }
 
-/// Rebuild the message of one row (see [`SELECT`]); adds `iso_limits_mm_s` when known.
-fn message_of(r: &Row) -> serde_json::Value {
-    let key: String = r.get(0);
+/// The class probabilities: the four typed columns and `p_other`.
+fn probabilities(r: &Read) -> BTreeMap<String, f32> {
+    let mut p: BTreeMap<String, f32> = Condition::NAMES
+        .iter()
+        .filter_map(|l| Some((l.to_string(), r.get::<Option<f32>>(&format!("p_{l}"))?)))
+        .collect();
+    if let Some(serde_json::Value::Object(o)) = r.get::<Option<serde_json::Value>>("p_other") {
+        for (l, v) in o {
+            p.insert(l, v.as_f64().unwrap_or(f64::NAN) as f32);
+        }
+    }
+    p
+}
+
+/// The quality flags and counts (not stored: the DSP details and the flat channels' names).
+fn quality(r: &Read) -> QualityReport {
+    let u = |c: &str| r.get::<i32>(c).max(0) as u32;
+    QualityReport {
+        ok: r.get("quality_ok"),
+        flags: r
+            .get::<Option<Vec<String>>>("quality_flags")
+            .unwrap_or_default(),
+        clipped_samples: u("clipped_samples"),
+        nan_samples: u("nan_samples"),
+        dropout_samples: u("dropout_samples"),
+        missing_tacho_pulses: u("missing_tacho_pulses"),
+        ..Default::default()
+    }
+}
+
+/// The fault bands, their channel and the point's fault orders.
+fn fault_bands(r: &Read) -> FaultBands {
+    FaultBands {
+        channel: r.get::<Option<String>>("band_channel").unwrap_or_default(),
+        orders: r
+            .get::<Option<serde_json::Value>>("band_orders")
+            .and_then(|v| serde_json::from_value(v).ok())
+            .unwrap_or_default(),
+        bpfo: bands(r, "bpfo"),
+        bpfi: bands(r, "bpfi"),
+        two_bsf: bands(r, "two_bsf"),
+        floor: r.get::<Option<f32>>("band_floor").unwrap_or(0.0),
+    }
+}
+
+/// Rebuild the message of one row (see [`columns::select`]); adds `iso_limits_mm_s` when
+/// known.
+fn message_of(row: &Row) -> serde_json::Value {
+    let r = Read(row);
+    let key: String = r.get("key");
     let mut parts = key.splitn(3, '/').map(str::to_string);
     let (rig, asset, point) = (
         parts.next().unwrap_or_default(),
         parts.next().unwrap_or_default(),
         parts.next().unwrap_or_default(),
     );
-    let end_ns = ns_of(r.get::<_, SystemTime>(2));
-    let window_s: f32 = r.get(3);
-    let run = ns_of(r.get::<_, SystemTime>(4));
+    let end_ns = ns_of(r.get::<SystemTime>("time"));
+    let window_s: f32 = r.get("window_s");
+    let run = ns_of(r.get::<SystemTime>("run_start"));
     let start_ns = end_ns.saturating_sub((f64::from(window_s) * 1e9).round() as u64);
     let secs = |ns: u64| ns.saturating_sub(run) as f64 / 1e9;
-    let labels: Vec<String> = r.get(16);
-    let mut probabilities: BTreeMap<String, f32> = (Condition::NAMES.iter().enumerate())
-        .filter_map(|(i, l)| Some((l.to_string(), r.get::<_, Option<f32>>(17 + i)?)))
-        .collect();
-    if let Some(serde_json::Value::Object(o)) = r.get::<_, Option<serde_json::Value>>(21) {
-        for (l, p) in o {
-            probabilities.insert(l, p.as_f64().unwrap_or(f64::NAN) as f32);
-        }
-    }
-    let flags: Option<Vec<String>> = r.get(41);
-    let u = |i: usize| r.get::<_, i32>(i).max(0) as u32;
-    let orders: BTreeMap<String, f64> = r
-        .get::<_, Option<serde_json::Value>>(47)
-        .and_then(|v| serde_json::from_value(v).ok())
-        .unwrap_or_default();
     let m = HealthMessage {
         schema: SCHEMA.into(),
         schema_version: SCHEMA_VERSION,
         rig,
         asset,
         point,
-        site: Some(r.get(1)),
-        seq: r.get::<_, i64>(5).max(0) as u64,
+        site: Some(r.get("site")),
+        seq: r.get::<i64>("seq").max(0) as u64,
         window: WindowTimes {
             start_s: secs(start_ns),
             end_s: secs(end_ns),
             start_ns,
             end_ns,
         },
-        publish_time_ns: ns_of(r.get::<_, SystemTime>(6)),
-        rpm: r.get(26),
-        speed_source: r.get(27),
-        speed_confidence: r.get::<_, Option<f32>>(56).map(f64::from),
-        speed_rival_rpm: r.get(57),
-        quality: QualityReport {
-            ok: r.get(40),
-            flags: flags.unwrap_or_default(),
-            clipped_samples: u(42),
-            nan_samples: u(43),
-            dropout_samples: u(44),
-            missing_tacho_pulses: u(45),
-            ..Default::default()
-        },
-        probabilities,
-        window_state: r.get(11),
-        unknown_reason: reason(r.get(12)),
-        alarm_despite: reason(r.get(13)),
-        decision: basis(r.get(51)),
-        overruled: r.get(52),
-        evidence: evidence(r, 53),
-        impulse: impulse(r, 59),
-        indicators: None,
-        state: r.get(7),
-        state_since_s: secs(ns_of(r.get::<_, SystemTime>(8))),
-        state_changed: r.get(9),
-        confidence: r.get(10),
-        novelty: r.get(22),
-        novelty_threshold: r.get(23),
-        baseline_distance: r.get(24),
-        beyond_baseline: r.get(25),
-        fault_bands: FaultBands {
-            channel: r.get::<_, Option<String>>(46).unwrap_or_default(),
-            orders,
-            bpfo: bands(r, 30),
-            bpfi: bands(r, 33),
-            two_bsf: bands(r, 36),
-            floor: r.get::<_, Option<f32>>(39).unwrap_or(0.0),
-        },
-        velocity_rms_mm_s: r.get::<_, Option<f32>>(28).map(f64::from),
+        publish_time_ns: ns_of(r.get::<SystemTime>("publish_time")),
+        rpm: r.get("rpm"),
+        speed_source: r.get("speed_source"),
+        speed_confidence: r.get::<Option<f32>>("speed_confidence").map(f64::from),
+        speed_rival_rpm: r.get("speed_rival_rpm"),
+        quality: quality(&r),
+        probabilities: probabilities(&r),
+        window_state: r.get("window_state"),
+        unknown_reason: reason(r.get("unknown_reason")),
+        alarm_despite: reason(r.get("alarm_despite")),
+        decision: basis(r.get("decision")),
+        overruled: r.get("overruled"),
+        evidence: evidence(&r),
+        impulse: impulse(&r),
+        indicators: indicators(&r, run),
+        state: r.get("state"),
+        state_since_s: secs(ns_of(r.get::<SystemTime>("state_since"))),
+        state_changed: r.get("state_changed"),
+        confidence: r.get("confidence"),
+        novelty: r.get("novelty"),
+        novelty_threshold: r.get("novelty_threshold"),
+        baseline_distance: r.get("baseline_distance"),
+        beyond_baseline: r.get("beyond_baseline"),
+        fault_bands: fault_bands(&r),
+        velocity_rms_mm_s: r.get::<Option<f32>>("velocity_rms_mm_s").map(f64::from),
         iso_zone: r
-            .get::<_, Option<String>>(29)
+            .get::<Option<String>>("iso_zone")
             .and_then(|z| serde_json::from_value::<Zone>(serde_json::Value::String(z)).ok()),
         model: ModelInfo {
-            id: r.get(14),
-            sha256: r.get(15),
-            labels,
-            foreign: r.get::<_, Option<Vec<String>>>(58).unwrap_or_default(),
+            id: r.get("model_name"),
+            sha256: r.get("model_sha256"),
+            labels: r.get("model_labels"),
+            foreign: r.get::<Option<_>>("model_foreign").unwrap_or_default(),
         },
-        calibration_id: r.get(48),
-        software_version: r.get::<_, Option<String>>(49).unwrap_or_default(),
+        calibration_id: r.get("calibration_id"),
+        software_version: r
+            .get::<Option<String>>("software_version")
+            .unwrap_or_default(),
     };
     let mut v = serde_json::to_value(&m).unwrap_or_default();
-    if let Some(l) = r.get::<_, Option<Vec<f32>>>(50) {
+    if let Some(l) = r.get::<Option<Vec<f32>>>("iso_limits_mm_s") {
         v["iso_limits_mm_s"] = serde_json::json!(l);
     }
     v
@@ -223,7 +279,7 @@ async fn answer(
     let from = super::row::time_of(range.from_ns.unwrap_or(0));
     let until = super::row::time_of(range.until_ns.unwrap_or(u64::MAX / 2));
     let limit = i64::try_from(max).unwrap_or(i64::MAX - 1) + 1;
-    let sql = format!("{SELECT} WHERE w.point_id = ANY($1) AND w.time >= $2 AND w.time < $3 ORDER BY w.point_id, w.time LIMIT $4");
+    let sql = format!("{} {FROM} WHERE w.point_id = ANY($1) AND w.time >= $2 AND w.time < $3 ORDER BY w.point_id, w.time LIMIT $4", columns::select());
     let rows = client.query(&sql, &[&ids, &from, &until, &limit]).await?;
     if rows.len() as u64 > max {
         let n: i64 = client
@@ -233,7 +289,7 @@ async fn answer(
         return Err(anyhow!("{n} windows match {asked} in {t}, more than [history] max_replies = {max}; narrow the time range or the key expression"));
     }
     for r in &rows {
-        let key: String = r.get(0);
+        let key: String = Read(r).get("key");
         let payload = serde_json::to_vec(&message_of(r))?;
         query
             .reply(format!("{prefix}/{key}/health"), payload)

@@ -16,6 +16,7 @@
 pub mod admit;
 pub mod alarms;
 pub mod buffer;
+pub mod columns;
 pub mod config;
 pub mod database;
 pub mod history;

@@ -15,6 +15,11 @@ pub const MIGRATIONS: &[(i32, &str, &str)] = &[
         include_str!("migrations/0002_decision_evidence_speed.sql"),
     ),
     (3, "impulse", include_str!("migrations/0003_impulse.sql")),
+    (
+        4,
+        "indicators",
+        include_str!("migrations/0004_indicators.sql"),
+    ),
 ];
 
 /// Advisory-lock key ("rigmon" in ASCII).

@@ -1,72 +1,12 @@
-//! One health message as one `windows` row: the typed columns (in [`COLUMNS`] order, the
-//! order the binary COPY writes them), the point it belongs to in the asset tree, the model
-//! that produced it and, on a state change, the full JSON for the event.
+//! One health message as one `windows` row: the typed values (the table of columns and how
+//! each is written is [`super::columns`]), the point it belongs to in the asset tree, the
+//! model that produced it and, on a state change, the full JSON for the event.
 
-use anyhow::{bail, Result};
-use rigmon_core::health::UnknownReason;
-use rigmon_core::vocabulary::Condition;
-use rigmon_core::wire::health::HealthMessage;
+use rigmon_core::wire::health::{HealthIndicators, HealthMessage};
 use rigmon_runtime::publish::recent::run_start_ns;
+use rigmon_core::vocabulary::Condition;
+use anyhow::{bail, Result};
 use std::time::{Duration, SystemTime, UNIX_EPOCH};
-use tokio_postgres::types::{ToSql, Type};
-
-/// The `windows` columns the historian writes, in COPY order, with their types; the staging
-/// table adds `message` (jsonb, set on state changes only).
-pub const COLUMNS: &[(&str, Type)] = &[
-    ("point_id", Type::INT4),
-    ("time", Type::TIMESTAMPTZ),
-    ("window_s", Type::FLOAT4),
-    ("run_start", Type::TIMESTAMPTZ),
-    ("seq", Type::INT8),
-    ("publish_time", Type::TIMESTAMPTZ),
-    ("state", Type::TEXT),
-    ("state_since", Type::TIMESTAMPTZ),
-    ("state_changed", Type::BOOL),
-    ("confidence", Type::FLOAT4),
-    ("window_state", Type::TEXT),
-    ("unknown_reason", Type::TEXT),
-    ("alarm_despite", Type::TEXT),
-    ("model_id", Type::INT4),
-    ("p_healthy", Type::FLOAT4),
-    ("p_outer_race", Type::FLOAT4),
-    ("p_inner_race", Type::FLOAT4),
-    ("p_ball", Type::FLOAT4),
-    ("p_other", Type::JSONB),
-    ("novelty", Type::FLOAT4),
-    ("novelty_threshold", Type::FLOAT4),
-    ("baseline_distance", Type::FLOAT4),
-    ("beyond_baseline", Type::BOOL),
-    ("rpm", Type::FLOAT8),
-    ("speed_source", Type::TEXT),
-    ("velocity_rms_mm_s", Type::FLOAT4),
-    ("iso_zone", Type::TEXT),
-    ("bpfo_1", Type::FLOAT4),
-    ("bpfo_2", Type::FLOAT4),
-    ("bpfo_3", Type::FLOAT4),
-    ("bpfi_1", Type::FLOAT4),
-    ("bpfi_2", Type::FLOAT4),
-    ("bpfi_3", Type::FLOAT4),
-    ("two_bsf_1", Type::FLOAT4),
-    ("two_bsf_2", Type::FLOAT4),
-    ("two_bsf_3", Type::FLOAT4),
-    ("band_floor", Type::FLOAT4),
-    ("quality_ok", Type::BOOL),
-    ("quality_flags", Type::TEXT_ARRAY),
-    ("clipped_samples", Type::INT4),
-    ("nan_samples", Type::INT4),
-    ("dropout_samples", Type::INT4),
-    ("missing_tacho_pulses", Type::INT4),
-    ("decision", Type::TEXT),
-    ("overruled", Type::TEXT),
-    ("evidence_outer_race", Type::FLOAT4),
-    ("evidence_inner_race", Type::FLOAT4),
-    ("evidence_ball", Type::FLOAT4),
-    ("speed_confidence", Type::FLOAT4),
-    ("speed_rival_rpm", Type::FLOAT8),
-    ("model_foreign", Type::TEXT_ARRAY),
-    ("impulse_beyond_healthy", Type::FLOAT4),
-    ("impulse_beyond_gaussian", Type::FLOAT4),
-];
 
 /// The model a row was classified by (`models` table).
 #[derive(Debug, Clone, PartialEq, Eq, Hash)]
@@ -90,6 +30,19 @@ pub struct PointInfo {
 }
 
 impl PointInfo {
+    fn of(m: &HealthMessage, default_site: &str) -> PointInfo {
+        PointInfo {
+            site: m.site.clone().unwrap_or_else(|| default_site.to_string()),
+            machine: m.rig.clone(),
+            asset: m.asset.clone(),
+            point: m.point.clone(),
+            band_channel: m.fault_bands.channel.clone(),
+            band_orders: serde_json::to_value(&m.fault_bands.orders).unwrap_or_default(),
+            calibration_id: m.calibration_id.clone(),
+            software_version: m.software_version.clone(),
+        }
+    }
+
     /// `<machine>/<asset>/<point>`, as on Zenoh.
     pub fn key(&self) -> String {
         format!("{}/{}/{}", self.machine, self.asset, self.point)
@@ -144,8 +97,65 @@ pub struct WindowRow {
     pub model_foreign: Option<Vec<String>>,
     /// Impulsiveness: beyond healthy, beyond Gaussian (both or none).
     pub impulse: [Option<f32>; 2],
+    /// The health indicators and the departure test's reading.
+    pub indicators: IndicatorColumns,
     /// The whole message, kept for the state-change event.
     pub message: Option<serde_json::Value>,
+}
+
+/// The health indicators and the departure test's reading as stored: each value only when
+/// finite; the four indicator values all or none, as the scores, the smoothed scores and
+/// the thresholds (all None when the message carried none).
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct IndicatorColumns {
+    /// RMS, crest, kurtosis, resonance-band RMS.
+    pub values: [Option<f32>; 4],
+    pub samples: Option<i32>,
+    pub scores: [Option<f32>; 4],
+    pub smoothed: [Option<f32>; 4],
+    pub threshold: [Option<f32>; 4],
+    pub leading: Option<&'static str>,
+    pub excess: Option<f32>,
+    pub beyond_for: Option<i32>,
+    /// When the machine departed from its healthy baseline.
+    pub departed_since: Option<SystemTime>,
+}
+
+/// All four finite, or none.
+fn four(a: [f32; 4]) -> [Option<f32>; 4] {
+    if a.iter().all(|v| v.is_finite()) {
+        a.map(Some)
+    } else {
+        [None; 4]
+    }
+}
+
+impl IndicatorColumns {
+    fn of(h: Option<HealthIndicators>, run_start_ns: u64, end_ns: u64) -> Self {
+        let Some(h) = h else {
+            return Self::default();
+        };
+        let v = h.values;
+        let values = four([v.rms, v.crest, v.kurtosis, v.resonance]);
+        let mut c = IndicatorColumns {
+            values,
+            samples: values[0].and(i32::try_from(v.samples).ok()),
+            ..Default::default()
+        };
+        if let Some(d) = h.departure {
+            c.scores = four(d.scores.to_array());
+            c.smoothed = d.smoothed.map_or([None; 4], |s| four(s.to_array()));
+            c.threshold = four(d.threshold.to_array());
+            c.leading = d.leading.map(|l| l.as_str());
+            c.excess = d.excess.and_then(finite);
+            c.beyond_for = Some(i32::try_from(d.beyond_for).unwrap_or(i32::MAX));
+            c.departed_since = d
+                .departed_since_s
+                .filter(|s| s.is_finite())
+                .map(|s| since(run_start_ns, s, end_ns));
+        }
+        c
+    }
 }
 
 /// ns since the epoch as a time (PostgreSQL keeps µs).
@@ -211,18 +221,9 @@ impl WindowRow {
             .collect();
         let fb = &m.fault_bands;
         let q = &m.quality;
-        let label = |r: Option<UnknownReason>| r.map(|r| r.as_str().to_string());
+        let label = |r: Option<rigmon_core::health::UnknownReason>| r.map(|r| r.as_str().to_string());
         WindowRow {
-            point: PointInfo {
-                site: m.site.clone().unwrap_or_else(|| default_site.to_string()),
-                machine: m.rig.clone(),
-                asset: m.asset.clone(),
-                point: m.point.clone(),
-                band_channel: fb.channel.clone(),
-                band_orders: serde_json::to_value(&fb.orders).unwrap_or_default(),
-                calibration_id: m.calibration_id.clone(),
-                software_version: m.software_version.clone(),
-            },
+            point: PointInfo::of(&m, default_site),
             model: ModelKey {
                 name: m.model.id.clone(),
                 sha256: m.model.sha256.clone(),
@@ -294,72 +295,12 @@ impl WindowRow {
                 .map_or([None; 2], |i| {
                     [Some(i.beyond_healthy), Some(i.beyond_gaussian)]
                 }),
+            indicators: IndicatorColumns::of(m.indicators, run_start_ns, m.window.end_ns),
             message,
         }
     }
 
-    /// The COPY values in [`COLUMNS`] order, then `message`.
-    pub fn values<'a>(&'a self, t: &'a RowTimes) -> Vec<&'a (dyn ToSql + Sync)> {
-        let b = &self.bands;
-        vec![
-            &self.point_id,
-            &self.time,
-            &self.window_s,
-            &t.run_start,
-            &t.seq,
-            &t.publish,
-            &self.state,
-            &self.state_since,
-            &self.state_changed,
-            &self.confidence,
-            &self.window_state,
-            &self.unknown_reason,
-            &self.alarm_despite,
-            &self.model_id,
-            &self.p[0],
-            &self.p[1],
-            &self.p[2],
-            &self.p[3],
-            &self.p_other,
-            &self.novelty,
-            &self.novelty_threshold,
-            &self.baseline_distance,
-            &self.beyond_baseline,
-            &self.rpm,
-            &self.speed_source,
-            &self.velocity,
-            &self.iso_zone,
-            &b[0],
-            &b[1],
-            &b[2],
-            &b[3],
-            &b[4],
-            &b[5],
-            &b[6],
-            &b[7],
-            &b[8],
-            &self.band_floor,
-            &self.quality_ok,
-            &self.quality_flags,
-            &self.counts[0],
-            &self.counts[1],
-            &self.counts[2],
-            &self.counts[3],
-            &self.decision,
-            &self.overruled,
-            &self.evidence[0],
-            &self.evidence[1],
-            &self.evidence[2],
-            &self.speed_confidence,
-            &self.speed_rival_rpm,
-            &self.model_foreign,
-            &self.impulse[0],
-            &self.impulse[1],
-            &self.message,
-        ]
-    }
-
-    /// The converted values [`values`](Self::values) borrows.
+    /// The converted values the COPY borrows ([`super::columns::copy_values`]).
     pub fn times(&self) -> RowTimes {
         RowTimes {
             run_start: time_of(self.run_start_ns),
@@ -432,8 +373,7 @@ mod tests {
             r.model_foreign.as_deref(),
             Some(&["rig_id: model cwru-de, rig file lut-rig".to_string()][..])
         );
-        let t = r.times();
-        assert_eq!(r.values(&t).len(), COLUMNS.len() + 1);
+        assert_eq!(r.indicators, IndicatorColumns::default());
         // a message from before these fields existed: decided by the model, the rest absent
         let mut old = msg.clone();
         for key in [

@@ -333,6 +333,30 @@ fn legacy_record(b: &[u8]) -> Option<(Incoming, u64)> {
 }
 
 impl Spill {
+    /// A read-only copy of where the spill stands now, to [`peek`](Self::peek) without the
+    /// buffer's lock: it sees the records appended so far (the segments' sizes now), never
+    /// one being appended; only its owner's [`commit`](Self::commit) moves the read position
+    /// or deletes segments. Damage it finds is handed back with [`absorb`](Self::absorb).
+    pub fn reader(&self) -> Spill {
+        Spill {
+            dir: self.dir.clone(),
+            segments: self.segments.clone(),
+            writer: None,
+            read: self.read,
+            records: self.records,
+            damaged: RefCell::new(self.damaged.borrow().clone()),
+        }
+    }
+
+    /// Keep what a [`reader`](Self::reader) found damaged.
+    pub fn absorb(&self, reader: &Spill) {
+        let found = reader.damaged.borrow();
+        let mut d = self.damaged.borrow_mut();
+        for (k, v) in found.iter() {
+            d.entry(*k).or_insert(*v);
+        }
+    }
+
     /// Up to `max` records from the read position, and the cursor after them (not committed).
     pub fn peek(&self, max: usize) -> Result<(Vec<Incoming>, Cursor)> {
         let mut out = Vec::new();

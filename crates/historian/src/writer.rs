@@ -5,14 +5,15 @@
 //! per point, one event per state change (with the state it left, how long that held, and
 //! the full JSON), and the daemons' latest status. Exactly once, or not at all.
 
+use super::columns;
 use super::database::Target;
 use super::migrations;
 use super::partitions::Partitions;
-use super::row::{ns_of, time_of, ModelKey, PointInfo, WindowRow, COLUMNS};
-use anyhow::{Context, Result};
+use super::row::{ns_of, time_of, ModelKey, PointInfo, WindowRow};
+use rigmon_core::wire::status::StatusMessage;
 use rigmon_core::health::UNKNOWN;
 use rigmon_core::vocabulary::Condition;
-use rigmon_core::wire::status::StatusMessage;
+use anyhow::{Context, Result};
 use std::collections::HashMap;
 use std::time::SystemTime;
 use tokio_postgres::binary_copy::BinaryCopyInWriter;
@@ -136,25 +137,24 @@ ON CONFLICT (point_id) DO UPDATE SET time = excluded.time, phase = excluded.phas
     message = excluded.message
 WHERE excluded.time > s.time";
 
-/// The insert with its aggregates; $1 = the unknown state, $2 = the healthy label.
-fn insert_sql(cols: &str) -> String {
+/// The insert with its aggregates, from the column table ([`columns`]); $1 = the unknown
+/// state, $2 = the healthy label.
+fn insert_sql() -> String {
+    let cols = columns::names();
+    let returned = columns::returned();
+    let (agg_cols, agg_exprs, agg_merges) = columns::minute_sql();
+    let (latest, latest_updates) = columns::latest_sql();
     format!(
         "WITH ins AS (
     INSERT INTO windows ({cols}) SELECT {cols} FROM staging ON CONFLICT DO NOTHING
-    RETURNING point_id, time, run_start, seq, state, state_since, window_state, confidence,
-              rpm, velocity_rms_mm_s, iso_zone, quality_ok, bpfo_1, bpfi_1, two_bsf_1, novelty
+    RETURNING {returned}
 ), agg AS (
     INSERT INTO minutes AS m (point_id, minute, windows, bad_quality, unknown_windows,
-        fault_windows, last_time, last_state, rpm_sum, rpm_n, velocity_sum, velocity_max,
-        velocity_n, bpfo_1_sum, bpfo_1_max, bpfi_1_sum, bpfi_1_max, two_bsf_1_sum,
-        two_bsf_1_max, bands_n, novelty_max)
+        fault_windows, last_time, last_state, {agg_cols})
     SELECT point_id, date_bin('1 minute', time, TIMESTAMPTZ '2000-01-01 00:00:00+00'),
         count(*), count(*) FILTER (WHERE NOT quality_ok), count(*) FILTER (WHERE state = $1),
         count(*) FILTER (WHERE state <> $1 AND state <> $2), max(time),
-        (array_agg(state ORDER BY time DESC))[1], coalesce(sum(rpm), 0), count(rpm),
-        coalesce(sum(velocity_rms_mm_s), 0), max(velocity_rms_mm_s), count(velocity_rms_mm_s),
-        coalesce(sum(bpfo_1), 0), max(bpfo_1), coalesce(sum(bpfi_1), 0), max(bpfi_1),
-        coalesce(sum(two_bsf_1), 0), max(two_bsf_1), count(bpfo_1), max(novelty)
+        (array_agg(state ORDER BY time DESC))[1], {agg_exprs}
     FROM ins GROUP BY 1, 2
     ON CONFLICT (point_id, minute) DO UPDATE SET
         windows = m.windows + excluded.windows,
@@ -164,29 +164,12 @@ fn insert_sql(cols: &str) -> String {
         last_state = CASE WHEN excluded.last_time > m.last_time THEN excluded.last_state
                           ELSE m.last_state END,
         last_time = greatest(m.last_time, excluded.last_time),
-        rpm_sum = m.rpm_sum + excluded.rpm_sum, rpm_n = m.rpm_n + excluded.rpm_n,
-        velocity_sum = m.velocity_sum + excluded.velocity_sum,
-        velocity_max = greatest(m.velocity_max, excluded.velocity_max),
-        velocity_n = m.velocity_n + excluded.velocity_n,
-        bpfo_1_sum = m.bpfo_1_sum + excluded.bpfo_1_sum,
-        bpfo_1_max = greatest(m.bpfo_1_max, excluded.bpfo_1_max),
-        bpfi_1_sum = m.bpfi_1_sum + excluded.bpfi_1_sum,
-        bpfi_1_max = greatest(m.bpfi_1_max, excluded.bpfi_1_max),
-        two_bsf_1_sum = m.two_bsf_1_sum + excluded.two_bsf_1_sum,
-        two_bsf_1_max = greatest(m.two_bsf_1_max, excluded.two_bsf_1_max),
-        bands_n = m.bands_n + excluded.bands_n,
-        novelty_max = greatest(m.novelty_max, excluded.novelty_max)
+        {agg_merges}
 ), latest AS (
-    INSERT INTO point_latest AS l (point_id, time, run_start, seq, state, state_since,
-        window_state, confidence, rpm, velocity_rms_mm_s, iso_zone, quality_ok)
-    SELECT DISTINCT ON (point_id) point_id, time, run_start, seq, state, state_since,
-        window_state, confidence, rpm, velocity_rms_mm_s, iso_zone, quality_ok
+    INSERT INTO point_latest AS l ({latest})
+    SELECT DISTINCT ON (point_id) {latest}
     FROM ins ORDER BY point_id, time DESC
-    ON CONFLICT (point_id) DO UPDATE SET time = excluded.time, run_start = excluded.run_start,
-        seq = excluded.seq, state = excluded.state, state_since = excluded.state_since,
-        window_state = excluded.window_state, confidence = excluded.confidence,
-        rpm = excluded.rpm, velocity_rms_mm_s = excluded.velocity_rms_mm_s,
-        iso_zone = excluded.iso_zone, quality_ok = excluded.quality_ok
+    ON CONFLICT (point_id) DO UPDATE SET {latest_updates}
     WHERE excluded.time > l.time
 )
 SELECT count(*) FROM ins"
@@ -206,6 +189,7 @@ impl Writer {
         }
         migrations::apply(&mut client).await?;
         let version = migrations::current(&client).await?;
+        columns::check(&client, version).await?;
         client
             .batch_execute(
                 "CREATE TEMP TABLE staging (LIKE windows) ON COMMIT DELETE ROWS;
@@ -213,19 +197,18 @@ impl Writer {
             )
             .await
             .context("creating the staging table")?;
-        let names: Vec<&str> = COLUMNS.iter().map(|c| c.0).collect();
-        let cols = names.join(", ");
-        let mut copy_types: Vec<Type> = COLUMNS.iter().map(|c| c.1.clone()).collect();
-        copy_types.push(Type::JSONB);
         Ok((
             Writer {
                 client,
                 points: HashMap::new(),
                 models: HashMap::new(),
                 partitions: Partitions::default(),
-                copy_sql: format!("COPY staging ({cols}, message) FROM STDIN (FORMAT binary)"),
-                copy_types,
-                insert_sql: insert_sql(&cols),
+                copy_sql: format!(
+                    "COPY staging ({}, message) FROM STDIN (FORMAT binary)",
+                    columns::names()
+                ),
+                copy_types: columns::copy_types(),
+                insert_sql: insert_sql(),
             },
             version,
         ))
@@ -408,7 +391,7 @@ impl Writer {
             let mut copy = std::pin::pin!(BinaryCopyInWriter::new(sink, &self.copy_types));
             for (r, t) in rows.iter().zip(&times) {
                 copy.as_mut()
-                    .write(&r.values(t))
+                    .write(&columns::copy_values(r, t))
                     .await
                     .context("COPY row")?;
             }
