@@ -1235,9 +1235,9 @@ pub(crate) fn every_field_set(run_ns: u64, seq: u64) -> rigmon::wire::health::He
 
 /// Health indicators and a departure reading with every field set (exact in `real`); the
 /// machine departed 2 s into the run.
-fn every_indicator_set() -> rigmon::health::message::HealthIndicators {
+fn every_indicator_set() -> rigmon::wire::health::HealthIndicators {
     use rigmon::model::indicators::{Indicator, Indicators, PerIndicator};
-    rigmon::health::message::HealthIndicators {
+    rigmon::wire::health::HealthIndicators {
         values: Indicators {
             rms: 0.25,
             crest: 4.5,

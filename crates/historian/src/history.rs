@@ -9,20 +9,20 @@ use super::columns::{self, Read};
 use super::database::Target;
 use super::row::ns_of;
 use super::status::Counters;
+use anyhow::{anyhow, Result};
 use rigmon_core::health::iso20816::Zone;
-use rigmon_core::wire::health::{
-    FaultBands, HealthIndicators, HealthMessage, ModelInfo, QualityReport, WindowTimes, SCHEMA,
-    SCHEMA_VERSION,
-};
 use rigmon_core::health::{Basis, UnknownReason};
 use rigmon_core::model::departure::DepartureReading;
 use rigmon_core::model::evidence::FamilyEvidence;
 use rigmon_core::model::impulsiveness::Impulse;
 use rigmon_core::model::indicators::{Indicator, Indicators, PerIndicator};
+use rigmon_core::vocabulary::Condition;
+use rigmon_core::wire::health::{
+    FaultBands, HealthIndicators, HealthMessage, ModelInfo, QualityReport, WindowTimes, SCHEMA,
+    SCHEMA_VERSION,
+};
 use rigmon_runtime::publish::time_range::{now_ns, TimeRange, PARAMETER as TIME};
 use rigmon_runtime::publish::zenoh::error_text;
-use rigmon_core::vocabulary::Condition;
-use anyhow::{anyhow, Result};
 use std::collections::BTreeMap;
 use std::sync::Arc;
 use std::time::SystemTime;

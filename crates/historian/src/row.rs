@@ -2,10 +2,10 @@
 //! each is written is [`super::columns`]), the point it belongs to in the asset tree, the
 //! model that produced it and, on a state change, the full JSON for the event.
 
+use anyhow::{bail, Result};
+use rigmon_core::vocabulary::Condition;
 use rigmon_core::wire::health::{HealthIndicators, HealthMessage};
 use rigmon_runtime::publish::recent::run_start_ns;
-use rigmon_core::vocabulary::Condition;
-use anyhow::{bail, Result};
 use std::time::{Duration, SystemTime, UNIX_EPOCH};
 
 /// The model a row was classified by (`models` table).
@@ -221,7 +221,8 @@ impl WindowRow {
             .collect();
         let fb = &m.fault_bands;
         let q = &m.quality;
-        let label = |r: Option<rigmon_core::health::UnknownReason>| r.map(|r| r.as_str().to_string());
+        let label =
+            |r: Option<rigmon_core::health::UnknownReason>| r.map(|r| r.as_str().to_string());
         WindowRow {
             point: PointInfo::of(&m, default_site),
             model: ModelKey {
