@@ -3,6 +3,7 @@
 //! model that produced it and, on a state change, the full JSON for the event.
 
 use anyhow::{bail, Result};
+use rigmon_core::health::UnknownReason;
 use rigmon_core::vocabulary::Condition;
 use rigmon_core::wire::health::{HealthIndicators, HealthMessage};
 use rigmon_runtime::publish::recent::run_start_ns;
@@ -221,8 +222,7 @@ impl WindowRow {
             .collect();
         let fb = &m.fault_bands;
         let q = &m.quality;
-        let label =
-            |r: Option<rigmon_core::health::UnknownReason>| r.map(|r| r.as_str().to_string());
+        let label = |r: Option<UnknownReason>| r.map(|r| r.as_str().to_string());
         WindowRow {
             point: PointInfo::of(&m, default_site),
             model: ModelKey {
