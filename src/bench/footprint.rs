@@ -248,7 +248,7 @@ fn service_binary() -> Result<std::path::PathBuf> {
     if !exe.exists() {
         bail!(
             "{} is missing: bench footprint measures the service binary; build it beside rigmon \
-             (`cargo build --release --workspace`)",
+             (`cargo build --release`)",
             exe.display()
         );
     }

@@ -364,7 +364,7 @@ fn read_tree() -> Tree {
         rs_files(&src, &mut found);
         for f in found {
             let rel = f.strip_prefix(&src).unwrap().to_path_buf();
-            if rel == Path::new("main.rs") {
+            if rel == Path::new("main.rs") || rel.starts_with("bin") {
                 continue; // a binary is its own crate
             }
             let mut m: Module = prefix.iter().map(|s| s.to_string()).collect();
@@ -407,7 +407,7 @@ fn top_level_modules() -> BTreeSet<String> {
             let path = entry.unwrap().path();
             let name = path.file_stem().unwrap().to_string_lossy().to_string();
             let is_module = path.is_dir() || path.extension().is_some_and(|e| e == "rs");
-            if is_module && name != "main" && name != "lib" {
+            if is_module && !["main", "lib", "bin"].contains(&name.as_str()) {
                 out.insert(name);
             }
         }
@@ -759,7 +759,7 @@ fn readme_layout() -> BTreeSet<String> {
 fn the_readme_layout_names_every_module() {
     let mut modules = top_level_modules();
     modules.extend(workspace_crates());
-    modules.extend(["main".to_string(), "lib".to_string()]);
+    modules.extend(["main", "lib", "bin"].map(String::from));
     let layout = readme_layout();
     let missing: Vec<_> = modules.difference(&layout).collect();
     let stale: Vec<_> = layout.difference(&modules).collect();

@@ -9,16 +9,9 @@ use std::path::PathBuf;
 use std::process::{Command, Stdio};
 use std::time::Duration;
 
-/// The service binary beside `rigmon` in the same target folder (`cargo test --workspace`
-/// builds every binary of the workspace).
+/// The service binary (a second binary of the `rigmon` package).
 fn service_bin() -> PathBuf {
-    let p = std::path::Path::new(bin()).with_file_name("rigmon-daemon");
-    assert!(
-        p.exists(),
-        "{} is missing: build it with `cargo build -p rigmon-runtime` (or run the tests with --workspace)",
-        p.display()
-    );
-    p
+    PathBuf::from(env!("CARGO_BIN_EXE_rigmon-daemon"))
 }
 
 /// How many times each needle occurs in the haystack (byte strings).

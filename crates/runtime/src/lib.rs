@@ -2,7 +2,7 @@
 //!
 //! [`acquire`] (sources: serial, CAN, sound card, openDAQ, file replay) -> the core's analysis,
 //! model and health -> [`publish`] (Zenoh) and [`recorder`] (MCAP); [`daemon`] wires them and
-//! [`run`] is the `run` command (the lean service binary `rigmon-daemon` and `rigmon run`).
+//! [`run`] is the `run` command (`rigmon run` and the lean service binary `rigmon-daemon`).
 //! No PostgreSQL client, no plotting and no lab code is linked from here.
 
 pub mod acquire;

@@ -1,6 +1,7 @@
 //! `rigmon-daemon`: the lean service binary systemd starts (`systemd/rigmon.service`). It runs
-//! the monitoring daemon exactly as `rigmon run` does, with the same arguments, and links only
-//! the core and the runtime: no PostgreSQL client, no plotting, no simulator or trainer.
+//! the monitoring daemon exactly as `rigmon run` does, with the same arguments, and names only
+//! `rigmon_runtime` (on the core): no PostgreSQL client, no plotting, no simulator or trainer
+//! is linked. It lives in the `rigmon` package so that `cargo build` and `cargo test` build it.
 
 use clap::Parser;
 use rigmon_runtime::run;
