@@ -18,6 +18,7 @@
 use super::{abs, cpu_seconds, free_port, machine_line, percentile, BenchOptions};
 use crate::config::{RigConfig, SpeedConfig};
 use crate::publish::zenoh::{ZenohSettings, ZenohSubscriber};
+use crate::vocabulary::SpeedSourceKind;
 use crate::wire::health::HealthMessage;
 use anyhow::{bail, Context, Result};
 use std::path::{Path, PathBuf};
@@ -56,7 +57,7 @@ impl Drop for ChildGuard {
 
 /// One speed source to run the daemon with.
 struct Case {
-    speed: &'static str,
+    speed: SpeedSourceKind,
     rig: PathBuf,
     replay: PathBuf,
 }
@@ -64,7 +65,7 @@ struct Case {
 /// What one run of the daemon measured.
 #[derive(Debug, Clone, serde::Serialize)]
 struct Measured {
-    speed_source: &'static str,
+    speed_source: SpeedSourceKind,
     seconds: f64,
     cpu_pct: f64,
     /// Start-up peak: the largest VmRSS sampled during the warm-up, and VmHWM at its end.
@@ -82,7 +83,7 @@ struct Measured {
     /// found), and the speed sources the messages name.
     received: usize,
     without_speed: usize,
-    speed_sources_seen: Vec<String>,
+    speed_sources_seen: Vec<SpeedSourceKind>,
 }
 
 pub fn run(opts: &BenchOptions) -> Result<()> {
@@ -135,42 +136,31 @@ fn cases(rig_path: &Path, replay: &Path, dir: &Path) -> Result<Vec<Case>> {
     crate::analysis::speed_source::analog_tacho_to_edges(&mut rec, &rig)?;
     crate::recording::mcap::write_recording(&edges_replay, &rec)?;
     let ppr = rig.speed.pulses_per_rev();
-    let others: [(&'static str, SpeedConfig, &Path); 4] = [
+    let others: [(SpeedConfig, &Path); 4] = [
         (
-            "edges",
             SpeedConfig::Edges {
                 pulses_per_rev: ppr,
             },
             &edges_replay,
         ),
         (
-            "fixed",
             SpeedConfig::Fixed {
                 rpm,
                 check_within_percent: 10.0,
             },
             replay,
         ),
-        (
-            "recording",
-            toml::from_str("source = \"recording\"")?,
-            replay,
-        ),
-        ("estimate", toml::from_str("source = \"estimate\"")?, replay),
+        (toml::from_str("source = \"recording\"")?, replay),
+        (toml::from_str("source = \"estimate\"")?, replay),
     ];
-    let own = match rig.speed {
-        SpeedConfig::Tacho { .. } => "tacho",
-        SpeedConfig::Edges { .. } => "edges",
-        SpeedConfig::Fixed { .. } => "fixed",
-        SpeedConfig::Recording { .. } => "recording",
-        SpeedConfig::Estimate { .. } => "estimate",
-    };
+    let own = rig.speed.kind();
     let mut cases = vec![Case {
         speed: own,
         rig: rig_path.to_path_buf(),
         replay: replay.to_path_buf(),
     }];
-    for (name, speed, file) in others.into_iter().filter(|(n, ..)| *n != own) {
+    for (speed, file) in others.into_iter().filter(|(s, _)| s.kind() != own) {
+        let name = speed.kind();
         let path = dir.join(format!("rig-{name}.toml"));
         let r = RigConfig {
             speed,
@@ -205,7 +195,7 @@ fn write_config(case: &Case, model: &Path, endpoint: &str, dir: &Path) -> Result
 
 /// Health messages received while `counting`: (window end -> received ms, speed source, the
 /// window had a speed).
-type Received = Arc<Mutex<Vec<(f64, String, bool)>>>;
+type Received = Arc<Mutex<Vec<(f64, SpeedSourceKind, bool)>>>;
 
 /// A subscriber thread on `endpoint` that records what arrives while `counting` is set.
 fn subscribe(
@@ -313,7 +303,7 @@ fn measure(case: &Case, model: &Path, dir: &Path, seconds: f64) -> Result<Measur
     let mut lat: Vec<f64> = got.iter().map(|(ms, ..)| *ms).collect();
     lat.sort_by(|a, b| a.total_cmp(b));
     let without_speed = got.iter().filter(|(.., speed)| !speed).count();
-    let mut seen: Vec<String> = got.into_iter().map(|(_, s, _)| s).collect();
+    let mut seen: Vec<SpeedSourceKind> = got.into_iter().map(|(_, s, _)| s).collect();
     seen.sort();
     seen.dedup();
     Ok(Measured {

@@ -72,7 +72,7 @@ fn window(tag: &str, i: usize, seq: u64, run_ns: u64) -> HealthMessage {
         },
         publish_time_ns: 0,
         rpm: Some(1480.0 + 10.0 * f64::from(wobble)),
-        speed_source: "tacho".into(),
+        speed_source: crate::vocabulary::SpeedSourceKind::Tacho,
         speed_confidence: None,
         speed_rival_rpm: None,
         quality: QualityReport {

@@ -6,7 +6,8 @@
 
 use super::{machine_line, BenchOptions};
 use crate::config::RigConfig;
-use crate::sim::{self, dataset::generate, plan::Plan, Fault, Scenario};
+use crate::sim::{self, dataset::generate, plan::Plan, Scenario};
+use crate::vocabulary::Condition;
 use anyhow::{bail, Context, Result};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -35,7 +36,11 @@ pub fn run(opts: &BenchOptions) -> Result<()> {
 
     // 1) one core, 10 s of signal, each fault class (best of two runs each).
     let mut single = Vec::new();
-    for faults in [vec![], vec![Fault::OuterRace], vec![Fault::InnerRace]] {
+    for faults in [
+        vec![],
+        vec![Condition::OuterRace],
+        vec![Condition::InnerRace],
+    ] {
         let sc = Scenario::constant(&faults, rpm, seconds, 1);
         let mut best = f64::INFINITY;
         for _ in 0..2 {
@@ -172,7 +177,7 @@ fn validation_table(rig: &RigConfig) -> Result<Vec<(f64, String, Vec<f64>)>> {
             .collect();
             rows.push((fr, format!("theory (alpha {alpha})"), theory.clone()));
             let mut meas = Vec::new();
-            for (fault, base) in [(Fault::OuterRace, 0), (Fault::InnerRace, 3)] {
+            for (fault, base) in [(Condition::OuterRace, 0), (Condition::InnerRace, 3)] {
                 let mut sc = Scenario::constant(&[fault], fr * 60.0, 10.0, 42);
                 if alpha > 0.0 {
                     sc.overrides.contact_angle_deg = Some(alpha);

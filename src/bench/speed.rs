@@ -124,7 +124,10 @@ fn synthetic(m: &Machine, rig: &RigConfig, seconds: f64) -> Result<(Recording, S
         },
         metadata: Default::default(),
     };
-    Ok((rec, SpeedTrack::from_edges(&edges, 1, "truth")?))
+    Ok((
+        rec,
+        SpeedTrack::from_edges(&edges, 1, crate::vocabulary::SpeedSourceKind::Simulator)?,
+    ))
 }
 
 /// What one machine measured.

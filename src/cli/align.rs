@@ -68,7 +68,12 @@ pub fn run(args: Args) -> Result<()> {
         "aligned {} to {} healthy recording(s): {}",
         args.model.display(),
         entries.len(),
-        aligned.meta.alignment
+        aligned
+            .meta
+            .alignment
+            .as_ref()
+            .map(|a| a.to_text())
+            .unwrap_or_default()
     );
     println!("wrote {}", args.output.display());
     Ok(())

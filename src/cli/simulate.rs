@@ -1,7 +1,8 @@
 //! `rigmon simulate`: run the rig simulator for one scenario and write MCAP or WAV.
 
 use crate::config::RigConfig;
-use crate::sim::{self, Fault, Overrides, Scenario, SpeedProfile};
+use crate::sim::{self, Overrides, Scenario, SpeedProfile};
+use crate::vocabulary::Condition;
 use anyhow::{bail, Result};
 use std::collections::BTreeMap;
 use std::path::PathBuf;
@@ -74,7 +75,7 @@ pub fn refuse_overwrite(args: &Args) -> Result<()> {
 
 pub fn run(args: Args) -> Result<()> {
     let rig = RigConfig::load(&args.rig)?;
-    let faults = Fault::parse_list(&args.fault)?;
+    let faults = Condition::parse_faults(&args.fault)?;
     if !(args.rpm > 0.0) {
         bail!("--rpm {}: must be positive", args.rpm);
     }

@@ -9,6 +9,7 @@ use rigmon::dsp::synthetic::Synthetic;
 use rigmon::dsp::{speed_estimate, FeaturePipeline, SpeedTrack};
 use rigmon::importers::{self, ImportOptions};
 use rigmon::recording::{Channel, Provenance, Recording, Tacho};
+use rigmon::vocabulary::SpeedSourceKind;
 use std::collections::BTreeMap;
 
 use crate::common::{rig, shared_data};
@@ -95,7 +96,14 @@ fn order_peak_stays_in_its_bin_under_a_20_percent_ramp_analog_tacho_and_edges() 
                 "rpm {} vs {truth}",
                 w.rpm
             );
-            assert_eq!(w.speed_source, if edges { "edges" } else { "tacho" });
+            assert_eq!(
+                w.speed_source,
+                if edges {
+                    SpeedSourceKind::Edges
+                } else {
+                    SpeedSourceKind::Tacho
+                }
+            );
             assert!(w.quality.is_clean(), "{:?}", w.quality.flags());
         }
     }
@@ -188,7 +196,7 @@ fn feature_vector_length_bin_layout_and_scale() {
         })
         .collect();
     let run = syn.generate();
-    let speed = SpeedTrack::from_edges(&run.edges, 1, "edges").unwrap();
+    let speed = SpeedTrack::from_edges(&run.edges, 1, SpeedSourceKind::Edges).unwrap();
     let mut pipe = FeaturePipeline::new(&rig, fs).unwrap();
     let w = pipe
         .process_window(2.0, &[("vertical", &x), ("axial", &x)], &speed)
@@ -310,7 +318,7 @@ fn cwru_envelope_order_peak_at_the_fault_order() {
     for c in CWRU.iter().filter(|c| c.fault.is_some()) {
         let rec = load_cwru(c.file, &rig);
         let speed = rigmon::analysis::whole_recording(&rec, &rig).unwrap();
-        assert_eq!(speed.source(), "recording");
+        assert_eq!(speed.source(), SpeedSourceKind::Recording);
         let de = rec.channel("DE").unwrap();
         let spec = whole_recording(
             &de.samples,
@@ -350,7 +358,7 @@ fn cwru_estimated_speed_within_one_percent() {
         let rec = load_cwru(c.file, &rig);
         let stored = rec.rpm.expect("CWRU files store the rpm");
         let speed = rigmon::analysis::whole_recording(&rec, &rig).unwrap();
-        assert_eq!(speed.source(), "estimate");
+        assert_eq!(speed.source(), SpeedSourceKind::Estimate);
         let est = speed.mean_rpm(0.0, rec.duration_s());
         assert!(
             (est / stored - 1.0).abs() < 0.01,
@@ -490,14 +498,15 @@ fn accelerometer_only_lut_rig() -> RigConfig {
 /// at 5.5 s, the first after acquisition).
 #[test]
 fn speed_from_the_vibration_alone_follows_the_simulator() {
-    use rigmon::sim::{profile::SpeedProfile, Fault, Scenario};
+    use rigmon::sim::{profile::SpeedProfile, Scenario};
+    use rigmon::vocabulary::Condition;
     let r = accelerometer_only_lut_rig();
     let full = 20.0 / (250.0 / 60.0);
     let mut cases: Vec<(String, Scenario)> = [300.0, 600.0, 1800.0]
         .iter()
         .map(|&rpm| {
-            let faults: &[Fault] = if rpm == 600.0 {
-                &[Fault::OuterRace]
+            let faults: &[Condition] = if rpm == 600.0 {
+                &[Condition::OuterRace]
             } else {
                 &[]
             };
@@ -524,7 +533,7 @@ fn speed_from_the_vibration_alone_follows_the_simulator() {
             // half an order bin (0.5) at the highest order (50): 0.5 %; in the first second
             // after the history fills, the acquisition's coarse trend is still being refined
             let bound = if w.t_end >= full + 1.0 { 0.005 } else { 0.01 };
-            assert_eq!(w.speed_source, "estimate", "{name}");
+            assert_eq!(w.speed_source, SpeedSourceKind::Estimate, "{name}");
             assert!(
                 err.abs() < bound && !w.quality.speed_uncertain,
                 "{name}, window ending {:.1} s: {:.1} rpm against {truth:.1} ({:+.2} %), confidence {:?}",
@@ -559,7 +568,8 @@ fn a_recording_too_short_for_the_lowest_speed_is_refused_up_front() {
 /// machine from an outer-race fault at the same speed.
 #[test]
 fn training_on_the_simulators_speed_gives_the_features_the_tracker_would() {
-    use rigmon::sim::{Fault, Scenario};
+    use rigmon::sim::Scenario;
+    use rigmon::vocabulary::Condition;
     let mut r = accelerometer_only_lut_rig();
     r.channels
         .retain(|c| c.kind != rigmon::config::ChannelKind::Tacho);
@@ -572,7 +582,7 @@ fn training_on_the_simulators_speed_gives_the_features_the_tracker_would() {
             .sqrt()
     };
     for rpm in [600.0, 1800.0] {
-        let features = |faults: &[Fault], tracked: bool| {
+        let features = |faults: &[Condition], tracked: bool| {
             let mut rec =
                 rigmon::sim::simulate(&r, &Scenario::constant(faults, rpm, 8.0, 4)).unwrap();
             assert!(
@@ -583,7 +593,11 @@ fn training_on_the_simulators_speed_gives_the_features_the_tracker_would() {
                 rec.tacho = None;
             }
             let wins = extract_recording(&rec, &r).unwrap();
-            let source = if tracked { "estimate" } else { "simulator" };
+            let source = if tracked {
+                SpeedSourceKind::Estimate
+            } else {
+                SpeedSourceKind::Simulator
+            };
             assert!(wins.iter().all(|w| w.speed_source == source), "{rpm} rpm");
             wins.into_iter()
                 .filter(|w| w.t_end >= full)
@@ -591,7 +605,7 @@ fn training_on_the_simulators_speed_gives_the_features_the_tracker_would() {
                 .collect::<Vec<_>>()
         };
         let (truth, tracked) = (features(&[], false), features(&[], true));
-        let faulty = features(&[Fault::OuterRace], false);
+        let faulty = features(&[Condition::OuterRace], false);
         assert!(truth.len() >= 4 && truth.len() == tracked.len());
         for ((t, k), f) in truth.iter().zip(&tracked).zip(&faulty) {
             assert!(
@@ -673,12 +687,13 @@ fn tracked_rpm(rec: &Recording, r: &RigConfig, families: bool) -> Vec<f64> {
 /// the faulty recordings at 1200 rpm.
 #[test]
 fn speed_from_the_vibration_takes_the_octave_the_bearing_faults_fit() {
-    use rigmon::sim::{Fault, Scenario};
+    use rigmon::sim::Scenario;
+    use rigmon::vocabulary::Condition;
     let r = twice_per_rev_hit_sm_rig();
     let settled = 20.0 / (500.0 / 60.0) + 1.0;
     for (name, faults) in [
-        ("outer race", vec![Fault::OuterRace]),
-        ("inner race", vec![Fault::InnerRace]),
+        ("outer race", vec![Condition::OuterRace]),
+        ("inner race", vec![Condition::InnerRace]),
         ("healthy", vec![]),
     ] {
         let mut rec =

@@ -1158,7 +1158,7 @@ fn with_family(order: f64, k: f32, n: usize, seed: u64) -> Array2<f32> {
 fn aligned_model_evidence_decides_where_the_network_guesses() {
     use rigmon::health::{judge, Basis, HealthPolicy, WindowInput};
     use rigmon::model::align::align_to_healthy;
-    use rigmon::model::evidence::{BaselineSpread, FamilyBins};
+    use rigmon::model::evidence::FamilyBins;
     let (model, _, _) = trained(3);
     let healthy = machine_windows("healthy", 12, false, 1);
     let aligned =
@@ -1167,7 +1167,12 @@ fn aligned_model_evidence_decides_where_the_network_guesses() {
     let path = dir.path().join("aligned.onnx");
     export::write(&aligned, &path).unwrap();
     let clf = OnnxClassifier::load(&path).unwrap();
-    let spread = BaselineSpread::of(clf.meta()).expect("alignment stores the spread");
+    let spread = clf
+        .meta()
+        .alignment
+        .as_ref()
+        .and_then(|a| a.spread())
+        .expect("alignment stores the spread");
     let orders = rig().bearing.fault_orders();
     let bins = FamilyBins::for_rig(&rig());
     let policy = HealthPolicy::default();

@@ -4,7 +4,8 @@
 
 use rigmon::config::RigConfig;
 use rigmon::recording::{Recording, Tacho};
-use rigmon::sim::{self, signature::envelope_spectrum, Fault, Scenario};
+use rigmon::sim::{self, signature::envelope_spectrum, Scenario};
+use rigmon::vocabulary::Condition;
 use std::path::Path;
 
 fn rig(name: &str) -> RigConfig {
@@ -49,14 +50,15 @@ fn first_bending_modes_match_table3() {
     );
 }
 
-fn check_fault_line(fault: Fault, fr: f64, seconds: f64) {
+fn check_fault_line(fault: Condition, fr: f64, seconds: f64) {
     let r = rig("lut-rig.toml");
     let rec = sim::simulate(&r, &Scenario::constant(&[fault], fr * 60.0, seconds, 11)).unwrap();
     let orders = sim::model_fault_orders(&r, r.simulation.as_ref().unwrap());
     let f0 = match fault {
-        Fault::OuterRace => orders.bpfo,
-        Fault::InnerRace => orders.bpfi,
-        Fault::Ball => orders.two_bsf,
+        Condition::OuterRace => orders.bpfo,
+        Condition::InnerRace => orders.bpfi,
+        Condition::Ball => orders.two_bsf,
+        Condition::Healthy => unreachable!("a fault line of a healthy bearing"),
     } * fr;
     let s = env_spec(&rec, "vertical");
     let (f, a) = s.peak_near(f0, 0.03);
@@ -74,20 +76,20 @@ fn check_fault_line(fault: Fault, fr: f64, seconds: f64) {
 
 #[test]
 fn outer_race_line_at_bpfo() {
-    check_fault_line(Fault::OuterRace, 9.8, 6.0);
-    check_fault_line(Fault::OuterRace, 19.8, 4.0);
+    check_fault_line(Condition::OuterRace, 9.8, 6.0);
+    check_fault_line(Condition::OuterRace, 19.8, 4.0);
 }
 
 #[test]
 fn inner_race_line_at_bpfi_with_sidebands() {
-    check_fault_line(Fault::InnerRace, 9.8, 6.0);
-    check_fault_line(Fault::InnerRace, 19.8, 4.0);
+    check_fault_line(Condition::InnerRace, 9.8, 6.0);
+    check_fault_line(Condition::InnerRace, 19.8, 4.0);
     // load-zone modulation: BPFI +- 1x
     let r = rig("lut-rig.toml");
     let fr = 19.8;
     let rec = sim::simulate(
         &r,
-        &Scenario::constant(&[Fault::InnerRace], fr * 60.0, 4.0, 5),
+        &Scenario::constant(&[Condition::InnerRace], fr * 60.0, 4.0, 5),
     )
     .unwrap();
     let bpfi = sim::model_fault_orders(&r, r.simulation.as_ref().unwrap()).bpfi * fr;
@@ -109,7 +111,7 @@ fn contact_angle_moves_the_lines() {
     // thesis MBD: alpha ~28.9 deg raises BPFO by ~2.4 %; the model follows its own angle
     let r = rig("lut-rig.toml");
     let fr = 19.8;
-    let mut sc = Scenario::constant(&[Fault::OuterRace], fr * 60.0, 4.0, 3);
+    let mut sc = Scenario::constant(&[Condition::OuterRace], fr * 60.0, 4.0, 3);
     sc.overrides.contact_angle_deg = Some(28.87);
     sc.overrides.radial_clearance_mm = Some(0.0);
     let rec = sim::simulate(&r, &sc).unwrap();
@@ -146,7 +148,12 @@ fn healthy_has_no_fault_lines() {
 #[test]
 fn same_seed_same_output_and_bounded_long_run() {
     let r = rig("lut-rig.toml");
-    let sc = Scenario::constant(&[Fault::InnerRace, Fault::OuterRace], 900.0, 0.5, 77);
+    let sc = Scenario::constant(
+        &[Condition::InnerRace, Condition::OuterRace],
+        900.0,
+        0.5,
+        77,
+    );
     let a = sim::simulate(&r, &sc).unwrap();
     let b = sim::simulate(&r, &sc).unwrap();
     assert_eq!(a, b);
@@ -159,7 +166,7 @@ fn same_seed_same_output_and_bounded_long_run() {
     // 60 s at 19.8 Hz stays bounded and stationary
     let long = sim::simulate(
         &r,
-        &Scenario::constant(&[Fault::InnerRace], 1188.0, 60.0, 9),
+        &Scenario::constant(&[Condition::InnerRace], 1188.0, 60.0, 9),
     )
     .unwrap();
     let v = vertical(&long);
@@ -179,7 +186,11 @@ fn same_seed_same_output_and_bounded_long_run() {
 #[test]
 fn tacho_and_wav_layout() {
     let r = rig("lut-rig.toml");
-    let rec = sim::simulate(&r, &Scenario::constant(&[Fault::OuterRace], 1188.0, 1.0, 1)).unwrap();
+    let rec = sim::simulate(
+        &r,
+        &Scenario::constant(&[Condition::OuterRace], 1188.0, 1.0, 1),
+    )
+    .unwrap();
     let Some(Tacho::Analog { samples, unit }) = &rec.tacho else {
         panic!("no analog tacho")
     };
@@ -216,7 +227,11 @@ fn tacho_and_wav_layout() {
 fn cwru_rig_simulates_in_g_at_12khz() {
     let r = rig("cwru-de.toml");
     let fr = 1797.0 / 60.0;
-    let rec = sim::simulate(&r, &Scenario::constant(&[Fault::InnerRace], 1797.0, 2.0, 4)).unwrap();
+    let rec = sim::simulate(
+        &r,
+        &Scenario::constant(&[Condition::InnerRace], 1797.0, 2.0, 4),
+    )
+    .unwrap();
     assert_eq!(rec.sample_rate, 12_000.0);
     // No tacho channel on the rig: the simulator still writes its own revolution times
     // (training data in estimate mode takes its speed from them).
@@ -253,8 +268,8 @@ fn dsp_features_see_the_fault_orders() {
         let mut ratio = std::collections::BTreeMap::new();
         for (faults, order) in [
             (vec![], o.bpfo),
-            (vec![Fault::OuterRace], o.bpfo),
-            (vec![Fault::InnerRace], o.bpfi),
+            (vec![Condition::OuterRace], o.bpfo),
+            (vec![Condition::InnerRace], o.bpfi),
         ] {
             let rec = sim::simulate(&r, &Scenario::constant(&faults, fr * 60.0, 3.0, 8)).unwrap();
             let wins = rigmon::analysis::extract_recording(&rec, &r).unwrap();
@@ -370,7 +385,7 @@ fn line_interference_and_slip_are_switchable() {
     assert!(amp_at(vertical(&off), off.sample_rate, 50.0) < 0.05);
 
     let fr = 19.8;
-    let mut sc = Scenario::constant(&[Fault::OuterRace], fr * 60.0, 4.0, 6);
+    let mut sc = Scenario::constant(&[Condition::OuterRace], fr * 60.0, 4.0, 6);
     sc.overrides.slip = Some(0.02);
     let rec = sim::simulate(&r, &sc).unwrap();
     let bpfo = sim::model_fault_orders(&r, r.simulation.as_ref().unwrap()).bpfo * fr;
@@ -396,7 +411,7 @@ fn the_split_simulator_reproduces_the_shipped_replay() {
         &Default::default(),
     )
     .unwrap();
-    let sc = Scenario::constant(&[Fault::InnerRace], 588.0, 8.0, 2025);
+    let sc = Scenario::constant(&[Condition::InnerRace], 588.0, 8.0, 2025);
     let again = sim::simulate(&rig, &sc).unwrap();
     assert_eq!(shipped.channels.len(), again.channels.len());
     for c in &shipped.channels {

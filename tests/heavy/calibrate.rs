@@ -700,7 +700,8 @@ fn a_sub_synchronous_effect_outside_the_catalog_is_located() {
 #[test]
 fn searching_on_own_views_gives_the_same_objective() {
     use rigmon::calibrate::{catalog, fit};
-    use rigmon::sim::{rig_simulation, simulate_with, Fault, Scenario};
+    use rigmon::sim::{rig_simulation, simulate_with, Scenario};
+    use rigmon::vocabulary::Condition;
     let rig = rigmon::config::RigConfig::load(&repo().join("config/lut-rig.toml")).unwrap();
     let base = rig_simulation(&rig).unwrap().clone();
     let mut truth = base.clone();
@@ -716,7 +717,7 @@ fn searching_on_own_views_gives_the_same_objective() {
         phase_deg: 0.0,
     });
     let ops: Vec<rigmon::calibrate::measured::Measured> =
-        [(vec![], 600.0), (vec![Fault::OuterRace], 1200.0)]
+        [(vec![], 600.0), (vec![Condition::OuterRace], 1200.0)]
             .into_iter()
             .enumerate()
             .map(|(i, (faults, rpm))| {

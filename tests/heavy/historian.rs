@@ -1168,7 +1168,7 @@ pub(crate) fn every_field_set(run_ns: u64, seq: u64) -> rigmon::wire::health::He
         },
         publish_time_ns: run_ns + end_s as u64 * 1_000_000_000 + 12_345_000,
         rpm: Some(1_471.5),
-        speed_source: "estimate".into(),
+        speed_source: rigmon::vocabulary::SpeedSourceKind::Estimate,
         speed_confidence: Some(0.8125),
         speed_rival_rpm: Some(735.75),
         quality: QualityReport {

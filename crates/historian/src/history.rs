@@ -165,6 +165,8 @@ fn fault_bands(r: &Read) -> FaultBands {
 fn message_of(row: &Row) -> serde_json::Value {
     let r = Read(row);
     let key: String = r.get("key");
+    // the column holds the type's names; any other text (a hand-edited row) is answered as stored
+    let speed_source: String = r.get("speed_source");
     let mut parts = key.splitn(3, '/').map(str::to_string);
     let (rig, asset, point) = (
         parts.next().unwrap_or_default(),
@@ -192,7 +194,7 @@ fn message_of(row: &Row) -> serde_json::Value {
         },
         publish_time_ns: ns_of(r.get::<SystemTime>("publish_time")),
         rpm: r.get("rpm"),
-        speed_source: r.get("speed_source"),
+        speed_source: speed_source.parse().unwrap_or_default(),
         speed_confidence: r.get::<Option<f32>>("speed_confidence").map(f64::from),
         speed_rival_rpm: r.get("speed_rival_rpm"),
         quality: quality(&r),
@@ -230,6 +232,7 @@ fn message_of(row: &Row) -> serde_json::Value {
             .unwrap_or_default(),
     };
     let mut v = serde_json::to_value(&m).unwrap_or_default();
+    v["speed_source"] = serde_json::json!(speed_source);
     if let Some(l) = r.get::<Option<Vec<f32>>>("iso_limits_mm_s") {
         v["iso_limits_mm_s"] = serde_json::json!(l);
     }

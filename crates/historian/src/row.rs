@@ -257,7 +257,7 @@ impl WindowRow {
             baseline_distance: m.baseline_distance.and_then(finite),
             beyond_baseline: m.beyond_baseline,
             rpm: m.rpm.filter(|r| r.is_finite()),
-            speed_source: m.speed_source,
+            speed_source: m.speed_source.as_str().to_owned(),
             velocity: m
                 .velocity_rms_mm_s
                 .filter(|v| v.is_finite())

@@ -26,6 +26,7 @@ use crate::dsp::speed_tracker::{
 };
 use crate::dsp::tacho;
 use crate::recording::{Recording, Tacho};
+use crate::vocabulary::SpeedSourceKind;
 use anyhow::{Context, Result};
 
 /// Speed range searched when `recording` has neither a stored rpm nor tacho edges.
@@ -48,7 +49,7 @@ enum Mode {
     /// `hint_source` when it is used.
     Tracked {
         settings: TrackerSettings,
-        hint_source: &'static str,
+        hint_source: SpeedSourceKind,
     },
     /// `recording` without a stored rpm: edges when there are some, else the vibration.
     EdgesOrTracked {
@@ -107,7 +108,7 @@ impl Mode {
                             FALLBACK_RPM.1,
                             Some((*rpm, *check_within_percent)),
                         ),
-                        hint_source: "fixed",
+                        hint_source: SpeedSourceKind::Fixed,
                     }
                 } else {
                     Mode::Constant(SpeedTrack::fixed(*rpm)?)
@@ -116,17 +117,19 @@ impl Mode {
             SpeedConfig::Recording {
                 check_within_percent,
             } => match (stored_rpm, nominal_rpm) {
-                (Some(rpm), _) => Mode::Constant(SpeedTrack::constant(rpm, "recording")?),
+                (Some(rpm), _) => {
+                    Mode::Constant(SpeedTrack::constant(rpm, SpeedSourceKind::Recording)?)
+                }
                 (None, Some(nominal)) if *check_within_percent > 0.0 => Mode::Tracked {
                     settings: tracked(
                         FALLBACK_RPM.0,
                         FALLBACK_RPM.1,
                         Some((nominal, check_within_percent.max(NOMINAL_WITHIN_PERCENT))),
                     ),
-                    hint_source: "recording",
+                    hint_source: SpeedSourceKind::Recording,
                 },
                 (None, Some(nominal)) => {
-                    Mode::Constant(SpeedTrack::constant(nominal, "recording")?)
+                    Mode::Constant(SpeedTrack::constant(nominal, SpeedSourceKind::Recording)?)
                 }
                 (None, None) => Mode::EdgesOrTracked {
                     pulses_per_rev: speed.pulses_per_rev(),
@@ -143,7 +146,7 @@ impl Mode {
                     *max_rpm,
                     nominal_rpm.map(|rpm| (rpm, *check_within_percent)),
                 ),
-                hint_source: "estimate",
+                hint_source: SpeedSourceKind::Estimate,
             },
         })
     }
@@ -268,16 +271,16 @@ impl SpeedSource {
         })
     }
 
-    /// Short name of the speed source (for messages before a window has been computed).
-    pub fn source_name(&self) -> &'static str {
+    /// The speed source (for messages before a window has been computed).
+    pub fn kind(&self) -> SpeedSourceKind {
         match &self.mode {
             Mode::Edges {
                 analog: Some(_), ..
-            } => "tacho",
-            Mode::Edges { analog: None, .. } => "edges",
-            Mode::Constant(_) => "fixed",
-            Mode::Tracked { hint_source, .. } => hint_source,
-            Mode::EdgesOrTracked { .. } => "recording",
+            } => SpeedSourceKind::Tacho,
+            Mode::Edges { analog: None, .. } => SpeedSourceKind::Edges,
+            Mode::Constant(_) => SpeedSourceKind::Fixed,
+            Mode::Tracked { hint_source, .. } => *hint_source,
+            Mode::EdgesOrTracked { .. } => SpeedSourceKind::Recording,
         }
     }
 
@@ -301,7 +304,11 @@ impl SpeedSource {
             } => SpeedTrack::from_edges(
                 &self.edges,
                 *pulses_per_rev,
-                if analog.is_some() { "tacho" } else { "edges" },
+                if analog.is_some() {
+                    SpeedSourceKind::Tacho
+                } else {
+                    SpeedSourceKind::Edges
+                },
             )
             .map(WindowSpeed::known),
             Mode::Constant(t) => Ok(WindowSpeed::known(t.clone())),
@@ -311,10 +318,10 @@ impl SpeedSource {
             }
             Mode::EdgesOrTracked { pulses_per_rev, .. } => {
                 if self.edges.len() >= 3 {
-                    SpeedTrack::from_edges(&self.edges, *pulses_per_rev, "edges")
+                    SpeedTrack::from_edges(&self.edges, *pulses_per_rev, SpeedSourceKind::Edges)
                         .map(WindowSpeed::known)
                 } else {
-                    self.tracked("recording")
+                    self.tracked(SpeedSourceKind::Recording)
                 }
             }
         }
@@ -336,7 +343,7 @@ impl SpeedSource {
     }
 
     /// The tracker's speed for the window; a hint's own speed is reported as `hint_source`.
-    fn tracked(&mut self, hint_source: &'static str) -> Result<WindowSpeed> {
+    fn tracked(&mut self, hint_source: SpeedSourceKind) -> Result<WindowSpeed> {
         let tracker = self.tracker.as_mut().expect("tracked modes have a tracker");
         let t: TrackedSpeed = tracker.estimate()?;
         let track = if t.status == SpeedStatus::Hint {
@@ -357,7 +364,7 @@ impl SpeedSource {
     /// inside the window: the speed there is a guess, so the window must not be classified.
     pub fn lost_pulses(&self, track: &SpeedTrack, t0: f64, t1: f64) -> bool {
         if !matches!(self.mode, Mode::Edges { .. } | Mode::EdgesOrTracked { .. })
-            || track.source() == "estimate"
+            || track.source() == SpeedSourceKind::Estimate
         {
             return false;
         }
@@ -398,9 +405,9 @@ impl SpeedSource {
 /// recordings: their difference against the difference between classes).
 fn simulator_speed(mode: &Mode, rec: &Recording) -> Option<Result<SpeedTrack>> {
     match (&rec.tacho, mode) {
-        (Some(Tacho::Edges { times_s }), Mode::Tracked { .. }) if rec.is_simulated() => {
-            Some(SpeedTrack::from_edges(times_s, 1, "simulator"))
-        }
+        (Some(Tacho::Edges { times_s }), Mode::Tracked { .. }) if rec.is_simulated() => Some(
+            SpeedTrack::from_edges(times_s, 1, SpeedSourceKind::Simulator),
+        ),
         _ => None,
     }
 }
@@ -459,7 +466,9 @@ pub fn whole_recording(rec: &Recording, rig: &RigConfig) -> Result<SpeedTrack> {
     }
     let from_tacho = |tacho: &Tacho, ppr: u32| -> Result<SpeedTrack> {
         match tacho {
-            Tacho::Edges { times_s } => SpeedTrack::from_edges(times_s, ppr, "edges"),
+            Tacho::Edges { times_s } => {
+                SpeedTrack::from_edges(times_s, ppr, SpeedSourceKind::Edges)
+            }
             Tacho::Analog { samples, .. } => {
                 let (thr, hyst) = analog_levels(samples, &rig.speed)?;
                 SpeedTrack::from_analog(samples, rec.sample_rate, thr, hyst, ppr)
@@ -476,13 +485,13 @@ pub fn whole_recording(rec: &Recording, rig: &RigConfig) -> Result<SpeedTrack> {
         Mode::Tracked {
             settings,
             hint_source,
-        } => tracked_whole(rec, rig, *settings, hint_source),
+        } => tracked_whole(rec, rig, *settings, *hint_source),
         Mode::EdgesOrTracked {
             pulses_per_rev,
             settings,
         } => match &rec.tacho {
             Some(t) => from_tacho(t, *pulses_per_rev),
-            None => tracked_whole(rec, rig, *settings, "recording"),
+            None => tracked_whole(rec, rig, *settings, SpeedSourceKind::Recording),
         },
     }
 }
@@ -494,12 +503,12 @@ fn tracked_whole(
     rec: &Recording,
     rig: &RigConfig,
     settings: TrackerSettings,
-    hint_source: &str,
+    hint_source: SpeedSourceKind,
 ) -> Result<SpeedTrack> {
     check_length(
         &Mode::Tracked {
             settings,
-            hint_source: "estimate",
+            hint_source: SpeedSourceKind::Estimate,
         },
         rec,
     )?;
@@ -548,7 +557,7 @@ fn tracked_whole(
     let source = if hinted == ts.len() {
         hint_source
     } else {
-        "estimate"
+        SpeedSourceKind::Estimate
     };
     let mut sorted = hz.clone();
     sorted.sort_by(f64::total_cmp);

@@ -12,7 +12,7 @@ use super::windows::WindowView;
 use crate::config::RigConfig;
 use crate::dsp::fault_band_ratios::{FaultBandMeter, FaultBandRatios};
 use crate::dsp::features::{FeaturePipeline, FeatureWindow};
-use crate::vocabulary::AccelUnit;
+use crate::vocabulary::{AccelUnit, SpeedSourceKind};
 use anyhow::Result;
 
 /// Why a window has no features.
@@ -56,8 +56,8 @@ pub struct WindowAnalysis {
     pub classifier_nan: bool,
     /// Tacho pulses stopped (or had not started) inside the window: the speed is a guess.
     pub tacho_lost: bool,
-    /// Name of the speed source before a window has been computed (tacho, edges, ...).
-    pub speed_source: &'static str,
+    /// The speed source (known before a window has been computed).
+    pub speed_source: SpeedSourceKind,
     /// How sure the vibration tracker is of the window's speed (0-1; None for speeds not
     /// read from the vibration).
     pub speed_confidence: Option<f64>,
@@ -229,7 +229,7 @@ impl AnalysisStage {
             nan_samples,
             classifier_nan,
             tacho_lost,
-            speed_source: self.speed.source_name(),
+            speed_source: self.speed.kind(),
             speed_confidence,
             speed_rival_rpm,
             fault_bands,

@@ -11,6 +11,7 @@ use crate::dsp::order_tracking::{GridInfo, OrderTracker};
 use crate::dsp::quality::{scan, Quality};
 use crate::dsp::speed::SpeedTrack;
 use crate::dsp::speed_config::SpeedConfig;
+use crate::vocabulary::SpeedSourceKind;
 use anyhow::{bail, Result};
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
@@ -23,8 +24,8 @@ pub struct FeatureWindow {
     pub t_end: f64,
     /// Mean shaft speed over the window.
     pub rpm: f64,
-    /// Where the speed came from: tacho, edges, fixed, recording, estimate.
-    pub speed_source: String,
+    /// Where the speed came from.
+    pub speed_source: SpeedSourceKind,
     /// How sure the vibration tracker is of the speed (0-1), for speeds read from the
     /// vibration.
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -202,7 +203,7 @@ impl FeaturePipeline {
             t_start,
             t_end,
             rpm,
-            speed_source: speed.source().to_string(),
+            speed_source: speed.source(),
             speed_confidence: None,
             quality,
             features,

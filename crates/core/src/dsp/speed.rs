@@ -5,6 +5,7 @@
 //! is a monotone cubic (Fritsch-Carlson), so speed is continuous and angle never runs backwards.
 
 use crate::dsp::tacho;
+use crate::vocabulary::SpeedSourceKind;
 use anyhow::{bail, Context, Result};
 
 /// A repair made to the tacho pulse train.
@@ -33,32 +34,36 @@ enum Kind {
 #[derive(Debug, Clone, PartialEq)]
 pub struct SpeedTrack {
     kind: Kind,
-    source: String,
+    source: SpeedSourceKind,
     repairs: Vec<Repair>,
 }
 
 impl SpeedTrack {
-    /// Constant speed, e.g. `SpeedTrack::constant(1797.0, "recording")`.
-    pub fn constant(rpm: f64, source: &str) -> Result<SpeedTrack> {
+    /// Constant speed, e.g. `SpeedTrack::constant(1797.0, SpeedSourceKind::Recording)`.
+    pub fn constant(rpm: f64, source: SpeedSourceKind) -> Result<SpeedTrack> {
         if !(rpm.is_finite() && rpm > 0.0) {
             bail!("speed {rpm} rpm: must be a positive number");
         }
         Ok(SpeedTrack {
             kind: Kind::Constant { hz: rpm / 60.0 },
-            source: source.into(),
+            source,
             repairs: Vec::new(),
         })
     }
 
     /// A fixed, known speed (speed source "fixed").
     pub fn fixed(rpm: f64) -> Result<SpeedTrack> {
-        Self::constant(rpm, "fixed")
+        Self::constant(rpm, SpeedSourceKind::Fixed)
     }
 
     /// From tacho edge times (s): missing pulses (an interval about k times the local median)
     /// are inserted, spurious ones (an interval under half the local median) removed; both are
     /// counted. Needs at least three edges.
-    pub fn from_edges(times_s: &[f64], pulses_per_rev: u32, source: &str) -> Result<SpeedTrack> {
+    pub fn from_edges(
+        times_s: &[f64],
+        pulses_per_rev: u32,
+        source: SpeedSourceKind,
+    ) -> Result<SpeedTrack> {
         if pulses_per_rev == 0 {
             bail!("pulses_per_rev must be at least 1");
         }
@@ -94,14 +99,14 @@ impl SpeedTrack {
         pulses_per_rev: u32,
     ) -> Result<SpeedTrack> {
         let edges = tacho::detect_edges(samples, sample_rate, threshold, hysteresis);
-        Self::from_edges(&edges, pulses_per_rev, "tacho").with_context(|| {
+        Self::from_edges(&edges, pulses_per_rev, SpeedSourceKind::Tacho).with_context(|| {
             format!("analog tacho (threshold {threshold}, hysteresis {hysteresis})")
         })
     }
 
     /// From a speed profile: shaft frequency `hz[i]` at time `t[i]` (increasing times);
     /// angle is the trapezoidal integral, speed is held constant outside the profile.
-    pub fn from_profile(t: &[f64], hz: &[f64], source: &str) -> Result<SpeedTrack> {
+    pub fn from_profile(t: &[f64], hz: &[f64], source: SpeedSourceKind) -> Result<SpeedTrack> {
         if t.len() != hz.len() || t.is_empty() {
             bail!("speed profile: need as many speeds as times, at least one");
         }
@@ -118,18 +123,23 @@ impl SpeedTrack {
         Ok(Self::from_knots(t.to_vec(), theta, source, Vec::new()))
     }
 
-    fn from_knots(t: Vec<f64>, theta: Vec<f64>, source: &str, repairs: Vec<Repair>) -> SpeedTrack {
+    fn from_knots(
+        t: Vec<f64>,
+        theta: Vec<f64>,
+        source: SpeedSourceKind,
+        repairs: Vec<Repair>,
+    ) -> SpeedTrack {
         let m = monotone_slopes(&theta, &t);
         SpeedTrack {
             kind: Kind::Knots { t, theta, m },
-            source: source.into(),
+            source,
             repairs,
         }
     }
 
-    /// Where the speed came from: "tacho", "edges", "fixed", "recording" or "estimate".
-    pub fn source(&self) -> &str {
-        &self.source
+    /// Where the speed came from.
+    pub fn source(&self) -> SpeedSourceKind {
+        self.source
     }
 
     /// Repairs made to the pulse train (empty for other sources).
@@ -492,7 +502,8 @@ mod tests {
     #[test]
     fn ramp_angle_and_speed_follow_the_truth() {
         let (f0, f1, dur) = (8.0, 12.0, 10.0);
-        let tr = SpeedTrack::from_edges(&ramp_edges(f0, f1, dur), 1, "edges").unwrap();
+        let tr =
+            SpeedTrack::from_edges(&ramp_edges(f0, f1, dur), 1, SpeedSourceKind::Edges).unwrap();
         let a = (f1 - f0) / dur;
         for &t in &[0.3, 2.71, 5.0, 9.2] {
             let truth = f0 * t + 0.5 * a * t * t;
@@ -519,7 +530,8 @@ mod tests {
 
     #[test]
     fn batch_angles_match_angle_at() {
-        let tr = SpeedTrack::from_edges(&ramp_edges(8.0, 12.0, 10.0), 1, "edges").unwrap();
+        let tr = SpeedTrack::from_edges(&ramp_edges(8.0, 12.0, 10.0), 1, SpeedSourceKind::Edges)
+            .unwrap();
         let (t0, dt) = (-0.05, 1.0 / 997.0);
         let mut out = vec![0.0; 11_000];
         tr.angles_at_times(t0, dt, &mut out);
@@ -543,11 +555,11 @@ mod tests {
         bad.insert(10, clean[9] + 0.013); // spurious, just after a real pulse
         bad.insert(41, clean[40] - 0.004); // spurious, just before a real pulse
         bad.sort_by(|a, b| a.total_cmp(b));
-        let tr = SpeedTrack::from_edges(&bad, 1, "edges").unwrap();
+        let tr = SpeedTrack::from_edges(&bad, 1, SpeedSourceKind::Edges).unwrap();
         let (ins, rem) = tr.repairs_between(0.0, 10.0);
         assert_eq!((ins, rem), (3, 2), "{:?}", tr.repairs());
         // the repaired track matches the clean one closely
-        let good = SpeedTrack::from_edges(&clean, 1, "edges").unwrap();
+        let good = SpeedTrack::from_edges(&clean, 1, SpeedSourceKind::Edges).unwrap();
         for k in 0..400 {
             let t = k as f64 * 0.01;
             assert!((tr.angle_at(t) - good.angle_at(t)).abs() < 0.01, "t = {t}");
@@ -558,13 +570,16 @@ mod tests {
     fn constant_and_profile() {
         let c = SpeedTrack::fixed(600.0).unwrap();
         assert_eq!(c.angle_at(2.0), 20.0);
-        assert_eq!(c.source(), "fixed");
-        let p = SpeedTrack::from_profile(&[0.0, 10.0], &[10.0, 20.0], "estimate").unwrap();
+        assert_eq!(c.source(), SpeedSourceKind::Fixed);
+        let p = SpeedTrack::from_profile(&[0.0, 10.0], &[10.0, 20.0], SpeedSourceKind::Estimate)
+            .unwrap();
         assert!((p.angle_at(10.0) - 150.0).abs() < 1e-9);
         assert!((p.mean_rpm(0.0, 10.0) - 900.0).abs() < 1e-6);
-        assert!(SpeedTrack::from_edges(&[0.1, 0.2], 1, "edges")
-            .unwrap_err()
-            .to_string()
-            .contains("at least 3"));
+        assert!(
+            SpeedTrack::from_edges(&[0.1, 0.2], 1, SpeedSourceKind::Edges)
+                .unwrap_err()
+                .to_string()
+                .contains("at least 3")
+        );
     }
 }

@@ -2,6 +2,7 @@
 //! delivered edges, a fixed rpm, the recording's stored rpm, or an estimate from the
 //! vibration). Owned by the DSP layer; `config` embeds it in the rig file.
 
+use crate::vocabulary::SpeedSourceKind;
 use serde::{Deserialize, Serialize};
 
 /// Where shaft speed and angle come from.
@@ -80,6 +81,17 @@ fn default_hint_within_percent() -> f64 {
 }
 
 impl SpeedConfig {
+    /// Which source this section asks for (its `source` key).
+    pub fn kind(&self) -> SpeedSourceKind {
+        match self {
+            SpeedConfig::Tacho { .. } => SpeedSourceKind::Tacho,
+            SpeedConfig::Edges { .. } => SpeedSourceKind::Edges,
+            SpeedConfig::Fixed { .. } => SpeedSourceKind::Fixed,
+            SpeedConfig::Recording { .. } => SpeedSourceKind::Recording,
+            SpeedConfig::Estimate { .. } => SpeedSourceKind::Estimate,
+        }
+    }
+
     /// Pulses per revolution of the tacho, whatever form it comes in (1 without a tacho).
     pub fn pulses_per_rev(&self) -> u32 {
         match self {
@@ -109,6 +121,26 @@ impl SpeedConfig {
                 ..
             } => Some((*threshold, *hysteresis)),
             _ => None,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_source_key_is_the_kind_s_name() {
+        for kind in SpeedSourceKind::ALL {
+            let text = match kind {
+                SpeedSourceKind::Tacho => "source = \"tacho\"\nchannel = \"tacho\"".to_string(),
+                SpeedSourceKind::Fixed => "source = \"fixed\"\nrpm = 600.0".to_string(),
+                SpeedSourceKind::Simulator => continue, // the simulator's, never a rig file's
+                k => format!("source = {:?}", k.as_str()),
+            };
+            let cfg: SpeedConfig = toml::from_str(&text).unwrap();
+            assert_eq!(cfg.kind(), kind);
+            assert!(text.starts_with(&format!("source = \"{kind}\"")));
         }
     }
 }

@@ -8,6 +8,7 @@
 pub use crate::dsp::harmonic_sum::Estimate;
 use crate::dsp::harmonic_sum::{fundamental, Whitener, HARMONICS};
 use crate::dsp::speed::SpeedTrack;
+use crate::vocabulary::SpeedSourceKind;
 use anyhow::{bail, Result};
 
 /// Segment length for tracking, s.
@@ -53,7 +54,7 @@ impl SpeedEstimator {
         let seg = ((SEGMENT_S.max(8.0 / fmin).min(8.0)) * fs) as usize;
         if x.len() < 3 * seg {
             let rpm = self.estimate_constant(x, fs, min_rpm, max_rpm)?.rpm;
-            return SpeedTrack::constant(rpm, "estimate");
+            return SpeedTrack::constant(rpm, SpeedSourceKind::Estimate);
         }
         let top = (HARMONICS as f64 + 1.0) * fmax;
         let whole = self.whitener.whiten(x, fs, 1, top);
@@ -91,9 +92,9 @@ impl SpeedEstimator {
         let med = sorted[n / 2];
         if track.iter().all(|f| (f / med - 1.0).abs() < 0.01) {
             let (f, _) = whole.best_in(med * 0.99, med * 1.01);
-            return SpeedTrack::constant(f * 60.0, "estimate");
+            return SpeedTrack::constant(f * 60.0, SpeedSourceKind::Estimate);
         }
-        SpeedTrack::from_profile(&ts, &track, "estimate")
+        SpeedTrack::from_profile(&ts, &track, SpeedSourceKind::Estimate)
     }
 }
 
@@ -195,7 +196,7 @@ mod tests {
             })
             .collect();
         let tr = estimate_track(&x, fs, 600.0, 3000.0).unwrap();
-        assert_eq!(tr.source(), "estimate");
+        assert_eq!(tr.source(), SpeedSourceKind::Estimate);
         // inside the segment centres (1 s .. 11 s) the track follows the ramp
         for t in [2.0, 4.0, 6.0, 8.0, 10.0] {
             let truth = 60.0 * (f0 + a * t);

@@ -44,6 +44,7 @@ use super::fault_family::{EnvelopeFeed, FamilyEvidence, FamilySettings};
 use super::harmonic_sum::{fundamental, on_mains_harmonic, Whitened, Whitener, HARMONICS};
 use super::speed::SpeedTrack;
 use super::speed_comb::{best_own, comb_spans, train_present, unexplained};
+use crate::vocabulary::SpeedSourceKind;
 use anyhow::{bail, Result};
 
 /// Revolutions at the rig's lowest speed that the history holds.
@@ -960,7 +961,8 @@ fn warp(x: &[f32], fs: f64, r: f64, out: &mut Vec<f32>) -> f64 {
 /// The speed track of a history of `span` s ending at `t_end` with speed `hz` there and
 /// relative trend `r`: constant when the trend changes the speed by less than 0.1 % over it.
 fn track_along(hz: f64, r: f64, t_end: f64, span: f64) -> SpeedTrack {
-    let constant = || SpeedTrack::constant(hz * 60.0, "estimate").expect("a positive speed");
+    let constant =
+        || SpeedTrack::constant(hz * 60.0, SpeedSourceKind::Estimate).expect("a positive speed");
     if (r * span).abs() < 0.001 {
         return constant();
     }
@@ -976,7 +978,7 @@ fn track_along(hz: f64, r: f64, t_end: f64, span: f64) -> SpeedTrack {
         .iter()
         .map(|&t| (hz * (1.0 + r * (t - t_end))).max(1e-3))
         .collect();
-    SpeedTrack::from_profile(&ts, &fs, "estimate").unwrap_or_else(|_| constant())
+    SpeedTrack::from_profile(&ts, &fs, SpeedSourceKind::Estimate).unwrap_or_else(|_| constant())
 }
 
 fn fmt_s(s: f64) -> String {

@@ -11,39 +11,16 @@
 //! machine's healthy indicator baseline (`adapt::align_to_recordings`), which the departure
 //! test of the health state machine reads.
 
+use super::alignment::Alignment;
 use super::baseline::HealthyBaseline;
 use super::classifier::TrainedModel;
 use super::impulsiveness::ImpulseBaseline;
 use super::preprocess::Preprocess;
 use anyhow::{bail, Result};
 use ndarray::{Array1, ArrayView2, Axis};
-use serde::Serialize;
 
 /// Fewest healthy windows an alignment accepts: below this the per-bin means are mostly noise.
 pub const MIN_WINDOWS: usize = 4;
-
-/// What an alignment did, stored as JSON in the model metadata (`alignment`).
-#[derive(Debug, Clone, PartialEq, Serialize)]
-pub struct Alignment {
-    /// Measured healthy windows the reference was taken from.
-    pub windows: usize,
-    /// The recordings they came from (as given).
-    pub records: Vec<String>,
-    /// RMS over the features of the applied shift (natural-log units: 1.0 = a factor e).
-    pub shift_rms: f32,
-    /// The feature with the largest shift, and that shift.
-    pub largest_shift_feature: usize,
-    pub largest_shift: f32,
-    /// Distance beyond which a window cannot be called healthy ([`HealthyBaseline`]).
-    pub baseline_threshold: f32,
-    /// 1 / pooled spread of the healthy windows (the unit of `baseline_deviation`; read by
-    /// [`super::evidence::BaselineSpread`]).
-    pub baseline_inv_spread: f32,
-    /// The healthy windows' excess kurtosis (read by [`ImpulseBaseline::of`]; None when the
-    /// windows' kurtosis was not given).
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub healthy_kurtosis: Option<ImpulseBaseline>,
-}
 
 /// Per-feature mean of the scale-free log ratios of `windows` (rows = windows).
 pub fn log_mean(windows: ArrayView2<f32>, floor: f32) -> Array1<f32> {
@@ -109,13 +86,14 @@ pub fn align_to_healthy(
         shift_rms: rms,
         largest_shift_feature: k,
         largest_shift: big,
-        baseline_threshold: baseline.threshold,
-        baseline_inv_spread: baseline.inv_spread,
+        baseline_threshold: Some(baseline.threshold),
+        baseline_inv_spread: Some(baseline.inv_spread),
         healthy_kurtosis: kurtosis.and_then(ImpulseBaseline::fit),
+        healthy_indicators: None,
     };
     out.baseline = Some(baseline);
     out.meta.trained_mean = trained.to_vec();
-    out.meta.alignment = serde_json::to_string(&info)?;
+    out.meta.alignment = Some(info);
     out.meta.sha256.clear();
     Ok(out)
 }
@@ -174,12 +152,12 @@ mod tests {
                 zs[j]
             );
         }
-        let info: serde_json::Value = serde_json::from_str(&a.meta.alignment).unwrap();
-        assert_eq!(info["windows"], 6);
-        let k = ImpulseBaseline::of(&a.meta).expect("the kurtosis baseline is stored");
+        let info = a.meta.alignment.as_ref().expect("aligned");
+        assert_eq!(info.windows, 6);
+        let k = info.impulse().expect("the kurtosis baseline is stored");
         assert!((k.mean + 0.25).abs() < 1e-6 && k.windows == 6, "{k:?}");
-        assert_eq!(info["largest_shift_feature"], 3); // 0.5 -> 0.1 of a larger mean: ln 0.44 -> ln 0.033
-                                                      // Aligning the aligned model again with the same data gives the same offsets.
+        assert_eq!(info.largest_shift_feature, 3); // 0.5 -> 0.1 of a larger mean: ln 0.44 -> ln 0.033
+                                                   // Aligning the aligned model again with the same data gives the same offsets.
         let b = align_to_healthy(&a, real_h.view(), None, &["97.mat".into()]).unwrap();
         assert_eq!(a.pre.mean, b.pre.mean);
     }

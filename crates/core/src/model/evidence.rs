@@ -25,7 +25,6 @@
 //! ([`crate::health::verdict`]) uses the accumulated evidence to confirm or overrule the
 //! classifier.
 
-use super::meta::ModelMeta;
 use crate::bearing::FaultOrders;
 use crate::config::RigConfig;
 use crate::vocabulary::Condition;
@@ -84,27 +83,14 @@ impl FamilyEvidence {
     }
 }
 
-/// What the healthy baseline's spread rests on (from an aligned model's `alignment`).
+/// What the healthy baseline's spread rests on (from an aligned model's
+/// [`super::alignment::Alignment::spread`]).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct BaselineSpread {
     /// 1 / pooled standard deviation of the healthy windows' log ratios.
     pub inv_spread: f32,
     /// Healthy windows the baseline was fitted on.
     pub windows: usize,
-}
-
-impl BaselineSpread {
-    /// From an aligned model's metadata; None for a model that is not aligned, or was aligned
-    /// before the spread was stored.
-    pub fn of(meta: &ModelMeta) -> Option<Self> {
-        let v: serde_json::Value = serde_json::from_str(&meta.alignment).ok()?;
-        let inv_spread = v.get("baseline_inv_spread")?.as_f64()? as f32;
-        let windows = v.get("windows")?.as_u64()? as usize;
-        (inv_spread > 0.0 && inv_spread.is_finite() && windows >= 2).then_some(BaselineSpread {
-            inv_spread,
-            windows,
-        })
-    }
 }
 
 /// The feature bins of each fault family, and the arithmetic from deviations to evidence.

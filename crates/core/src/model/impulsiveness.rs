@@ -24,7 +24,6 @@
 //! load and temperature, so windows are not independent draws, and the sample kurtosis has a
 //! heavy upper tail.
 
-use super::meta::ModelMeta;
 use serde::{Deserialize, Serialize};
 use std::collections::VecDeque;
 
@@ -61,14 +60,6 @@ impl ImpulseBaseline {
             sd: sd as f32,
             windows: n,
         })
-    }
-
-    /// From an aligned model's metadata; None for a model not aligned, or aligned before the
-    /// kurtosis baseline was stored.
-    pub fn of(meta: &ModelMeta) -> Option<Self> {
-        let v: serde_json::Value = serde_json::from_str(&meta.alignment).ok()?;
-        let b: ImpulseBaseline = serde_json::from_value(v.get("healthy_kurtosis")?.clone()).ok()?;
-        (b.sd >= 0.0 && b.mean.is_finite() && b.windows >= 2).then_some(b)
     }
 
     /// One window's impulsiveness from its excess kurtosis over `window_samples` samples.
@@ -190,21 +181,6 @@ mod tests {
         let b = ImpulseBaseline::fit(&[2.0, 2.4, 2.2, 1.8, 2.1]).unwrap();
         assert!(b.impulse(2.3, 51_200).z() < 2.0);
         assert!(ImpulseBaseline::fit(&[1.0, f32::NAN]).is_none());
-    }
-
-    #[test]
-    fn the_baseline_travels_in_the_alignment_json() {
-        let b = ImpulseBaseline::fit(&[0.1, 0.2, 0.15]).unwrap();
-        let meta = ModelMeta {
-            alignment: serde_json::json!({ "windows": 3, "healthy_kurtosis": b }).to_string(),
-            ..ModelMeta::default()
-        };
-        assert_eq!(ImpulseBaseline::of(&meta), Some(b));
-        let old = ModelMeta {
-            alignment: serde_json::json!({ "windows": 3 }).to_string(),
-            ..ModelMeta::default()
-        };
-        assert_eq!(ImpulseBaseline::of(&old), None);
     }
 
     #[test]

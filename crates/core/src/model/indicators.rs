@@ -13,7 +13,6 @@
 //! smoothed score reached ([`super::departure`]). A window's score per indicator is its
 //! distance from the median in spreads ([`IndicatorBaseline::scores`]).
 
-use super::meta::ModelMeta;
 use realfft::{RealFftPlanner, RealToComplex};
 use serde::{Deserialize, Serialize};
 use std::sync::Arc;
@@ -259,21 +258,6 @@ impl IndicatorBaseline {
         })
     }
 
-    /// From an aligned model's metadata; None for a model not aligned, or aligned before the
-    /// indicator baseline was stored.
-    pub fn of(meta: &ModelMeta) -> Option<Self> {
-        let v: serde_json::Value = serde_json::from_str(&meta.alignment).ok()?;
-        let b: IndicatorBaseline =
-            serde_json::from_value(v.get("healthy_indicators")?.clone()).ok()?;
-        let ok = b.levels().iter().all(|l| {
-            l.center.is_finite()
-                && l.spread > 0.0
-                && l.spread.is_finite()
-                && l.healthy_max.is_finite()
-        });
-        (ok && b.windows >= 2 && b.median_of >= 1).then_some(b)
-    }
-
     /// The four levels in [`NAMES`] order.
     pub fn levels(&self) -> [Level; 4] {
         [self.rms, self.crest, self.kurtosis, self.resonance]
@@ -284,20 +268,6 @@ impl IndicatorBaseline {
         let s = i.scaled();
         let l = self.levels();
         PerIndicator::from_array(std::array::from_fn(|j| (s[j] - l[j].center) / l[j].spread))
-    }
-
-    /// Store this baseline in an alignment JSON text (as `healthy_indicators`).
-    pub fn store_in(&self, alignment: &str) -> anyhow::Result<String> {
-        let mut v: serde_json::Value = if alignment.trim().is_empty() {
-            serde_json::json!({})
-        } else {
-            serde_json::from_str(alignment)?
-        };
-        let Some(o) = v.as_object_mut() else {
-            anyhow::bail!("the model's alignment is not a JSON object: {alignment}");
-        };
-        o.insert("healthy_indicators".into(), serde_json::to_value(self)?);
-        Ok(v.to_string())
     }
 }
 
@@ -367,17 +337,6 @@ mod tests {
         let twice = m.measure(&noise(2560, 2.0, 7)).unwrap();
         let z = b.scores(&twice);
         assert!((z.rms - 2.0f32.ln() / LEVEL_FLOOR).abs() < 1.0, "{z:?}");
-        let text = b.store_in(r#"{"windows":60}"#).unwrap();
-        let meta = ModelMeta {
-            alignment: text,
-            ..ModelMeta::default()
-        };
-        assert_eq!(IndicatorBaseline::of(&meta), Some(b));
-        let old = ModelMeta {
-            alignment: r#"{"windows":60}"#.into(),
-            ..ModelMeta::default()
-        };
-        assert_eq!(IndicatorBaseline::of(&old), None);
         assert!(IndicatorBaseline::fit(&healthy[..5], 31).is_none());
     }
 }

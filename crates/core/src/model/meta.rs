@@ -2,6 +2,7 @@
 //! the rig and recipe it was trained for, provenance), stored as ONNX `metadata_props` and
 //! read back by [`super::onnx`]. Whether it fits a rig file is [`super::identity`]'s question.
 
+use super::alignment::Alignment;
 use anyhow::{bail, Context, Result};
 use std::collections::BTreeMap;
 use tract_onnx::pb;
@@ -43,8 +44,8 @@ pub struct ModelMeta {
     pub healthy_reference: Vec<f32>,
     /// The standardisation offsets as trained, kept once a model has been aligned.
     pub trained_mean: Vec<f32>,
-    /// Alignment summary (JSON text), empty when the model was never aligned.
-    pub alignment: String,
+    /// The alignment to one machine and the healthy baseline it fitted (None: never aligned).
+    pub alignment: Option<Alignment>,
     /// The envelope low-pass the training features were computed with (`[features]
     /// lowpass_hz`), Hz; `None` in models written before it was stored.
     pub lowpass_hz: Option<f64>,
@@ -145,11 +146,7 @@ impl ModelMeta {
     /// The healthy-baseline threshold of an aligned model (from `alignment`), None when the
     /// model was never aligned.
     pub fn baseline_threshold(&self) -> Option<f32> {
-        serde_json::from_str::<serde_json::Value>(&self.alignment)
-            .ok()?
-            .get("baseline_threshold")?
-            .as_f64()
-            .map(|v| v as f32)
+        self.alignment.as_ref()?.gate()
     }
 
     /// As ONNX `metadata_props` entries (key, value), in a stable order.
@@ -183,8 +180,8 @@ impl ModelMeta {
         if !self.trained_mean.is_empty() {
             v.push(("trained_mean".into(), floats_to_text(&self.trained_mean)));
         }
-        if !self.alignment.is_empty() {
-            v.push(("alignment".into(), self.alignment.clone()));
+        if let Some(a) = &self.alignment {
+            v.push(("alignment".into(), a.to_text()));
         }
         if let Some(hz) = self.lowpass_hz {
             v.push(("lowpass_hz".into(), hz.to_string()));
@@ -244,7 +241,10 @@ impl ModelMeta {
                 Some(s) => floats_from_text(s, "trained_mean", what)?,
                 None => Vec::new(),
             },
-            alignment: props.get("alignment").cloned().unwrap_or_default(),
+            alignment: match props.get("alignment").filter(|s| !s.trim().is_empty()) {
+                Some(s) => Some(Alignment::from_text(s, what)?),
+                None => None,
+            },
             lowpass_hz: match props.get("lowpass_hz") {
                 Some(_) => Some(num("lowpass_hz")?),
                 None => None,

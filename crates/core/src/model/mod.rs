@@ -2,8 +2,8 @@
 //! novelty detector ([`novelty`]), the trained bundle ([`classifier`]), its metadata
 //! ([`meta`]) and whether it fits a rig file ([`identity`]), file digests ([`digest`]), the
 //! ONNX writer/reader and metadata stamp ([`export`]), tract inference ([`onnx`]) and the
-//! alignment to one machine: reference levels ([`align`]) and the healthy-baseline gate
-//! ([`baseline`]), and the fault-family evidence ([`evidence`]) and the impulsiveness
+//! alignment to one machine: reference levels ([`align`]), the healthy baseline it stores
+//! ([`alignment`]) and the healthy-baseline gate ([`baseline`]), and the fault-family evidence ([`evidence`]) and the impulsiveness
 //! ([`impulsiveness`]) against that baseline. The
 //! envelope-order rule every model is compared
 //! with ([`rule`]), and its statistic under kurtogram-chosen envelope bands ([`band_ratios`]);
@@ -12,6 +12,7 @@
 //! [`indicator_series`]) and when they have left it for good ([`departure`]).
 
 pub mod align;
+pub mod alignment;
 pub mod band_ratios;
 pub mod baseline;
 pub mod classifier;

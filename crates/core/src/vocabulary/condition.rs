@@ -56,6 +56,41 @@ impl Condition {
         Condition::ALL.into_iter().find(|c| c.as_str() == label)
     }
 
+    /// The condition a person's spelling names: the label, or a short form the simulator's
+    /// and calibration's `--fault`/label lists have always taken (`outer`, `or`, `orf`;
+    /// `inner`, `ir`, `irf`; `b`, `re`; `none` for healthy), in any case; None otherwise.
+    pub fn from_spelling(text: &str) -> Option<Condition> {
+        Some(match text.trim().to_ascii_lowercase().as_str() {
+            "healthy" | "none" => Condition::Healthy,
+            "outer_race" | "outer" | "or" | "orf" => Condition::OuterRace,
+            "inner_race" | "inner" | "ir" | "irf" => Condition::InnerRace,
+            "ball" | "b" | "re" => Condition::Ball,
+            _ => return None,
+        })
+    }
+
+    /// The bearing faults of a list such as `outer_race+inner_race` or `healthy` (`,` or `+`
+    /// between names, each as [`Condition::from_spelling`] takes it; healthy adds none; a
+    /// fault named twice counts once), in the order given: the first is the dominant one.
+    pub fn parse_faults(text: &str) -> anyhow::Result<Vec<Condition>> {
+        let mut out = Vec::new();
+        for part in text
+            .split([',', '+'])
+            .map(str::trim)
+            .filter(|s| !s.is_empty())
+        {
+            match Condition::from_spelling(part) {
+                Some(Condition::Healthy) => {}
+                Some(c) if !out.contains(&c) => out.push(c),
+                Some(_) => {}
+                None => anyhow::bail!(
+                    "unknown fault {part:?}: use healthy, outer_race, inner_race, ball (comma-separated for compound faults)"
+                ),
+            }
+        }
+        Ok(out)
+    }
+
     /// True for the label `healthy`.
     pub fn is_healthy(label: &str) -> bool {
         label == Condition::Healthy.as_str()
@@ -110,6 +145,23 @@ mod tests {
         }
         assert_eq!(Condition::parse("Healthy"), None);
         assert_eq!(Condition::parse("misalignment"), None);
+    }
+
+    #[test]
+    fn a_fault_list_takes_the_short_spellings_and_drops_healthy() {
+        use Condition::*;
+        assert_eq!(
+            Condition::parse_faults("OR+irf, b").unwrap(),
+            [OuterRace, InnerRace, Ball]
+        );
+        assert_eq!(
+            Condition::parse_faults("inner,inner_race").unwrap(),
+            [InnerRace]
+        );
+        assert!(Condition::parse_faults("healthy").unwrap().is_empty());
+        assert!(Condition::parse_faults("none").unwrap().is_empty());
+        let e = Condition::parse_faults("or+crack").unwrap_err().to_string();
+        assert!(e.contains("\"crack\"") && e.contains("outer_race"), "{e}");
     }
 
     #[test]

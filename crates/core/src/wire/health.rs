@@ -9,7 +9,7 @@ use crate::model::departure::DepartureReading;
 use crate::model::evidence::FamilyEvidence;
 use crate::model::impulsiveness::Impulse;
 use crate::model::indicators::Indicators;
-use crate::vocabulary::QualityFlag;
+use crate::vocabulary::{QualityFlag, SpeedSourceKind};
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 use std::fmt::Write as _;
@@ -37,8 +37,8 @@ pub struct HealthMessage {
     pub publish_time_ns: u64,
     /// Shaft speed over the window (None when it could not be determined).
     pub rpm: Option<f64>,
-    /// Where the speed came from (tacho, edges, fixed, recording, estimate).
-    pub speed_source: String,
+    /// Where the speed came from.
+    pub speed_source: SpeedSourceKind,
     /// For a speed read from the vibration: how sure the tracker is (0-1; below 0.5 the
     /// window carries the `speed_uncertain` flag: its class comes from the speed-free
     /// evidence alone, an impulsive window an alarm, any other `unknown`).
@@ -300,7 +300,7 @@ mod tests {
             },
             publish_time_ns: 5,
             rpm: Some(588.0),
-            speed_source: "tacho".into(),
+            speed_source: SpeedSourceKind::Tacho,
             speed_confidence: None,
             speed_rival_rpm: None,
             quality: QualityReport {

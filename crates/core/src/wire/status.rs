@@ -4,6 +4,7 @@
 //! behind, sink drops, reloads, recording errors, and each window's latency budget (what it
 //! waited for after its end, in parts: [`WindowBudget`]).
 
+use crate::vocabulary::SpeedSourceKind;
 use serde::{Deserialize, Serialize};
 use std::path::PathBuf;
 
@@ -135,8 +136,8 @@ pub struct PipelineStatus {
 pub struct WindowBudget {
     /// Window end, s on the pipeline clock.
     pub end_s: f64,
-    /// Where its speed came from (tacho, edges, fixed, recording, estimate).
-    pub speed_source: String,
+    /// Where its speed came from.
+    pub speed_source: SpeedSourceKind,
     /// Signal past the window's end that had arrived when it was analysed, ms: the rest of
     /// the block completing it (the source's block size sets it; 0 when blocks end on window
     /// ends), or more if the pipeline fell behind.

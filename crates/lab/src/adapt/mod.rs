@@ -279,7 +279,7 @@ fn align_step(
         .iter()
         .map(|m| align_to_healthy(m, windows.view(), Some(&kurtosis), &names))
         .collect::<Result<Vec<_>>>()?;
-    let info = serde_json::from_str(&aligned[0].meta.alignment)?;
+    let info = serde_json::to_value(&aligned[0].meta.alignment)?;
     Ok((aligned, Some(info)))
 }
 
@@ -326,7 +326,12 @@ fn store_healthy_indicators(
     else {
         return Ok(None);
     };
-    model.meta.alignment = b.store_in(&model.meta.alignment)?;
+    let Some(alignment) = model.meta.alignment.as_mut() else {
+        anyhow::bail!(
+            "the health indicators' baseline belongs to an aligned model; align it first"
+        );
+    };
+    alignment.healthy_indicators = Some(b);
     Ok(Some(b))
 }
 

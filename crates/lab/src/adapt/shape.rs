@@ -18,7 +18,7 @@ use crate::config::RigConfig;
 use crate::model::rule::RuleSettings;
 use crate::recording::Recording;
 use crate::sim::plan::{Plan, PlanCase, RandomRanges};
-use crate::sim::{Fault, Scenario};
+use crate::sim::Scenario;
 use crate::vocabulary::Condition;
 use anyhow::{Context, Result};
 use rayon::prelude::*;
@@ -82,7 +82,7 @@ fn mid(r: Option<[f64; 2]>) -> Option<f64> {
 fn twin_ratio(
     rig: &RigConfig,
     plan: &Plan,
-    fault: Fault,
+    fault: Condition,
     label: &str,
     rpm: f64,
     width_mm: f64,
@@ -111,7 +111,7 @@ fn twin_ratio(
 fn fit_width(
     rig: &RigConfig,
     plan: &Plan,
-    fault: Fault,
+    fault: Condition,
     label: &str,
     rpm: f64,
     measured: f64,
@@ -163,7 +163,7 @@ pub fn shape(
         if out.cases[class].recordings <= k {
             continue;
         }
-        let fault = Fault::parse_list(label)?
+        let fault = Condition::parse_faults(label)?
             .first()
             .copied()
             .with_context(|| format!("label {label:?} of {name}"))?;

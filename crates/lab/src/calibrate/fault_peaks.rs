@@ -1,10 +1,10 @@
-//! Fault-order peak locations and their harmonic and sideband ratios, read off a whole-
+//! Condition-order peak locations and their harmonic and sideband ratios, read off a whole-
 //! recording envelope order spectrum with a harmonic comb: the fault order `o` that
 //! maximises the summed height of the peaks at `o, 2o, 3o, ...` (up to [`MAX_ORDER`]) within
 //! +-[`SEARCH`] of the kinematic order. A comb is far harder to fool than a single peak (a
 //! strong line near one harmonic cannot move it), and its harmonics give sub-line accuracy.
 
-use crate::sim::Fault;
+use crate::vocabulary::Condition;
 use serde::Serialize;
 
 /// Harmonics are used up to this order.
@@ -37,13 +37,18 @@ pub struct FaultPeak {
     pub sideband_db: Option<f64>,
 }
 
-/// The fault family a fault shows as, its kinematic order and its sideband spacing.
-pub fn family(fault: Fault, orders: &crate::bearing::FaultOrders) -> (&'static str, f64, f64) {
-    match fault {
-        Fault::OuterRace => ("bpfo", orders.bpfo, 0.0),
-        Fault::InnerRace => ("bpfi", orders.bpfi, 1.0),
-        Fault::Ball => ("2xbsf", orders.two_bsf, orders.ftf),
-    }
+/// The fault family a fault shows as, its kinematic order and its sideband spacing (None for
+/// `healthy`, which has no family).
+pub fn family(
+    fault: Condition,
+    orders: &crate::bearing::FaultOrders,
+) -> Option<(&'static str, f64, f64)> {
+    Some(match fault {
+        Condition::Healthy => return None,
+        Condition::OuterRace => ("bpfo", orders.bpfo, 0.0),
+        Condition::InnerRace => ("bpfi", orders.bpfi, 1.0),
+        Condition::Ball => ("2xbsf", orders.two_bsf, orders.ftf),
+    })
 }
 
 /// A spectrum in dB above its median on a uniform order grid.
@@ -78,10 +83,10 @@ impl DbSpectrum<'_> {
 /// Locate one fault family. `None` when no comb stands [`MIN_COMB_DB`] above the median.
 pub fn locate(
     spec: &DbSpectrum,
-    fault: Fault,
+    fault: Condition,
     orders: &crate::bearing::FaultOrders,
 ) -> Option<FaultPeak> {
-    let (name, nominal, sb) = family(fault, orders);
+    let (name, nominal, sb) = family(fault, orders)?;
     let top = MAX_ORDER.min(spec.step * (spec.db.len() - 1) as f64);
     let harmonics = ((top / (nominal * (1.0 + SEARCH))).floor() as usize).max(1);
     if nominal * (1.0 + SEARCH) > top {
@@ -166,7 +171,7 @@ mod tests {
             let dx = (x - 17.3) / 0.03;
             *v += 35.0 * (-dx * dx).exp();
         }
-        let p = locate(&DbSpectrum { db: &db, step }, Fault::OuterRace, &o).unwrap();
+        let p = locate(&DbSpectrum { db: &db, step }, Condition::OuterRace, &o).unwrap();
         assert!((p.order / true_o - 1.0).abs() < 5e-4, "{p:?}");
         assert!(p.sideband_db.is_none());
         assert!(p.harmonic_db.unwrap().abs() < 1.0, "{p:?}");
@@ -180,7 +185,7 @@ mod tests {
                 db: &db,
                 step: 0.01
             },
-            Fault::InnerRace,
+            Condition::InnerRace,
             &orders()
         )
         .is_none());

@@ -26,6 +26,7 @@ use crate::sim::{
     dominant_resonance_hz, rig_simulation, run_engine, sensor, unit_scale, EngineRun, Scenario,
     SpeedProfile,
 };
+use crate::vocabulary::SpeedSourceKind;
 use anyhow::{Context, Result};
 use rayon::prelude::*;
 use serde::Serialize;
@@ -275,13 +276,13 @@ pub fn twin_speed_track(
     match &rig.speed {
         SpeedConfig::Fixed { rpm, .. } => SpeedTrack::fixed(*rpm),
         SpeedConfig::Recording { .. } => {
-            SpeedTrack::constant(profile.mean_rpm(seconds), "recording")
+            SpeedTrack::constant(profile.mean_rpm(seconds), SpeedSourceKind::Recording)
         }
         _ => {
             let n = (seconds * 100.0).ceil() as usize + 2;
             let t: Vec<f64> = (0..n).map(|i| i as f64 / 100.0).collect();
             let hz: Vec<f64> = t.iter().map(|&ti| profile.rpm_at(ti) / 60.0).collect();
-            SpeedTrack::from_profile(&t, &hz, "simulated profile")
+            SpeedTrack::from_profile(&t, &hz, SpeedSourceKind::Simulator)
         }
     }
 }
@@ -488,7 +489,7 @@ impl<'a> Twin<'a> {
 fn whole_piece(
     rec: &crate::recording::Recording,
     rig: &RigConfig,
-    faults: &[crate::sim::Fault],
+    faults: &[crate::vocabulary::Condition],
 ) -> Result<Views> {
     let mut v = views::compute_segment(rec, rig, faults)?;
     let track = crate::analysis::whole_recording(rec, rig)?;

@@ -150,7 +150,9 @@ mod tests {
         let n = 8000;
         let t: Vec<f64> = (0..n).map(|i| i as f64 / fs).collect();
         let hz: Vec<f64> = t.iter().map(|t| 10.0 + 0.3 * t).collect();
-        let track = SpeedTrack::from_profile(&t, &hz, "test").unwrap();
+        let track =
+            SpeedTrack::from_profile(&t, &hz, crate::vocabulary::SpeedSourceKind::Simulator)
+                .unwrap();
         let mut seed = 1u64;
         let x: Vec<f32> = t
             .iter()

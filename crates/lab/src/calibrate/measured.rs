@@ -9,7 +9,6 @@ use crate::config::RigConfig;
 use crate::importers::{self, ImportOptions};
 use crate::manifest::{manifest_path, read_manifest};
 use crate::recording::Recording;
-use crate::sim::Fault;
 use crate::vocabulary::Condition;
 use anyhow::{bail, Context, Result};
 use rayon::prelude::*;
@@ -32,7 +31,7 @@ pub struct Measured {
     /// File name (or `file#half`) for reports.
     pub name: String,
     pub label: String,
-    pub faults: Vec<Fault>,
+    pub faults: Vec<Condition>,
     /// Mean shaft speed over the analysed span, rpm.
     pub rpm: f64,
     /// The analysed span, at the rate it is analysed at (`recording.sample_rate`: the
@@ -129,7 +128,7 @@ fn load_one(rig: &RigConfig, file: ToLoad, max_seconds: f64) -> Result<Measured>
         .or_else(|| rec.metadata.get("label").cloned())
         .unwrap_or_else(|| Condition::Healthy.as_str().into());
     let faults =
-        Fault::parse_list(&label).with_context(|| format!("label of {}", path.display()))?;
+        Condition::parse_faults(&label).with_context(|| format!("label of {}", path.display()))?;
     // A manifest row may name part of its file (`start_s`/`end_s`): only that part is
     // analysed, and at most `max_seconds` of it.
     let (start_s, end_s) = span.unwrap_or((0.0, f64::INFINITY));

@@ -125,7 +125,9 @@ mod tests {
         // speed ramps 10 -> 12 Hz; angle = integral
         let t: Vec<f64> = (0..n).map(|i| i as f64 / fs).collect();
         let hz: Vec<f64> = t.iter().map(|t| 10.0 + 0.5 * t).collect();
-        let track = SpeedTrack::from_profile(&t, &hz, "test").unwrap();
+        let track =
+            SpeedTrack::from_profile(&t, &hz, crate::vocabulary::SpeedSourceKind::Simulator)
+                .unwrap();
         let x: Vec<f32> = t
             .iter()
             .enumerate()

@@ -97,7 +97,9 @@ mod tests {
                     * (1.0 + fraction * (std::f64::consts::TAU * ti / period_s).sin() + noise * r)
             })
             .collect();
-        let track = SpeedTrack::from_profile(&t, &hz, "test").unwrap();
+        let track =
+            SpeedTrack::from_profile(&t, &hz, crate::vocabulary::SpeedSourceKind::Simulator)
+                .unwrap();
         Views {
             speed: super::super::views::speed_view(&track, seconds, rpm),
             seconds,

@@ -37,7 +37,7 @@ use crate::config::RigConfig;
 use crate::dsp::order_spectrum::whole_recording;
 use crate::dsp::speed::SpeedTrack;
 use crate::recording::Recording;
-use crate::sim::Fault;
+use crate::vocabulary::Condition;
 use crate::vocabulary::ErrorComponent;
 use anyhow::{bail, Context, Result};
 use rayon::prelude::*;
@@ -126,7 +126,7 @@ pub fn segment_seconds(seconds: f64) -> f64 {
 
 /// Compute the views of a recording's classifier channel; `faults` is its label. A recording
 /// longer than a segment is averaged over [`segments`]; `speed` covers it whole.
-pub fn compute(rec: &Recording, rig: &RigConfig, faults: &[Fault]) -> Result<Views> {
+pub fn compute(rec: &Recording, rig: &RigConfig, faults: &[Condition]) -> Result<Views> {
     let track = crate::analysis::whole_recording(rec, rig)?;
     let dur = rec.duration_s();
     let k = segments(dur);
@@ -343,7 +343,7 @@ impl Parts {
 
 /// Compute the views of one segment (the whole of `rec`); `speed` is left empty (see
 /// [`speed_view`]).
-pub fn compute_segment(rec: &Recording, rig: &RigConfig, faults: &[Fault]) -> Result<Views> {
+pub fn compute_segment(rec: &Recording, rig: &RigConfig, faults: &[Condition]) -> Result<Views> {
     compute_parts(rec, rig, faults, Parts::ALL)
 }
 
@@ -352,7 +352,7 @@ pub fn compute_segment(rec: &Recording, rig: &RigConfig, faults: &[Fault]) -> Re
 pub fn compute_parts(
     rec: &Recording,
     rig: &RigConfig,
-    faults: &[Fault],
+    faults: &[Condition],
     parts: Parts,
 ) -> Result<Views> {
     compute_parts_along(rec, rig, faults, parts, None)
@@ -375,7 +375,7 @@ fn segment_track(track: &SpeedTrack, t0: f64, seconds: f64) -> Result<SpeedTrack
 fn compute_parts_along(
     rec: &Recording,
     rig: &RigConfig,
-    faults: &[Fault],
+    faults: &[Condition],
     parts: Parts,
     track: Option<&SpeedTrack>,
 ) -> Result<Views> {
@@ -435,7 +435,7 @@ fn envelope_views(
     fs: f64,
     track: &SpeedTrack,
     rig: &RigConfig,
-    faults: &[Fault],
+    faults: &[Condition],
 ) -> Result<(Vec<f64>, Vec<f64>, Vec<FaultPeak>)> {
     let whole = whole_recording(
         x,

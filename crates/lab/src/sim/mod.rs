@@ -27,7 +27,7 @@ pub mod signature;
 pub mod structure;
 
 pub use profile::SpeedProfile;
-pub use scenario::{label_of, Fault, Overrides, Scenario};
+pub use scenario::{label_of, Overrides, Scenario};
 
 use crate::bearing::{BearingGeometry, FaultOrders};
 use crate::config::simulation::{SimulationConfig, SIGNALS};

@@ -4,7 +4,8 @@
 //! named scenarios: the same plan and seed always give the same dataset.
 
 use super::profile::SpeedProfile;
-use super::scenario::{label_of, Fault, Overrides, Scenario};
+use super::scenario::{label_of, Overrides, Scenario};
+use crate::vocabulary::Condition;
 use anyhow::{bail, Context, Result};
 use rand::rngs::StdRng;
 use rand::{Rng, SeedableRng};
@@ -277,7 +278,7 @@ impl Plan {
         }
         self.random.check("random")?;
         for (i, c) in self.cases.iter().enumerate() {
-            Fault::parse_list(&c.faults).with_context(|| format!("case[{i}].faults"))?;
+            Condition::parse_faults(&c.faults).with_context(|| format!("case[{i}].faults"))?;
             if c.rpm.is_none()
                 && c.profile.is_none()
                 && self.random.rpm.is_none()
@@ -328,7 +329,7 @@ impl Plan {
     pub fn expand(&self) -> Result<Vec<PlannedRun>> {
         let mut out = Vec::new();
         for (ci, c) in self.cases.iter().enumerate() {
-            let faults = Fault::parse_list(&c.faults)?;
+            let faults = Condition::parse_faults(&c.faults)?;
             let label = label_of(&faults);
             let ranges = self.random.merged(&c.random);
             let seconds = c.seconds.unwrap_or(self.seconds);

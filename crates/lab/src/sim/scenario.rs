@@ -6,62 +6,15 @@ use super::defects::DefectSet;
 use super::profile::SpeedProfile;
 use crate::config::simulation::{DefectShape, SimulationConfig};
 use crate::vocabulary::Condition;
-use anyhow::{bail, Result};
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 
-/// A localized bearing fault.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Serialize, Deserialize)]
-#[serde(rename_all = "snake_case")]
-pub enum Fault {
-    OuterRace,
-    InnerRace,
-    Ball,
-}
-
-impl Fault {
-    /// The condition this fault is.
-    pub fn condition(&self) -> Condition {
-        match self {
-            Fault::OuterRace => Condition::OuterRace,
-            Fault::InnerRace => Condition::InnerRace,
-            Fault::Ball => Condition::Ball,
-        }
-    }
-
-    pub fn label(&self) -> &'static str {
-        self.condition().as_str()
-    }
-
-    /// Parse `healthy|outer_race|inner_race|ball[,..]` (also `or`, `ir`, `b`, `orf`, `irf`).
-    pub fn parse_list(text: &str) -> Result<Vec<Fault>> {
-        let mut out = Vec::new();
-        for part in text
-            .split([',', '+'])
-            .map(str::trim)
-            .filter(|s| !s.is_empty())
-        {
-            let f = match part.to_ascii_lowercase().as_str() {
-                "healthy" | "none" => continue,
-                "outer_race" | "outer" | "or" | "orf" => Fault::OuterRace,
-                "inner_race" | "inner" | "ir" | "irf" => Fault::InnerRace,
-                "ball" | "b" | "re" => Fault::Ball,
-                other => bail!("unknown fault {other:?}: use healthy, outer_race, inner_race, ball (comma-separated for compound faults)"),
-            };
-            if !out.contains(&f) {
-                out.push(f);
-            }
-        }
-        Ok(out)
-    }
-}
-
 /// The label of a fault list: `healthy`, or the dominant (first listed) fault. Compound
 /// faults keep the full list in the `faults` metadata key.
-pub fn label_of(faults: &[Fault]) -> &'static str {
+pub fn label_of(faults: &[Condition]) -> &'static str {
     faults
         .first()
-        .map_or(Condition::Healthy.as_str(), Fault::label)
+        .map_or(Condition::Healthy.as_str(), |f| f.as_str())
 }
 
 /// Optional per-scenario changes to the rig's `[simulation]` section.
@@ -174,7 +127,7 @@ impl Overrides {
 #[derive(Debug, Clone, PartialEq)]
 pub struct Scenario {
     /// Empty = healthy.
-    pub faults: Vec<Fault>,
+    pub faults: Vec<Condition>,
     pub profile: SpeedProfile,
     /// Length of the recording, s.
     pub seconds: f64,
@@ -186,7 +139,7 @@ pub struct Scenario {
 
 impl Scenario {
     /// A constant-speed scenario without overrides.
-    pub fn constant(faults: &[Fault], rpm: f64, seconds: f64, seed: u64) -> Scenario {
+    pub fn constant(faults: &[Condition], rpm: f64, seconds: f64, seed: u64) -> Scenario {
         Scenario {
             faults: faults.to_vec(),
             profile: SpeedProfile::Constant { rpm },
@@ -203,9 +156,9 @@ impl Scenario {
 
     pub fn defect_set(&self) -> DefectSet {
         DefectSet {
-            outer_race: self.faults.contains(&Fault::OuterRace),
-            inner_race: self.faults.contains(&Fault::InnerRace),
-            ball: self.faults.contains(&Fault::Ball),
+            outer_race: self.faults.contains(&Condition::OuterRace),
+            inner_race: self.faults.contains(&Condition::InnerRace),
+            ball: self.faults.contains(&Condition::Ball),
         }
     }
 }
@@ -216,13 +169,16 @@ mod tests {
 
     #[test]
     fn fault_lists() {
-        assert_eq!(Fault::parse_list("healthy").unwrap(), vec![]);
+        assert!(Condition::parse_faults("healthy").unwrap().is_empty());
         assert_eq!(
-            Fault::parse_list("inner_race,outer_race").unwrap(),
-            vec![Fault::InnerRace, Fault::OuterRace]
+            Condition::parse_faults("inner_race,outer_race").unwrap(),
+            vec![Condition::InnerRace, Condition::OuterRace]
         );
-        assert_eq!(label_of(&Fault::parse_list("ir+or").unwrap()), "inner_race");
-        let err = Fault::parse_list("cage").unwrap_err().to_string();
+        assert_eq!(
+            label_of(&Condition::parse_faults("ir+or").unwrap()),
+            "inner_race"
+        );
+        let err = Condition::parse_faults("cage").unwrap_err().to_string();
         assert!(err.contains("cage"), "{err}");
     }
 

@@ -3,7 +3,7 @@
 //! interference, shaft-order and half-order lines, units and quantisation per channel, the
 //! analog tacho and the metadata (labels, the simulation section used).
 
-use super::{channel_signals, high_fraction, model_fault_orders, EngineRun, Fault, Scenario};
+use super::{channel_signals, high_fraction, model_fault_orders, EngineRun, Scenario};
 use crate::config::simulation::{SimulationConfig, SIGNALS};
 use crate::config::{ChannelKind, RigConfig};
 use crate::recording::{Channel, Provenance, Recording, Tacho};
@@ -179,7 +179,7 @@ pub fn finish(
     let orders = model_fault_orders(rig, sim);
     let mut md = BTreeMap::new();
     md.insert("label".to_string(), scenario.label().to_string());
-    let faults: Vec<&str> = scenario.faults.iter().map(Fault::label).collect();
+    let faults: Vec<&str> = scenario.faults.iter().map(|f| f.as_str()).collect();
     md.insert(
         "faults".into(),
         if faults.is_empty() {

@@ -187,7 +187,7 @@ pub fn fit(
         finetune: String::new(),
         healthy_reference: healthy_reference(&tr, labels, t.pre.floor),
         trained_mean: Vec::new(),
-        alignment: String::new(),
+        alignment: None,
         lowpass_hz: Some(rig.features.lowpass_hz),
         window_s: Some(rig.features.window_s),
         bearing_orders: Some(crate::model::identity::bearing_orders(rig)),

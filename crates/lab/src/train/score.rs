@@ -20,7 +20,6 @@ use crate::health::{Basis, HealthPolicy, HealthStateMachine, WindowInput};
 use crate::importers;
 use crate::manifest::ManifestEntry;
 use crate::model::evidence::{BaselineSpread, FamilyBins};
-use crate::model::impulsiveness::ImpulseBaseline;
 use crate::model::rule::{EnvelopeRule, RULE_LABELS};
 use crate::model::{OnnxClassifier, ALL_LABELS};
 use crate::vocabulary::QualityFlag;
@@ -219,7 +218,7 @@ fn run_record(
     policy: &HealthPolicy,
 ) -> Result<RecordRun> {
     let meta = clf.meta();
-    let impulse_baseline = ImpulseBaseline::of(meta);
+    let impulse_baseline = meta.alignment.as_ref().and_then(|a| a.impulse());
     let mut sm = HealthStateMachine::new(policy.clone(), &meta.labels)?;
     sm.set_hop_fraction(bins.hop_fraction());
     let mut run = RecordRun {
@@ -294,7 +293,10 @@ pub fn model_outcomes_with(
 ) -> Result<ModelOutcomes> {
     let meta = clf.meta();
     let used = finetune_hashes(meta);
-    let (bins, spread) = (FamilyBins::for_rig(rig), BaselineSpread::of(meta));
+    let (bins, spread) = (
+        FamilyBins::for_rig(rig),
+        meta.alignment.as_ref().and_then(|a| a.spread()),
+    );
     let rule = EnvelopeRule::for_rig(rig, crate::model::rule::RuleSettings::default());
     let mut excluded = Vec::new();
     let mut runs = Vec::new();

@@ -13,10 +13,10 @@ use crate::health::verdict::{novelty_threshold, quality_problem, speed_only};
 use crate::health::{HealthPolicy, HealthStateMachine, Smoothed, UnknownReason, WindowInput};
 use crate::model::evidence::{BaselineSpread, FamilyBins, FamilyEvidence};
 use crate::model::impulsiveness::{Impulse, ImpulseBaseline};
-use crate::model::indicators::{IndicatorBaseline, IndicatorMeter, Indicators};
+use crate::model::indicators::{IndicatorMeter, Indicators};
 use crate::model::onnx::OnnxClassifier;
 use crate::model::rule::{EnvelopeRule, RuleReading, RuleSettings};
-use crate::vocabulary::QualityFlag;
+use crate::vocabulary::{QualityFlag, SpeedSourceKind};
 use crate::wire::health::{
     FaultBands, HealthIndicators, HealthMessage, ModelInfo, QualityReport, WindowTimes, SCHEMA,
     SCHEMA_VERSION,
@@ -80,7 +80,7 @@ impl Analyzer {
             .with_context(|| format!("model {model_id}"))?;
         let mut health = HealthStateMachine::new(policy, &model.meta().labels)?;
         health.set_hop_fraction(rig.features.hop_s / rig.features.window_s);
-        health.set_indicator_baseline(IndicatorBaseline::of(model.meta()));
+        health.set_indicator_baseline(model.meta().alignment.as_ref().and_then(|a| a.indicators()));
         let chans: Vec<(String, String)> = rig
             .acceleration_channels()
             .map(|c| (c.name.clone(), c.unit.to_string()))
@@ -101,8 +101,8 @@ impl Analyzer {
         }
         let speed = SpeedSource::new(&rig.speed, sample_rate, nominal_rpm)?;
         Ok(Analyzer {
-            spread: BaselineSpread::of(model.meta()),
-            impulse_baseline: ImpulseBaseline::of(model.meta()),
+            spread: model.meta().alignment.as_ref().and_then(|a| a.spread()),
+            impulse_baseline: model.meta().alignment.as_ref().and_then(|a| a.impulse()),
             meter: IndicatorMeter::new(sample_rate, rig.features.lowpass_hz),
             stage: AnalysisStage::new(rig, sample_rate, &chans, absent, speed)?,
             foreign: foreign_to(&model, rig),
@@ -148,10 +148,10 @@ impl Analyzer {
         model.check_layout(&self.rig)?;
         self.health.reconfigure(policy, &model.meta().labels)?;
         self.foreign = foreign_to(&model, &self.rig);
-        self.spread = BaselineSpread::of(model.meta());
-        self.impulse_baseline = ImpulseBaseline::of(model.meta());
+        self.spread = model.meta().alignment.as_ref().and_then(|a| a.spread());
+        self.impulse_baseline = model.meta().alignment.as_ref().and_then(|a| a.impulse());
         self.health
-            .set_indicator_baseline(IndicatorBaseline::of(model.meta()));
+            .set_indicator_baseline(model.meta().alignment.as_ref().and_then(|a| a.indicators()));
         self.model = model;
         self.model_id = model_id.to_string();
         Ok(())
@@ -210,7 +210,7 @@ impl Analyzer {
                 .map(|(b, (k, n))| b.impulse(k, n)),
             rule: analysis.fault_bands.as_ref().map(|b| self.rule.reading(b)),
             rpm: None,
-            speed_source: analysis.speed_source.to_string(),
+            speed_source: analysis.speed_source,
             speed_confidence: analysis.speed_confidence,
             speed_rival_rpm: analysis.speed_rival_rpm,
             velocity: analysis.velocity_mm_s,
@@ -241,7 +241,7 @@ impl Analyzer {
                     c.quality.flag(QualityFlag::TachoLost);
                 }
                 c.rpm = Some(fw.rpm).filter(|r| r.is_finite());
-                c.speed_source = fw.speed_source.clone();
+                c.speed_source = fw.speed_source;
                 Self::dsp_quality(&fw.quality, &mut c.quality);
                 // a window whose speed alone is in doubt is classified at the speed it was
                 // analysed at: the verdict names a speed-free alarm by it, nothing more
@@ -480,7 +480,7 @@ struct Classified {
     /// The rule's band ratios (None without band ratios).
     rule: Option<RuleReading>,
     rpm: Option<f64>,
-    speed_source: String,
+    speed_source: SpeedSourceKind,
     speed_confidence: Option<f64>,
     speed_rival_rpm: Option<f64>,
     /// Broadband velocity RMS of the classifier channel, mm/s.
