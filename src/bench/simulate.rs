@@ -36,11 +36,8 @@ pub fn run(opts: &BenchOptions) -> Result<()> {
 
     // 1) one core, 10 s of signal, each fault class (best of two runs each).
     let mut single = Vec::new();
-    for faults in [
-        vec![],
-        vec![Condition::OuterRace],
-        vec![Condition::InnerRace],
-    ] {
+    let (outer, inner) = (Condition::OuterRace, Condition::InnerRace);
+    for faults in [vec![], vec![outer], vec![inner]] {
         let sc = Scenario::constant(&faults, rpm, seconds, 1);
         let mut best = f64::INFINITY;
         for _ in 0..2 {
