@@ -7,7 +7,7 @@
 use super::{machine_line, BenchOptions};
 use crate::config::RigConfig;
 use crate::sim::{self, dataset::generate, plan::Plan, Scenario};
-use crate::vocabulary::Condition;
+use crate::vocabulary::Condition::{InnerRace, OuterRace};
 use anyhow::{bail, Context, Result};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -36,8 +36,7 @@ pub fn run(opts: &BenchOptions) -> Result<()> {
 
     // 1) one core, 10 s of signal, each fault class (best of two runs each).
     let mut single = Vec::new();
-    let (outer, inner) = (Condition::OuterRace, Condition::InnerRace);
-    for faults in [vec![], vec![outer], vec![inner]] {
+    for faults in [vec![], vec![OuterRace], vec![InnerRace]] {
         let sc = Scenario::constant(&faults, rpm, seconds, 1);
         let mut best = f64::INFINITY;
         for _ in 0..2 {
@@ -174,7 +173,7 @@ fn validation_table(rig: &RigConfig) -> Result<Vec<(f64, String, Vec<f64>)>> {
             .collect();
             rows.push((fr, format!("theory (alpha {alpha})"), theory.clone()));
             let mut meas = Vec::new();
-            for (fault, base) in [(Condition::OuterRace, 0), (Condition::InnerRace, 3)] {
+            for (fault, base) in [(OuterRace, 0), (InnerRace, 3)] {
                 let mut sc = Scenario::constant(&[fault], fr * 60.0, 10.0, 42);
                 if alpha > 0.0 {
                     sc.overrides.contact_angle_deg = Some(alpha);
