@@ -1,9 +1,11 @@
 //! `rigmon bench calibrate`: wall time of one calibration as `rigmon calibrate` runs it
-//! (the recordings loaded, then [`fit::calibrate`]) against the same calibration the way it
-//! ran before issue 37 ([`fit::Options::before_issue_37`]: every open effect tried again in
-//! every round; the recordings loaded one after the other), in the same run on the same
-//! data. (The way before issue 15, [`fit::Options::baseline`], took 15x longer; its figures
-//! are in docs/calibration-speed.md.) Default data: the independent generator's
+//! (the recordings loaded, then [`fit::calibrate`]) against the same calibration the way the
+//! first pass at issue 37 left it ([`fit::Options::first_issue_37_pass`]: every section a
+//! search visits re-runs the whole engine, the `resonance` effect's too, and 8 engine runs
+//! are kept per recording), in the same run on the same data. (The way before issue 37,
+//! [`fit::Options::before_issue_37`], was 1.36x slower than that pass, and the way before
+//! issue 15, [`fit::Options::baseline`], 15x slower; their figures are in
+//! docs/calibration-speed.md.) Default data: the independent generator's
 //! `speed_fluctuation` case (`tests/python/measured_like.py`, six recordings of 20 s, seed
 //! 1); `--measured` takes any `labels.csv`, `--seconds` cuts each recording (default: whole).
 
@@ -150,8 +152,8 @@ pub fn run(
         labels.display()
     );
     progress("now:", &new);
-    let before = fit::Options::before_issue_37();
-    let (old, _) = one(&rig, inputs, analysed, before, false)?;
+    let before = fit::Options::first_issue_37_pass();
+    let (old, _) = one(&rig, inputs, analysed, before, true)?;
     progress("before:", &old);
     let ratio = old.seconds / new.seconds;
     if opts.json {
@@ -184,8 +186,9 @@ pub fn run(
         println!("machine: {}", machine_line());
         println!(
             "load and calibration of {} recordings ({:.1} s of signal, analysed whole): {:.1} s \
-             (CPU {:.1} s, load average {:.1} -> {:.1}); the same before issue 37 (every open \
-             effect tried in every round, recordings loaded one by one): {:.1} s \
+             (CPU {:.1} s, load average {:.1} -> {:.1}); the same the previous way (the whole \
+             engine re-run for every section tried, resonances too; 8 engine runs kept per \
+             recording): {:.1} s \
              (CPU {:.1} s, load average {:.1} -> {:.1}): {:.2}x faster",
             ops.len(),
             signal,

@@ -4,8 +4,10 @@
 //! that cuts its own components most, if the held-out part confirms it ([`accepts`]). Stops
 //! when nothing passes. The trials of a round run in parallel. Views are cached by
 //! (simulation section, operating point), engine runs by the section's engine part in a
-//! least-recently-used cache, so effects of the sensor stage (noise, lines, shaft and
-//! half-order lines) do not re-run the mechanics. A measured recording is analysed whole,
+//! least-recently-used cache as large as [`ENGINE_CACHE_BYTES`] allows, so effects of the
+//! sensor stage (noise, lines, shaft and half-order lines) do not re-run the mechanics, and
+//! the mechanics are kept apart from the structural modes ([`crate::sim::split`]), so the
+//! `resonance` effect re-runs only the modes. A measured recording is analysed whole,
 //! its views averaged over [`views::SEGMENT_S`] segments; its simulated twin is one segment
 //! long, and the twin's `speed` view comes from its speed profile over the whole measured
 //! length ([`views::compute`]).
@@ -23,8 +25,8 @@ use crate::config::simulation::SimulationConfig;
 use crate::config::{RigConfig, SpeedConfig};
 use crate::dsp::speed::SpeedTrack;
 use crate::sim::{
-    dominant_resonance_hz, rig_simulation, run_engine, sensor, unit_scale, EngineRun, Scenario,
-    SpeedProfile,
+    dominant_resonance_hz, rig_simulation, run_engine, sensor, split, unit_scale, EngineRun,
+    Scenario, SpeedProfile,
 };
 use crate::vocabulary::SpeedSourceKind;
 use anyhow::{Context, Result};
@@ -156,6 +158,14 @@ pub struct Options {
     pub own_views: bool,
     /// Do not try again an effect the last round ruled out ([`ruled_out`]).
     pub skip_ruled_out: bool,
+    /// Run the mechanics apart from the structural modes ([`crate::sim::split`]), so a
+    /// twin that differs only in its resonances (the `resonance` effect) re-runs the modes
+    /// alone; else every new section runs the whole engine.
+    pub structure_apart: bool,
+    /// Keep as many engine runs per recording as [`ENGINE_CACHE_BYTES`] holds (at least
+    /// [`ENGINE_CACHE_PER_OP`]; else that many), so a later round's search that revisits a
+    /// section does not simulate it again.
+    pub engine_cache_by_memory: bool,
 }
 
 impl Default for Options {
@@ -166,6 +176,8 @@ impl Default for Options {
             engine_lru: true,
             own_views: true,
             skip_ruled_out: true,
+            structure_apart: true,
+            engine_cache_by_memory: true,
         }
     }
 }
@@ -175,6 +187,17 @@ impl Options {
     pub fn before_issue_37() -> Self {
         Options {
             skip_ruled_out: false,
+            ..Options::first_issue_37_pass()
+        }
+    }
+
+    /// The calibration as the first pass at issue 37 left it (effects ruled out are not
+    /// tried again, but every section the search visits re-runs the whole engine, and 8
+    /// engine runs are kept per recording): what `rigmon bench calibrate` compares with.
+    pub fn first_issue_37_pass() -> Self {
+        Options {
+            structure_apart: false,
+            engine_cache_by_memory: false,
             ..Options::default()
         }
     }
@@ -187,6 +210,8 @@ impl Options {
             engine_lru: false,
             own_views: false,
             skip_ruled_out: false,
+            structure_apart: false,
+            engine_cache_by_memory: false,
         }
     }
 }
@@ -241,6 +266,11 @@ pub struct Twin<'a> {
     /// Engine runs by (engine part of the section, operating point): effects that change
     /// only the sensor stage reuse them. Bounded (see [`ENGINE_CACHE_PER_OP`]).
     engines: Mutex<EngineCache>,
+    /// Runs of the mechanics alone with their housing forces ([`Options::structure_apart`]),
+    /// by (the section's [`split::mechanics_part`], operating point): a twin that differs
+    /// only in its structural modes adds them to one of these. Bounded (see
+    /// [`MECHANICS_CACHE_BYTES`]).
+    mechanics: Mutex<EngineCache>,
     /// Factor from the classifier channel's unit to m/s^2.
     pub unit_to_m_s2: f64,
     pub options: Options,
@@ -254,6 +284,38 @@ pub struct Twin<'a> {
 pub const ENGINE_CACHE_PER_OP: usize = 8;
 /// The same, in the baseline (emptied when full).
 pub const ENGINE_CACHE_PER_OP_BASELINE: usize = 4;
+/// Memory the engine runs kept may take ([`Options::engine_cache_by_memory`]), bytes: a run
+/// of a 2 s twin at 12.8 kHz takes about 0.4 MB, so about 200 runs per recording of three.
+pub const ENGINE_CACHE_BYTES: f64 = 256e6;
+/// Memory the runs of the mechanics with their housing forces may take, bytes (a 2.56 s
+/// twin at 12.8 kHz, 10x oversampled, keeps about 9 MB of forces; at least 4 runs per
+/// recording are kept whatever their size).
+pub const MECHANICS_CACHE_BYTES: f64 = 160e6;
+
+/// How many engine runs per measured recording fit in `bytes`: a twin's signals and
+/// shaft angles at the recording's rate (and with `forces`, its housing forces at the
+/// internal rate from the warm-up on).
+fn runs_within(bytes: f64, rig: &RigConfig, ops: &[Measured], forces: bool) -> usize {
+    let channels = rig.acceleration_channels().count().max(1) as f64;
+    let oversampling = rig
+        .simulation
+        .as_ref()
+        .map_or(10.0, |s| f64::from(s.oversampling));
+    let warmup = rig.simulation.as_ref().map_or(0.3, |s| s.warmup_s);
+    let largest = ops
+        .iter()
+        .map(|m| {
+            let twin = views::segment_seconds(m.recording.duration_s());
+            let fs = m.recording.sample_rate;
+            let mut b = twin * fs * (channels + 1.0) * 8.0;
+            if forces {
+                b += (twin + warmup) * fs * oversampling * 24.0;
+            }
+            b
+        })
+        .fold(1.0, f64::max);
+    (bytes / (largest * ops.len().max(1) as f64)) as usize
+}
 
 /// The speed track of a simulated twin over `seconds` as the rig's speed source would
 /// read it: a tacho or an estimate follow the twin's speed profile (the sine of
@@ -313,11 +375,14 @@ impl<'a> Twin<'a> {
             .or_else(|| rig.acceleration_channels().next())
             .context("the rig has no acceleration channel")?;
         let unit_to_m_s2 = ch.sensitivity / unit_scale(&ch.unit, &ch.name)?;
-        let per_op = if options.engine_lru {
+        let per_op = if options.engine_cache_by_memory {
+            runs_within(ENGINE_CACHE_BYTES, rig, ops, false).max(ENGINE_CACHE_PER_OP)
+        } else if options.engine_lru {
             ENGINE_CACHE_PER_OP
         } else {
             ENGINE_CACHE_PER_OP_BASELINE
         };
+        let mech_per_op = runs_within(MECHANICS_CACHE_BYTES, rig, ops, true).max(4);
         Ok(Twin {
             rig,
             ops,
@@ -330,6 +395,12 @@ impl<'a> Twin<'a> {
                 clock: 0,
                 capacity: per_op * ops.len(),
                 lru: options.engine_lru,
+            }),
+            mechanics: Mutex::new(EngineCache {
+                runs: HashMap::new(),
+                clock: 0,
+                capacity: mech_per_op * ops.len(),
+                lru: true,
             }),
             options,
             timings,
@@ -378,23 +449,9 @@ impl<'a> Twin<'a> {
         let rec = if parts.is_empty() {
             None
         } else {
-            let engine_key = (serde_json::to_string(&s.engine_part())?, i);
-            let cached = self.engines.lock().expect("cache").get(&engine_key);
-            let run = match cached {
-                Some(r) => r,
-                None => {
-                    let r = Arc::new(
-                        self.timings
-                            .time_op(Stage::Engine, Some(i), || run_engine(self.rig, &s, &sc))
-                            .with_context(|| format!("simulating the twin of {}", m.name))?,
-                    );
-                    self.engines
-                        .lock()
-                        .expect("cache")
-                        .insert(engine_key, r.clone());
-                    r
-                }
-            };
+            let run = self
+                .engine_run(&s, &sc, i)
+                .with_context(|| format!("simulating the twin of {}", m.name))?;
             Some(self.timings.time_op(Stage::Sensor, Some(i), || {
                 sensor::finish(self.rig, &sc.overrides.apply(&s), &sc, &run)
             })?)
@@ -436,6 +493,41 @@ impl<'a> Twin<'a> {
             partial.insert(partial_key, v.clone());
         }
         Ok(v)
+    }
+
+    /// The engine run of section `s` for operating point `i` (scenario `sc`): from the
+    /// cache, else (with [`Options::structure_apart`]) its mechanics from their own cache or
+    /// run once, plus its structural modes.
+    fn engine_run(&self, s: &SimulationConfig, sc: &Scenario, i: usize) -> Result<Arc<EngineRun>> {
+        let engine_key = (serde_json::to_string(&s.engine_part())?, i);
+        if let Some(r) = self.engines.lock().expect("cache").get(&engine_key) {
+            return Ok(r);
+        }
+        let r = if self.options.structure_apart {
+            let mech_key = (serde_json::to_string(&split::mechanics_part(s))?, i);
+            let cached = self.mechanics.lock().expect("cache").get(&mech_key);
+            let mech = match cached {
+                Some(m) => m,
+                None => {
+                    let m = Arc::new(self.timings.time_op(Stage::Engine, Some(i), || {
+                        split::run_mechanics(self.rig, s, sc)
+                    })?);
+                    let mut cache = self.mechanics.lock().expect("cache");
+                    cache.insert(mech_key, m.clone());
+                    m
+                }
+            };
+            self.timings.time_op(Stage::Engine, Some(i), || {
+                mech.with_resonances(&s.structure.resonances)
+            })?
+        } else {
+            self.timings
+                .time_op(Stage::Engine, Some(i), || run_engine(self.rig, s, sc))?
+        };
+        let r = Arc::new(r);
+        let mut cache = self.engines.lock().expect("cache");
+        cache.insert(engine_key, r.clone());
+        Ok(r)
     }
 
     /// The sum of the named components of the mean error over the operating points `idx`

@@ -27,6 +27,13 @@ pub struct EngineOutput {
     pub max_loaded: u32,
     /// Largest journal-housing relative displacement seen, m.
     pub max_excursion: f64,
+    /// The signal index (`config::simulation::SIGNALS`) of each entry of `signals`.
+    pub want: Vec<usize>,
+    /// With [`Engine::record_forces`]: the force on the housing (axial, vertical,
+    /// horizontal; N) at every internal step from the first warm-up step, and the number of
+    /// warm-up steps; the structural path was left out of `signals`
+    /// ([`super::split`] adds it).
+    pub housing_forces: Option<(Vec<[f64; 3]>, i64)>,
 }
 
 /// Everything the step loop needs.
@@ -40,6 +47,9 @@ pub struct Engine {
     pub warmup_s: f64,
     /// Extra static load on the NDE journal, N (downwards positive).
     pub radial_load_n: f64,
+    /// Keep the housing forces of every internal step in the output (for a later pass of
+    /// the structural path alone, [`super::split`]); `structure` should then have no modes.
+    pub record_forces: bool,
 }
 
 /// Static equilibrium of the vertical plane under gravity (+ extra load) with the nonlinear
@@ -120,6 +130,26 @@ fn phasor(a: f64) -> (f64, f64) {
     (c, s)
 }
 
+/// [M^-1 K | M^-1 C] row by row, both planes per entry, against the state [x | v]: one dot
+/// product of 2n per row.
+fn stacked_rows(rotor: &RotorModel) -> Vec<[f64; 2]> {
+    let n = rotor.n;
+    (0..n)
+        .flat_map(|r| {
+            (0..2 * n).map(move |j| {
+                [0, 1].map(|p| {
+                    let pl = &rotor.planes[p];
+                    if j < n {
+                        pl.minv_k.a[r * n + j]
+                    } else {
+                        pl.minv_c.a[r * n + j - n]
+                    }
+                })
+            })
+        })
+        .collect()
+}
+
 impl Engine {
     /// Run for `n_out` output samples, producing the signals listed in `want`.
     pub fn run(&mut self, n_out: usize, want: &[usize], rng: &mut StdRng) -> Result<EngineOutput> {
@@ -160,22 +190,7 @@ impl Engine {
             .collect();
         let mu = rotor.planes[0].minv[(nde, nde)] + rotor.planes[0].minv[(hn, hn)]
             - 2.0 * rotor.planes[0].minv[(nde, hn)];
-        // [M^-1 K | M^-1 C] row by row, both planes per entry, against the state [x | v]:
-        // one dot product of 2n per row
-        let kc: Vec<[f64; 2]> = (0..n)
-            .flat_map(|r| {
-                (0..2 * n).map(move |j| {
-                    [0, 1].map(|p| {
-                        let pl = &rotor.planes[p];
-                        if j < n {
-                            pl.minv_k.a[r * n + j]
-                        } else {
-                            pl.minv_c.a[r * n + j - n]
-                        }
-                    })
-                })
-            })
-            .collect();
+        let kc = stacked_rows(rotor);
         let mut state = vec![[0.0f64; 2]; 2 * n];
         let disc_phase: Vec<(f64, f64)> =
             rotor.unbalance.iter().map(|&(_, ph)| phasor(ph)).collect();
@@ -194,6 +209,9 @@ impl Engine {
         let mut max_loaded = 0u32;
         let mut max_exc = 0.0f64;
         let mut sig = [0.0f64; 5];
+        let mut forces: Option<Vec<[f64; 3]>> = self
+            .record_forces
+            .then(|| Vec::with_capacity((last + w_steps + 1).max(0) as usize));
 
         let mut i = -w_steps;
         // i mod k, kept by counting (no integer division per step): the output-sample
@@ -307,6 +325,9 @@ impl Engine {
             // --- structural path: force on the housing = -(force on the journal)
             let fh = [cf.axial, -(cf.elastic[0] + fd[0]), -(cf.elastic[1] + fd[1])];
             let ar = self.structure.step(fh, dt);
+            if let Some(f) = forces.as_mut() {
+                f.push(fh);
+            }
             sig[0] = aa + ar[0];
             sig[1] = hn_acc[0] + ar[1];
             sig[2] = hn_acc[1] + ar[2];
@@ -345,6 +366,8 @@ impl Engine {
             boundary_angles: bounds,
             max_loaded,
             max_excursion: max_exc,
+            want: want.to_vec(),
+            housing_forces: forces.map(|f| (f, w_steps)),
         })
     }
 }

@@ -5,7 +5,8 @@
 //! rate, analog tacho), with labels in its metadata.
 //!
 //! Parts: [`rotor`] (beam FE + Guyan reduction + supports), [`bearing_contact`] (balls, cage,
-//! Hertz contact), [`defects`] (slot geometry), [`structure`] (resonances), [`profile`]
+//! Hertz contact), [`defects`] (slot geometry), [`structure`] (resonances; [`split`] runs it
+//! apart from the mechanics, so calibration re-runs only it), [`profile`]
 //! (speed), [`integrate`] (the stepper), [`decimate`] (anti-aliasing), [`sensor`] (noise,
 //! electrical and shaft-order lines, units, tacho: the stage after the mechanics, see
 //! [`run_engine`]), [`scenario`], [`plan`] (datasets) and [`output`] (MCAP/WAV); its
@@ -24,6 +25,7 @@ pub mod rotor;
 pub mod scenario;
 pub mod sensor;
 pub mod signature;
+pub mod split;
 pub mod structure;
 
 pub use profile::SpeedProfile;
@@ -196,6 +198,17 @@ pub fn run_engine(
     base: &SimulationConfig,
     scenario: &Scenario,
 ) -> Result<EngineRun> {
+    engine_with(rig, base, scenario, false)
+}
+
+/// [`run_engine`]; with `apart`, the structural path is left out and the housing forces
+/// kept for it ([`split`]).
+fn engine_with(
+    rig: &RigConfig,
+    base: &SimulationConfig,
+    scenario: &Scenario,
+    apart: bool,
+) -> Result<EngineRun> {
     let sim = scenario.overrides.apply(base);
     sim.validate()?;
     if !(scenario.seconds > 0.0 && scenario.seconds <= 3600.0) {
@@ -229,7 +242,12 @@ pub fn run_engine(
     );
     let k = sim.oversampling as usize;
     let dt = 1.0 / (fs * k as f64);
-    let structure = Structure::new(&sim.structure.resonances, dt);
+    let modes = if apart {
+        &[][..]
+    } else {
+        &sim.structure.resonances[..]
+    };
+    let structure = Structure::new(modes, dt);
     let mut engine = Engine {
         rotor,
         bearing,
@@ -246,6 +264,7 @@ pub fn run_engine(
         oversampling: k,
         warmup_s: sim.warmup_s,
         radial_load_n: sim.bearing.radial_load_n,
+        record_forces: apart,
     };
     let mut rng = StdRng::seed_from_u64(scenario.seed);
     let out = engine.run(n_out, &want, &mut rng)?;
