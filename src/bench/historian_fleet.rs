@@ -148,7 +148,7 @@ impl Fleet {
         let answered = Arc::new(AtomicU64::new(0));
         let (p, a, t) = (published.clone(), answered.clone(), tag.to_string());
         let recent = session
-            .declare_queryable(format!("rigmon/{tag}-*/shaft/nde/{SUFFIX}"))
+            .declare_queryable(format!("rigmon/{tag}-$*/shaft/nde/{SUFFIX}"))
             .callback(move |q| answer(&q, &t, run_ns, &p, &a))
             .wait()
             .map_err(|e| anyhow!("{e}"))?;
