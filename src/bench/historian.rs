@@ -6,33 +6,27 @@
 //! (published minus rows in the database), CPU and RSS of the historian. Baseline in the same
 //! run: the same rows written in-process by the historian's writer straight to the database
 //! (no Zenoh, no buffer), so the ratio says how close the offered load is to what the database
-//! path alone sustains. The bench's rows are deleted at the end. Last line:
+//! path alone sustains. The points ([`super::historian_fleet`]) publish with the fleet's
+//! congestion policy and answer their recent history as daemons do; every window is then in
+//! the database, or counted lost by the historian (point and seq range), or counted by the
+//! bench as put into a closed transport, or reported unaccounted (the failure).
+//! The bench's rows are deleted at the end. Last line:
 //! `historian: N points x 2 windows/s sustained, p99 publish-to-committed X s, L lost`.
 
+use super::historian_fleet::{window, Fleet, RATE};
 use super::{cpu_seconds, free_port, machine_line};
-use crate::health::iso20816::Zone;
-use crate::health::Basis;
 use crate::historian::database::{self, DatabaseSettings, Target};
 use crate::historian::row::WindowRow;
 use crate::historian::status::HistorianStatus;
 use crate::historian::writer::Writer;
-use crate::model::evidence::FamilyEvidence;
 use crate::publish::time_range::now_ns;
 use crate::publish::zenoh::ZenohSettings;
-use crate::vocabulary::Condition;
 use crate::vocabulary::ZenohMode;
-use crate::wire::health::{
-    FaultBands, HealthMessage, ModelInfo, QualityReport, WindowTimes, SCHEMA, SCHEMA_VERSION,
-};
 use anyhow::{anyhow, bail, Context, Result};
 use std::io::Read;
 use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
-use zenoh::qos::CongestionControl;
 use zenoh::Wait;
-
-/// Windows per second per point (the daemon's hop of 0.5 s).
-const RATE: f64 = 2.0;
 
 /// Kills the historian if the bench fails half-way.
 struct ChildGuard(Option<Child>);
@@ -45,92 +39,11 @@ impl Drop for ChildGuard {
     }
 }
 
-/// One simulated window of point `i`, window number `seq` of a run starting at `run_ns`.
-fn window(tag: &str, i: usize, seq: u64, run_ns: u64) -> HealthMessage {
-    let labels: Vec<String> = Condition::NAMES.iter().map(|s| s.to_string()).collect();
-    let end_s = seq as f64 / RATE + 0.5;
-    let wobble = ((seq as f64 * 0.37 + i as f64).sin() * 0.1) as f32;
-    let probs = [
-        0.85 + wobble,
-        0.05,
-        0.05 - wobble / 2.0,
-        0.05 - wobble / 2.0,
-    ];
-    HealthMessage {
-        schema: SCHEMA.into(),
-        schema_version: SCHEMA_VERSION,
-        rig: format!("{tag}-{i}"),
-        asset: "shaft".into(),
-        point: "nde".into(),
-        site: Some(tag.to_string()),
-        seq,
-        window: WindowTimes {
-            start_s: end_s - 1.0,
-            end_s,
-            start_ns: run_ns + ((end_s - 1.0) * 1e9) as u64,
-            end_ns: run_ns + (end_s * 1e9) as u64,
-        },
-        publish_time_ns: 0,
-        rpm: Some(1480.0 + 10.0 * f64::from(wobble)),
-        speed_source: crate::vocabulary::SpeedSourceKind::Tacho,
-        speed_confidence: None,
-        speed_rival_rpm: None,
-        quality: QualityReport {
-            ok: true,
-            ..Default::default()
-        },
-        probabilities: labels.iter().cloned().zip(probs).collect(),
-        window_state: labels[0].clone(),
-        unknown_reason: None,
-        alarm_despite: None,
-        decision: Basis::Model,
-        overruled: None,
-        evidence: Some(FamilyEvidence {
-            outer_race: 0.4 + wobble,
-            inner_race: -0.2,
-            ball: 0.1 - wobble,
-        }),
-        impulse: None,
-        indicators: None,
-        state: labels[0].clone(),
-        state_since_s: 0.5,
-        state_changed: seq == 1,
-        confidence: probs[0],
-        novelty: 0.3 + wobble,
-        novelty_threshold: 1.0,
-        baseline_distance: None,
-        beyond_baseline: None,
-        fault_bands: FaultBands {
-            channel: "vertical".into(),
-            orders: [
-                ("bpfo".to_string(), 3.58),
-                ("bpfi".to_string(), 5.42),
-                ("two_bsf".to_string(), 4.71),
-            ]
-            .into(),
-            bpfo: vec![0.02 + wobble.abs() / 10.0, 0.01, 0.005],
-            bpfi: vec![0.01, 0.008, 0.004],
-            two_bsf: vec![0.006, 0.004, 0.002],
-            floor: 0.003,
-        },
-        velocity_rms_mm_s: Some(1.8 + f64::from(wobble)),
-        iso_zone: Some(Zone::B),
-        model: ModelInfo {
-            id: "bench".into(),
-            sha256: "0".repeat(64),
-            labels,
-            foreign: Vec::new(),
-        },
-        calibration_id: None,
-        software_version: env!("CARGO_PKG_VERSION").to_string(),
-    }
-}
-
-/// Rows of the bench's points in the database.
-async fn count_rows(c: &tokio_postgres::Client, tag: &str) -> Result<i64> {
+/// Rows of the bench's points in the database, windows 1..=`ticks` (the measured ones).
+async fn count_rows(c: &tokio_postgres::Client, tag: &str, ticks: u64) -> Result<i64> {
     Ok(c.query_one(
-        "SELECT count(*) FROM windows w JOIN points p USING (point_id) WHERE p.key LIKE $1",
-        &[&format!("{tag}-%")],
+        "SELECT count(*) FROM windows w JOIN points p USING (point_id) WHERE p.key LIKE $1 AND w.seq <= $2",
+        &[&format!("{tag}-%"), &(ticks as i64)],
     )
     .await?
     .get(0))
@@ -203,8 +116,10 @@ async fn baseline(
 struct Missing {
     /// Not in the database.
     total: u64,
-    /// ...of which in the historian's loss ledger (point and seq range).
+    /// ...of which in the historian's loss ledger (point and seq range),
     counted: u64,
+    /// ...of which (not in the ledger) the bench put while its session had no router.
+    no_route: u64,
     /// The first few not accounted for: `<point> seq <n>`.
     unaccounted_examples: Vec<String>,
 }
@@ -216,6 +131,7 @@ async fn missing(
     points: usize,
     ticks: u64,
     lost: &crate::historian::losses::LostSummary,
+    no_route: &std::collections::HashSet<(usize, u64)>,
 ) -> Result<Missing> {
     let rows = c
         .query(
@@ -254,6 +170,8 @@ async fn missing(
                 .is_some_and(|rs| rs.iter().any(|&(f, l)| (f..=l).contains(&seq)));
             if counted {
                 m.counted += 1;
+            } else if no_route.contains(&(i, seq)) {
+                m.no_route += 1;
             } else if m.unaccounted_examples.len() < 5 {
                 m.unaccounted_examples.push(format!("{key} seq {seq}"));
             }
@@ -275,11 +193,21 @@ struct Report {
     lost: i64,
     /// ... of which the historian counted by point and seq range (its status and log),
     lost_counted: u64,
+    /// ... of which the bench put while its session had no router (a closed transport),
+    lost_no_route: u64,
     /// ... and of which it said nothing.
     lost_unaccounted: u64,
     lost_unaccounted_examples: Vec<String>,
     /// Ranges in the historian's loss ledger.
     historian_lost_ranges: u64,
+    /// Gaps the historian's tracker saw (windows that did not arrive live) ...
+    gaps: u64,
+    /// ... windows it recovered from the points' recent history,
+    recovered: u64,
+    /// ... and windows the simulated points answered from their recent history.
+    answered_from_history: u64,
+    /// Publishing slices (10 per tick) in which the bench's session had no router.
+    no_route_slices: u64,
     rows_per_s_offered: f64,
     rows_per_s_committed: f64,
     catch_up_s: f64,
@@ -310,6 +238,61 @@ fn status_mb(pid: u32, key: &str) -> f64 {
         .map_or(f64::NAN, |kb| kb / 1024.0)
 }
 
+/// Windows of every point published after the measured ones (not counted): a daemon keeps
+/// publishing, so a measured window dropped at the end shows as a gap like any other.
+const TAIL_TICKS: u64 = 4;
+
+/// Start `rigmon historian` (this binary) as a Zenoh client of `endpoint`, its spill in `dir`.
+fn start_historian(dir: &std::path::Path, tag: &str, endpoint: &str) -> Result<ChildGuard> {
+    let cfg = dir.join("historian.toml");
+    std::fs::write(
+        &cfg,
+        format!("name = \"{tag}\"\ndefault_site = \"{tag}\"\nstatus_every_s = 0.5\n[zenoh]\nmode = \"client\"\nconnect = [\"{endpoint}\"]\nhistory_windows = 0\n[buffer]\nspill_dir = \"spill\"\n"),
+    )?;
+    let child = Command::new(std::env::current_exe()?)
+        .args(["historian", "--summary-json", "--config"])
+        .arg(&cfg)
+        .stdout(Stdio::piped())
+        .stderr(std::fs::File::create(dir.join("historian.log"))?)
+        .spawn()
+        .context("starting rigmon historian")?;
+    Ok(ChildGuard(Some(child)))
+}
+
+/// Stop the historian (SIGTERM) and read its last status (every loss range listed).
+fn stop_historian(mut guard: ChildGuard) -> Result<HistorianStatus> {
+    let mut child = guard.0.take().expect("child");
+    // SAFETY: plain kill(2) on our own child.
+    unsafe { libc::kill(child.id() as i32, libc::SIGTERM) };
+    let mut out = String::new();
+    child.stdout.take().map(|mut s| s.read_to_string(&mut out));
+    let _ = child.wait();
+    serde_json::from_str(out.trim())
+        .with_context(|| format!("the historian's last status: {out:?}"))
+}
+
+fn client_of(endpoint: &str) -> Result<zenoh::Session> {
+    ZenohSettings {
+        mode: ZenohMode::Client,
+        connect: vec![endpoint.to_string()],
+        history_windows: 0,
+        ..Default::default()
+    }
+    .open()
+}
+
+/// What one run measured, before the report is made of it.
+struct Measured {
+    published: u64,
+    publish_s: f64,
+    late: f64,
+    at_end: i64,
+    catch_up: f64,
+    historian_cpu_s: f64,
+    bench_cpu_s: f64,
+    rss: (f64, f64),
+}
+
 /// Run the benchmark.
 pub fn run(points: usize, seconds: f64, json: bool) -> Result<()> {
     if points == 0 || !(seconds >= 1.0) {
@@ -327,8 +310,7 @@ pub fn run(points: usize, seconds: f64, json: bool) -> Result<()> {
     let base_tag = format!("{tag}base");
     let base_rate = database::block_on(baseline(&target, &base_tag, points, base_ticks, 20_000))??;
     let dir = tempfile::tempdir()?;
-    let port = free_port()?;
-    let endpoint = format!("tcp/127.0.0.1:{port}");
+    let endpoint = format!("tcp/127.0.0.1:{}", free_port()?);
     let router = ZenohSettings {
         mode: ZenohMode::Router,
         listen: vec![endpoint.clone()],
@@ -336,138 +318,107 @@ pub fn run(points: usize, seconds: f64, json: bool) -> Result<()> {
         ..Default::default()
     }
     .open()?;
-    let cfg = dir.path().join("historian.toml");
-    std::fs::write(
-        &cfg,
-        format!("name = \"{tag}\"\ndefault_site = \"{tag}\"\nstatus_every_s = 0.5\n[zenoh]\nmode = \"client\"\nconnect = [\"{endpoint}\"]\nhistory_windows = 0\n[buffer]\nspill_dir = \"spill\"\n"),
-    )?;
-    let exe = std::env::current_exe()?;
-    let log = dir.path().join("historian.log");
-    let child = Command::new(exe)
-        .args(["historian", "--summary-json", "--config"])
-        .arg(&cfg)
-        .stdout(Stdio::piped())
-        .stderr(std::fs::File::create(&log)?)
-        .spawn()
-        .context("starting rigmon historian")?;
-    let pid = child.id();
-    let mut guard = ChildGuard(Some(child));
-    let publisher = ZenohSettings {
-        mode: ZenohMode::Client,
-        connect: vec![endpoint.clone()],
-        history_windows: 0,
-        ..Default::default()
-    }
-    .open()?;
-    let status_key = format!("rigmon/@historian/{tag}/status");
+    let mut guard = start_historian(dir.path(), &tag, &endpoint)?;
+    let pid = guard.0.as_ref().map_or(0, Child::id);
+    let publisher = client_of(&endpoint)?;
     let status_sub = publisher
-        .declare_subscriber(status_key.clone())
+        .declare_subscriber(format!("rigmon/@historian/{tag}/status"))
         .wait()
         .map_err(|e| anyhow!("{e}"))?;
-    wait_ready(&status_sub, &mut guard, &log)?;
-    let pubs = (0..points)
-        .map(|i| {
-            publisher
-                .declare_publisher(format!("rigmon/{tag}-{i}/shaft/nde/health"))
-                .congestion_control(CongestionControl::Block)
-                .wait()
-                .map_err(|e| anyhow!("{e}"))
-        })
-        .collect::<Result<Vec<_>>>()?;
-    let wait_match = Instant::now();
-    while !pubs[0]
-        .matching_status()
-        .wait()
-        .map(|m| m.matching())
-        .unwrap_or(false)
-    {
-        if wait_match.elapsed() > Duration::from_secs(20) {
-            bail!("the historian never subscribed to rigmon/**/health");
-        }
-        std::thread::sleep(Duration::from_millis(20));
-    }
-    let run_ns = now_ns();
+    wait_ready(&status_sub, &mut guard, &dir.path().join("historian.log"))?;
+    let mut fleet = Fleet::declare(&publisher, &tag, points, now_ns())?;
+    fleet.wait_matched()?;
     let (cpu0, bench_cpu0) = (cpu_seconds(pid)?, cpu_seconds(std::process::id())?);
     let t0 = Instant::now();
-    let mut late = 0.0f64;
-    const SLICES: usize = 10;
-    for seq in 1..=ticks {
-        for s in 0..SLICES {
-            let due = Duration::from_secs_f64(
-                (seq - 1) as f64 / RATE + s as f64 / (RATE * SLICES as f64),
-            );
-            match due.checked_sub(t0.elapsed()) {
-                Some(wait) => std::thread::sleep(wait),
-                None => late = late.max((t0.elapsed() - due).as_secs_f64()),
-            }
-            for i in (s..points).step_by(SLICES) {
-                let mut m = window(&tag, i, seq, run_ns);
-                m.publish_time_ns = now_ns();
-                pubs[i]
-                    .put(serde_json::to_vec(&m)?)
-                    .wait()
-                    .map_err(|e| anyhow!("{e}"))?;
-            }
-        }
-    }
-    let published = ticks * points as u64;
-    let publish_s = t0.elapsed().as_secs_f64();
+    let late = fleet.publish(t0, 1, ticks)?;
+    let (end, publish_s) = (Instant::now(), t0.elapsed().as_secs_f64());
     let (cpu1, bench_cpu1) = (cpu_seconds(pid)?, cpu_seconds(std::process::id())?);
-    let (rss, peak) = (status_mb(pid, "VmRSS:"), status_mb(pid, "VmHWM:"));
+    let rss = (status_mb(pid, "VmRSS:"), status_mb(pid, "VmHWM:"));
+    let at_end =
+        database::block_on(async { count_rows(&target.connect().await?, &tag, ticks).await })??;
+    fleet.publish(t0, ticks + 1, ticks + TAIL_TICKS)?;
+    let published = ticks * points as u64;
     let limit = Duration::from_secs_f64(seconds.max(60.0) * 3.0);
-    let (at_end, catch_up) =
-        database::block_on(wait_caught_up(&target, &tag, published, &status_sub, limit))??;
-    // SAFETY: plain kill(2) on our own child.
-    unsafe { libc::kill(pid as i32, libc::SIGTERM) };
-    let mut child = guard.0.take().expect("child");
-    let mut out = String::new();
-    child.stdout.take().map(|mut s| s.read_to_string(&mut out));
-    let _ = child.wait();
-    let last: HistorianStatus = serde_json::from_str(out.trim())
-        .with_context(|| format!("the historian's last status: {out:?}"))?;
+    let catch_up = database::block_on(wait_caught_up(
+        &target,
+        &tag,
+        (ticks, published),
+        &status_sub,
+        (end, limit),
+    ))??;
+    let last = stop_historian(guard)?;
     let (in_db, miss) = database::block_on(async {
         let c = target.connect().await?;
-        let n = count_rows(&c, &tag).await?;
-        let m = missing(&c, &tag, points, ticks, &last.lost).await?;
+        let n = count_rows(&c, &tag, ticks).await?;
+        let m = missing(&c, &tag, points, ticks, &last.lost, &fleet.no_route).await?;
         clean(&c, &tag).await?;
         anyhow::Ok((n, m))
     })??;
-    drop(pubs);
+    let m = Measured {
+        published,
+        publish_s,
+        late,
+        at_end,
+        catch_up,
+        historian_cpu_s: cpu1 - cpu0,
+        bench_cpu_s: bench_cpu1 - bench_cpu0,
+        rss,
+    };
+    let report = report(points, seconds, base_rate, &m, in_db, miss, &last, &fleet);
+    drop(fleet);
     let _ = publisher.close().wait();
     let _ = router.close().wait();
-    let wall = publish_s;
-    let lost = published as i64 - in_db;
-    let unaccounted = miss.total - miss.counted;
-    let report = Report {
+    print(&report, json)
+}
+
+#[allow(clippy::too_many_arguments)]
+fn report(
+    points: usize,
+    seconds: f64,
+    base_rate: f64,
+    m: &Measured,
+    in_db: i64,
+    miss: Missing,
+    last: &HistorianStatus,
+    fleet: &Fleet,
+) -> Report {
+    let wall = m.publish_s;
+    let lost = m.published as i64 - in_db;
+    let unaccounted = miss.total - miss.counted - miss.no_route;
+    Report {
         machine: machine_line(),
         points,
         seconds,
-        published,
-        publisher_late_s: late,
+        published: m.published,
+        publisher_late_s: m.late,
         rows_in_db: in_db,
         lost,
         lost_counted: miss.counted,
+        lost_no_route: miss.no_route,
         lost_unaccounted: unaccounted,
         lost_unaccounted_examples: miss.unaccounted_examples,
         historian_lost_ranges: last.lost.ranges.len() as u64 + last.lost.ranges_left_off,
-        rows_per_s_offered: published as f64 / wall,
-        rows_per_s_committed: at_end as f64 / wall,
-        catch_up_s: catch_up,
+        gaps: last.recovery.gaps,
+        recovered: last.recovery.recovered,
+        answered_from_history: fleet.answered.load(std::sync::atomic::Ordering::Relaxed),
+        no_route_slices: fleet.no_route_slices,
+        rows_per_s_offered: m.published as f64 / wall,
+        rows_per_s_committed: m.at_end as f64 / wall,
+        catch_up_s: m.catch_up,
         baseline_rows_per_s: base_rate,
-        offered_over_baseline: (published as f64 / wall) / base_rate,
-        committed_over_baseline: (at_end as f64 / wall) / base_rate,
+        offered_over_baseline: (m.published as f64 / wall) / base_rate,
+        committed_over_baseline: (m.at_end as f64 / wall) / base_rate,
         latency_p50_s: last.latency.p50_s,
         latency_p99_s: last.latency.p99_s,
         latency_max_s: last.latency.max_s,
-        historian_cpu_percent: 100.0 * (cpu1 - cpu0) / wall,
-        historian_rss_mb: rss,
-        historian_rss_peak_mb: peak,
-        bench_cpu_percent: 100.0 * (bench_cpu1 - bench_cpu0) / wall,
+        historian_cpu_percent: 100.0 * m.historian_cpu_s / wall,
+        historian_rss_mb: m.rss.0,
+        historian_rss_peak_mb: m.rss.1,
+        bench_cpu_percent: 100.0 * m.bench_cpu_s / wall,
         dropped: last.buffer.dropped,
         spilled: last.buffer.spilled_total,
-        sustained: lost == 0 && catch_up < 2.0 && late < 1.0,
-    };
-    print(&report, json)
+        sustained: lost == 0 && m.catch_up < 2.0 && m.late < 1.0,
+    }
 }
 
 type StatusSub =
@@ -475,30 +426,34 @@ type StatusSub =
 
 /// After the last publish: wait until every row is in the database, or the historian has
 /// nothing left to write (buffer and spill empty, nothing received and nothing committed for
-/// 3 s: the rest is lost and its ledger says which), at most `limit`. Messages still on their
-/// way through Zenoh count as received only when they arrive, so a historian that is
-/// receiving is waited for. Returns (rows in the database when
-/// publishing ended, seconds waited).
+/// 3 s: the rest is lost and its ledger says which), at most `limit` after `end` (the last
+/// measured publish). Messages still on their way through Zenoh count as received only when
+/// they arrive, so a historian that is receiving, or asking for missed windows, is waited
+/// for. Returns the seconds since `end`.
 async fn wait_caught_up(
     target: &Target,
     tag: &str,
-    published: u64,
+    (ticks, published): (u64, u64),
     status: &StatusSub,
-    limit: Duration,
-) -> Result<(i64, f64)> {
+    (end, limit): (Instant, Duration),
+) -> Result<f64> {
     let c = target.connect().await?;
-    let at_end = count_rows(&c, tag).await?;
-    let t = Instant::now();
-    let (mut n, mut last, mut still_since) = (at_end, (0u64, 0u64), Instant::now());
-    while (n as u64) < published && t.elapsed() < limit {
+    let (mut n, mut last, mut still_since) = (0, [0u64; 4], Instant::now());
+    while (n as u64) < published && end.elapsed() < limit {
         tokio::time::sleep(Duration::from_millis(200)).await;
-        n = count_rows(&c, tag).await?;
+        n = count_rows(&c, tag, ticks).await?;
         let mut latest = None;
         while let Ok(Some(sample)) = status.try_recv() {
             latest = serde_json::from_slice::<HistorianStatus>(&sample.payload().to_bytes()).ok();
         }
         if let Some(st) = latest {
-            let progress = (st.rows.committed, st.received.health);
+            let r = &st.recovery;
+            let progress = [
+                st.rows.committed,
+                st.received.health,
+                r.requested,
+                r.recovered + r.lost,
+            ];
             if progress != last || st.buffer.memory + st.buffer.spilled > 0 {
                 (last, still_since) = (progress, Instant::now());
             } else if still_since.elapsed() > Duration::from_secs(3) {
@@ -506,7 +461,7 @@ async fn wait_caught_up(
             }
         }
     }
-    Ok((at_end, t.elapsed().as_secs_f64()))
+    Ok(end.elapsed().as_secs_f64())
 }
 
 /// Wait for the historian's first status saying its database is connected.
@@ -546,11 +501,13 @@ fn print(r: &Report, json: bool) -> Result<()> {
             "rows in the database {} of {} published; spilled to disk {}, dropped by the historian's buffer {}",
             r.rows_in_db, r.published, r.spilled, r.dropped
         );
+        println!("missed live (congestion policy Drop): the historian saw {} gaps and recovered {} windows from the points' recent history ({} answered); the bench had no router in {} publishing slices", r.gaps, r.recovered, r.answered_from_history, r.no_route_slices);
         println!(
-            "not in the database {}: counted lost by the historian with point and seq range {} ({} ranges in its status), not accounted for {}{}",
+            "not in the database {}: counted lost by the historian with point and seq range {} ({} ranges in its status), put by the bench into a closed transport {}, not accounted for {}{}",
             r.lost,
             r.lost_counted,
             r.historian_lost_ranges,
+            r.lost_no_route,
             r.lost_unaccounted,
             if r.lost_unaccounted_examples.is_empty() {
                 String::new()
@@ -560,8 +517,8 @@ fn print(r: &Report, json: bool) -> Result<()> {
         );
     }
     let lost = format!(
-        "{} lost ({} counted by point and seq range, {} unaccounted)",
-        r.lost, r.lost_counted, r.lost_unaccounted
+        "{} lost ({} counted by point and seq range, {} into a closed transport, {} unaccounted)",
+        r.lost, r.lost_counted, r.lost_no_route, r.lost_unaccounted
     );
     if r.sustained {
         println!("historian: {} points x 2 windows/s sustained, p99 publish-to-committed {:.2} s, {lost}", r.points, r.latency_p99_s);

@@ -6,6 +6,7 @@ pub(crate) mod calibrate;
 pub(crate) mod features;
 pub(crate) mod footprint;
 pub(crate) mod historian;
+mod historian_fleet;
 pub(crate) mod load;
 pub(crate) mod simulate;
 pub(crate) mod speed;

@@ -10,6 +10,7 @@ mod common;
 mod estimate_rig;
 
 mod adapt;
+mod backpressure;
 mod calibrate;
 mod estimate_mode;
 mod fleet;

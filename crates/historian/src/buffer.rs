@@ -115,10 +115,12 @@ impl Buffer {
         }
     }
 
-    /// Take a message (from Zenoh's callback thread; never blocks on the database).
-    pub fn push(&self, m: Incoming) {
+    /// Take a message (from Zenoh's callback thread; never blocks on the database). False
+    /// when it was dropped (memory and spill full, or the spill failed): a health window is
+    /// then in the loss ledger.
+    pub fn push(&self, m: Incoming) -> bool {
         let Ok(mut g) = self.inner.lock() else {
-            return;
+            return false;
         };
         let size = m.size();
         let mut dropped = None;
@@ -155,10 +157,12 @@ impl Buffer {
             }
         }
         drop(g);
+        let kept = dropped.is_none();
         if let Some(m) = dropped {
             self.enter_dropped(&m);
         }
         self.notify.notify_one();
+        kept
     }
 
     /// Messages waiting (memory + spill).
@@ -303,13 +307,13 @@ mod tests {
         let d = tempfile::tempdir().unwrap();
         let b = Buffer::open(2, 1 << 20, Some(d.path()), 60).unwrap();
         for i in 0..6 {
-            b.push(m(i));
+            assert!(b.push(m(i)), "kept");
         }
         // 2 in memory; each spilled record is 12 + 3 + 1 + 1 = 17 bytes: 4 fit under 60 bytes.
         let l = b.level();
         assert_eq!((l.memory, l.spilled), (2, 4));
         assert_eq!(b.counters.dropped.load(Ordering::Relaxed), 0);
-        b.push(m(6));
+        assert!(!b.push(m(6)), "push says it dropped");
         assert_eq!(b.counters.dropped.load(Ordering::Relaxed), 1);
         let mut seen = Vec::new();
         loop {

@@ -11,6 +11,8 @@ pub async fn iso_limits(session: &zenoh::Session, prefix: &str, key: &str) -> Op
     let selector = format!("{prefix}/{key}/config");
     let replies = session
         .get(selector)
+        // The reply must not be able to close a slow historian's transport (see recovery).
+        .congestion_control(rigmon_runtime::publish::zenoh::FLEET_CONGESTION)
         .timeout(Duration::from_secs(5))
         .await
         .ok()?;

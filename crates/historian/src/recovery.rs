@@ -13,6 +13,7 @@ use super::buffer::{Buffer, Incoming, Kind};
 use super::losses::LossLedger;
 use super::status::Counters;
 use rigmon_runtime::publish::recent::{same_run, RecentQuery, SUFFIX};
+use rigmon_runtime::publish::zenoh::FLEET_CONGESTION;
 use std::collections::{HashMap, HashSet};
 use std::sync::Arc;
 use std::time::Duration;
@@ -128,8 +129,12 @@ pub async fn recover(
     Counters::add(&counters.requested, gap.len());
     let mut got: HashSet<u64> = HashSet::new();
     // Every reply has the same key: no consolidation, or only the last would be kept.
+    // Replies travel with the query's congestion control: `Drop`, so that replies queued to a
+    // historian that reads slowly cannot close its transport (`Block` would, after 5 s; see
+    // `FLEET_CONGESTION`); a dropped reply is a window counted lost with its seq range.
     let replies = session
         .get(selector.clone())
+        .congestion_control(FLEET_CONGESTION)
         .consolidation(zenoh::query::ConsolidationMode::None)
         .timeout(timeout)
         .await;
@@ -144,13 +149,17 @@ pub async fn recover(
                 let Some(seq) = seq.filter(|s| (gap.first..=gap.last).contains(s)) else {
                     continue;
                 };
-                if got.insert(seq) {
-                    buffer.push(Incoming {
+                // Only a window the buffer kept is recovered: one it had to drop (memory and
+                // spill full) is in the loss ledger and must stay there.
+                if !got.contains(&seq)
+                    && buffer.push(Incoming {
                         kind: Kind::Health,
                         key: format!("{prefix}/{}/health", gap.key),
                         payload,
                         recovered: true,
-                    });
+                    })
+                {
+                    got.insert(seq);
                 }
             }
         }

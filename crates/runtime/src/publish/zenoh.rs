@@ -12,6 +12,8 @@
 //! one that appears later (an error in the log, `publish.duplicates` in the status).
 //! Endpoints are checked before a session opens (ports in range, listen ports free), and
 //! zenoh's errors reach the user without the source paths of the machine that built zenoh.
+//!
+//! Health and status are published with [`FLEET_CONGESTION`] (`Drop`), see there for why.
 
 use crate::vocabulary::ZenohMode;
 use crate::wire::status::PublishStats;
@@ -24,6 +26,21 @@ use zenoh::qos::CongestionControl;
 use zenoh::Wait;
 
 pub use super::access::{AclSettings, AuthSettings, TlsSettings};
+
+/// The fleet's congestion policy for health and status: `Drop`, never `Block`.
+///
+/// In Zenoh the two differ only in what happens when a transport's queue stays full
+/// (a slow subscriber, e.g. a historian behind a busy database, and the router's queue to it):
+/// `Drop` drops that one message after `wait_before_drop` (1 ms); `Block` waits up to
+/// `wait_before_close` (5 s), stalling the router's receive threads for every other
+/// subscriber meanwhile, and then **closes the transport**, losing everything queued in it
+/// while `put` had returned Ok (eclipse-zenoh/zenoh#2587, #1876, #2709; measured in the
+/// historian bench, docs/fleet.md). A dropped window is a gap in its point's `seq` that the
+/// historian sees with the point's next window and fetches from the daemon's recent history
+/// (`[zenoh] history_windows`), or counts as lost with its seq range: nothing goes silently.
+/// Status is the latest state and repeats. All messages of one priority share one queue
+/// (eclipse-zenoh/zenoh#2584), so one `Block` message on the path would bring the close back.
+pub const FLEET_CONGESTION: CongestionControl = CongestionControl::Drop;
 
 /// Default TCP port rigmon listens on (loopback only in the shipped config).
 pub const DEFAULT_PORT: u16 = 7448;
@@ -503,9 +520,9 @@ impl ZenohPublisher {
                 .map_err(z)
                 .with_context(|| format!("declaring publisher {base}/{suffix}"))
         };
-        let health = publisher("health", CongestionControl::Block)?;
+        let health = publisher("health", FLEET_CONGESTION)?;
         let spectrum = publisher("spectrum", CongestionControl::Drop)?;
-        let status = publisher("status", CongestionControl::Block)?;
+        let status = publisher("status", FLEET_CONGESTION)?;
         let own = format!("{base}/alive/{}", session.zid());
         let token = session
             .liveliness()
