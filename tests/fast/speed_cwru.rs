@@ -73,6 +73,7 @@ fn every_cwru_window_reads_the_shaft_with_the_joint_reading() {
         let x = &rec.channel("DE").unwrap().samples;
         let now = windows(x, rec.sample_rate, families, true);
         let before = windows(x, rec.sample_rate, families, false);
+        assert!(now.len() >= 8, "{file}: {} windows", now.len());
         let (max, median, uncertain) = spread(&now, stored);
         let (bmax, bmedian, _) = spread(&before, stored);
         eprintln!(
@@ -83,7 +84,6 @@ fn every_cwru_window_reads_the_shaft_with_the_joint_reading() {
             100.0 * bmax,
             100.0 * bmedian
         );
-        assert!(now.len() >= 8, "{file}: {} windows", now.len());
         for (k, t) in now.iter().enumerate() {
             assert!(
                 (t.rpm / stored - 1.0).abs() < 0.015 && !t.uncertain(),
