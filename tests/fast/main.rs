@@ -33,5 +33,6 @@ mod service_binary;
 mod sim;
 mod snapshots;
 mod speed_cues;
+mod speed_cwru;
 mod speed_free;
 mod speed_joint;

@@ -5,7 +5,7 @@
 //! spectrum; read as a shaft series it is 1350 or 1800 rpm (or 2700). The same comb is
 //! explained by a shaft at 9.8 Hz whose BPFO train it is. Of the two, the speed that explains
 //! more is taken: a candidate c = m g / order (g the shaft lines' choice, m = 1-3, the order
-//! of BPFO, BPFI or 2xBSF within the bearing's slip) replaces g when
+//! of BPFO within the bearing's slip: [`train_orders`]) replaces g when
 //! - c shows a shaft line of its own ([`own_lines`]: its harmonics off g's series; the
 //!   tracker checks their clarity),
 //! - the envelope shows c's train ([`train_support`], as strong as a fault family must be:
@@ -36,9 +36,18 @@ const TRAIN_FUNDAMENTAL: f64 = 1.5;
 /// as the shaft's 1x, 2x or 3x).
 const COMB_MULTIPLES: [f64; 3] = [1.0, 2.0, 3.0];
 
-/// Orders of the trains that make a comb.
-pub fn train_orders(o: &FaultOrders) -> [f64; 3] {
-    [o.bpfo, o.bpfi, o.two_bsf]
+/// Orders of the trains read as a comb: BPFO only. An outer race under a fixed load is an
+/// unmodulated train, a bare comb the shaft lines can mistake for a series. A BPFI or 2xBSF
+/// train is modulated (1x, the cage's FTF): its lines come with sidebands c apart, which the
+/// harmonic sum reads at c itself, and its family in the envelope settles the speed through
+/// [`super::fault_family`]. As a comb, a train of c at one of these orders sits on a faster
+/// shaft's own series by construction (order c = m g), and the envelope of a real machine
+/// carries that shaft's 1x and its cage lines: CWRU's 6205 at 1797 rpm (shaft 29.95 Hz) was
+/// read as a 6.2 Hz shaft whose 2xBSF train was the 1x (inner race 209_0) and as a 5.6 Hz
+/// shaft whose BPFI train it was, the 1x sidebands falling on the cage's 2nd and 3rd
+/// harmonics (outer race 130@6_0), for most of those records.
+pub fn train_orders(o: &FaultOrders) -> [f64; 1] {
+    [o.bpfo]
 }
 
 /// The speeds (Hz, with the train's order) whose train would put its fundamental on g's
@@ -197,6 +206,10 @@ mod tests {
         assert!(train_present(&env, o.bpfo, c, 300.0));
         assert!(!train_present(&env, o.bpfi, c, 300.0));
         let g = o.bpfo * c / 2.0;
+        // a comb is read as a BPFO train only
+        assert!(comb_spans(g, &o, 5.0, 60.0)
+            .iter()
+            .all(|&(_, _, order)| order == o.bpfo));
         assert!(comb_spans(g, &o, 5.0, 60.0)
             .iter()
             .any(|&(a, b, order)| order == o.bpfo && a <= c && c <= b));

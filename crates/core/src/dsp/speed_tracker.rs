@@ -27,7 +27,7 @@
 //!   ([`super::fault_family`]). A healthy machine shows no family and keeps what the shaft
 //!   lines say.
 //!
-//! - **the joint reading** (issue 34, off by default for now, [`JointParts`]): a lone strong 1x line
+//! - **the joint reading** (issue 34, on by default, [`JointParts`]): a lone strong 1x line
 //!   counts as shaft evidence, the speed is read from the harmonics' own interpolated peaks
 //!   (no bias from the harmonic sum's grid), and a comb may be a bearing's impact train
 //!   ([`super::speed_comb`]) when a slower shaft shows lines of its own beside it.
@@ -287,6 +287,7 @@ impl SpeedTracker {
             spec: Whitened {
                 skip_mains: true,
                 interpolate: true,
+                lone: true,
                 ..Whitened::default()
             },
             warped: Vec::with_capacity(cap),
@@ -303,14 +304,13 @@ impl SpeedTracker {
             },
             env_span: None,
             recent_spec: Whitened::default(),
-            joint: JointParts::all(false),
+            joint: JointParts::all(true),
         })
     }
 
-    /// Switch the joint reading on or off (off, the default until it passes the real-record
-    /// checks: `dsp::cwru_estimated_speed_within_one_percent` still reads 209_0 at 1480.6 rpm
-    /// with it on; the reading before issue 34, the mean of five harmonics, the harmonic
-    /// sum's grid maximum, no comb explained as a train). For measuring one against the other.
+    /// Switch the joint reading on (the default) or off (the reading before issue 34: the
+    /// mean of five harmonics, the harmonic sum's grid maximum, no comb explained as a
+    /// train). For measuring one against the other.
     pub fn set_joint(&mut self, on: bool) {
         self.set_joint_parts(JointParts::all(on));
     }
@@ -634,8 +634,7 @@ impl SpeedTracker {
 
     /// The speed that explains the shaft lines' choice `g` as a bearing's train
     /// ([`super::speed_comb`]): the clearest shaft line of its own (off g's series) among the
-    /// speeds whose BPFO, BPFI or
-    /// 2xBSF train would sit on g's comb, whose train the envelope shows, and under which
+    /// speeds whose BPFO train would sit on g's comb, whose train the envelope shows, and under which
     /// the rest of g's series is noise; with its clarity plus the train's support.
     fn comb_as_train(&self, g: f64, lo: f64) -> Option<(f64, f64)> {
         let fam = self.families?;
