@@ -23,6 +23,7 @@ use crate::daemon::{self, DaemonOptions, Summary};
 use crate::dsp::synthetic::Synthetic;
 use crate::dsp::{FeaturePipeline, SpeedTrack};
 use crate::publish::zenoh::{ZenohSettings, ZenohSubscriber};
+use crate::vocabulary::SpeedSourceKind;
 use crate::wire::health::HealthMessage;
 use anyhow::{bail, Context, Result};
 use std::path::{Path, PathBuf};
@@ -264,7 +265,7 @@ fn baseline(rig: &RigConfig, generator: &Generator, seconds: f64) -> Result<f64>
 
 /// One speed source to run the load with.
 struct Case {
-    speed: &'static str,
+    speed: SpeedSourceKind,
     config: SpeedConfig,
     tacho: TachoForm,
     nominal_rpm: Option<f64>,
@@ -273,16 +274,15 @@ struct Case {
 /// The rig's analog tacho first, then every other speed source the generator can feed.
 fn cases(rig: &RigConfig) -> Result<Vec<Case>> {
     let rpm = SHAFT_HZ * 60.0;
-    let case = |speed, config, tacho, nominal_rpm| Case {
-        speed,
+    let case = |config: SpeedConfig, tacho, nominal_rpm| Case {
+        speed: config.kind(),
         config,
         tacho,
         nominal_rpm,
     };
     Ok(vec![
-        case("tacho", rig.speed.clone(), TachoForm::Analog, None),
+        case(rig.speed.clone(), TachoForm::Analog, None),
         case(
-            "edges",
             SpeedConfig::Edges {
                 pulses_per_rev: rig.speed.pulses_per_rev(),
             },
@@ -290,7 +290,6 @@ fn cases(rig: &RigConfig) -> Result<Vec<Case>> {
             None,
         ),
         case(
-            "fixed",
             SpeedConfig::Fixed {
                 rpm,
                 check_within_percent: 10.0,
@@ -299,13 +298,11 @@ fn cases(rig: &RigConfig) -> Result<Vec<Case>> {
             None,
         ),
         case(
-            "recording",
             toml::from_str("source = \"recording\"")?,
             TachoForm::Analog,
             Some(rpm),
         ),
         case(
-            "estimate",
             toml::from_str("source = \"estimate\"")?,
             TachoForm::Analog,
             None,
@@ -315,7 +312,7 @@ fn cases(rig: &RigConfig) -> Result<Vec<Case>> {
 
 /// What one run of the pipeline measured.
 struct LoadRun {
-    speed: &'static str,
+    speed: SpeedSourceKind,
     summary: Summary,
     produced: u64,
     received: u64,
@@ -460,7 +457,7 @@ fn daemon_config(rig_file: &Path, model: &Path, endpoint: &str) -> Result<Daemon
 }
 
 /// A progress bar ticking until `stop`, showing the real-time factor.
-fn progress(seconds: f64, stop: Arc<AtomicBool>, produced: Arc<AtomicU64>, speed: &str) {
+fn progress(seconds: f64, stop: Arc<AtomicBool>, produced: Arc<AtomicU64>, speed: SpeedSourceKind) {
     let bar = indicatif::ProgressBar::new(seconds.ceil() as u64);
     bar.set_style(
         indicatif::ProgressStyle::with_template(&format!(
