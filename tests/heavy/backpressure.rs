@@ -9,7 +9,8 @@
 //! status and its log), and the ledger must name no window that is in the database.
 
 use super::historian::{
-    bin, every_field_set, loopback_client, loopback_router, wait_until, Guard, Postgres,
+    bin, every_field_set, historian_status, loopback_client, loopback_router, wait_until, Guard,
+    Postgres,
 };
 use rigmon::historian::status::HistorianStatus;
 use rigmon::publish::recent::RecentHistory;
@@ -18,7 +19,7 @@ use std::collections::BTreeSet;
 use std::io::Read;
 use std::path::Path;
 use std::process::{Command, Stdio};
-use std::sync::{Arc, Mutex};
+use std::sync::Arc;
 use std::time::Duration;
 use zenoh::Wait;
 
@@ -84,15 +85,7 @@ fn a_historian_slower_than_its_fleet_loses_nothing_in_silence() {
     let pg = Postgres::with_fleet_database();
     let (router_ep, _router) = loopback_router();
     let fleet = loopback_client(&router_ep);
-    let status: Arc<Mutex<Option<HistorianStatus>>> = Arc::default();
-    let s2 = status.clone();
-    let _status_sub = fleet
-        .declare_subscriber("rigmon/@historian/test/status")
-        .callback(move |s| {
-            *s2.lock().unwrap() = serde_json::from_slice(&s.payload().to_bytes()).ok()
-        })
-        .wait()
-        .unwrap();
+    let (_status_sub, status) = historian_status(&fleet);
     let hist = slow_historian(d, &pg, &router_ep);
     wait_until("the historian's database", Duration::from_secs(60), || {
         status
