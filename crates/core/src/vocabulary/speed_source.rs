@@ -49,11 +49,6 @@ impl SpeedSourceKind {
             SpeedSourceKind::Simulator => "simulator",
         }
     }
-
-    /// Whether the speed is read from the vibration (so it carries a confidence).
-    pub const fn from_vibration(self) -> bool {
-        matches!(self, SpeedSourceKind::Estimate)
-    }
 }
 
 impl fmt::Display for SpeedSourceKind {
