@@ -3,6 +3,7 @@
 //! machine they ran on (see [`machine_line`]).
 
 pub(crate) mod calibrate;
+mod dataset_pair;
 pub(crate) mod features;
 pub(crate) mod footprint;
 pub(crate) mod historian;

@@ -2,7 +2,8 @@
 //! signal at f_r = 19.8 Hz on one core, against the thesis' MSC Adams run (Paper A Table 8:
 //! 7,255.17 s for 10 s with the 6DOF bearing, 8,251.25 s with the hi-fi bearing), and the
 //! thesis dataset plan (378 one-second recordings) on all cores, against the single-core rate
-//! measured in the same run.
+//! measured in the same run; then adapt's two datasets of that plan apart and as a pair
+//! sharing their mechanics ([`super::dataset_pair`]), the ratio between them.
 
 use super::{machine_line, BenchOptions};
 use crate::config::RigConfig;
@@ -56,13 +57,11 @@ pub fn run(opts: &BenchOptions) -> Result<()> {
     let plan_path = shipped("config/plans/thesis.toml");
     let plan = Plan::load(&plan_path)?;
     let dir = tempfile_dir()?;
-    let cores = std::thread::available_parallelism()
-        .map(|n| n.get())
-        .unwrap_or(1);
-    let ext = "mcap";
-    let ds = generate(&rig, &plan, &dir, ext, None, false, Default::default())
+    let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+    let ds = generate(&rig, &plan, &dir, "mcap", None, false, Default::default())
         .with_context(|| format!("thesis plan into {}", dir.display()))?;
     let _ = std::fs::remove_dir_all(&dir);
+    let pair = super::dataset_pair::time_both(&rig, &plan, &tempfile_dir()?)?;
     let expected_one_core = ds.seconds * per_signal_s;
     let thesis_plan_s = ds.seconds / 10.0 * THESIS_6DOF_S;
 
@@ -81,6 +80,7 @@ pub fn run(opts: &BenchOptions) -> Result<()> {
             "speedup_vs_thesis_hifi": THESIS_HIFI_S * seconds / 10.0 / worst,
             "thesis_plan": {"recordings": ds.recordings, "signal_seconds": ds.seconds, "cores": cores, "wall_s": ds.wall_s,
                 "parallel_speedup_vs_one_core": expected_one_core / ds.wall_s, "thesis_adams_estimate_s": thesis_plan_s},
+            "adapt_datasets": pair,
             "table6_style": table.iter().map(|(fr, case, v)| serde_json::json!({"f_r": fr, "case": case, "bpfo_1_3_hz": &v[..3], "bpfi_1_3_hz": &v[3..]})).collect::<Vec<_>>(),
         });
         println!("{v}");
@@ -111,6 +111,7 @@ pub fn run(opts: &BenchOptions) -> Result<()> {
         expected_one_core / ds.wall_s,
         thesis_plan_s
     );
+    println!("{}", pair.line());
     println!("\nCharacteristic frequencies (Hz), Paper A Table 6/7 style; rigmon = envelope-spectrum peaks of 10 s of simulated vertical acceleration:");
     println!("| f_r (Hz) | case | BPFO | 2BPFO | 3BPFO | BPFI | 2BPFI | 3BPFI |");
     println!("|---|---|---|---|---|---|---|---|");

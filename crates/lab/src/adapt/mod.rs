@@ -3,9 +3,10 @@
 //! (labelled faults, [`shape`]) and is scored; it never trains the classifier. Steps:
 //! check every input and the plan before any long work ([`preflight`]: files, spans, speeds,
 //! a plan from the machine's speeds [`plan`], one simulated recording featurised) ->
-//! calibrate, with the zero-shot dataset (the plan on the uncalibrated rig) simulated
-//! alongside on the same cores -> shape the plan with the labelled faults -> simulate with the
-//! plan's ranges spread around the calibration -> train `seeds` models and the zero-shot
+//! calibrate, with the first runs of the zero-shot dataset (the plan on the uncalibrated rig)
+//! simulated alongside on one thread -> shape the plan with the labelled faults -> simulate
+//! with the plan's ranges spread around the calibration, and the rest of the zero-shot
+//! dataset with it, each run's mechanics once where calibration left them alone -> train `seeds` models and the zero-shot
 //! model in parallel (rayon), keep the best seed on simulated validation -> align the kept
 //! model to the machine's healthy recordings ([`crate::model::align`]) -> score every
 //! labelled recording with the zero-shot model, the adapted model and the rule, and check
@@ -28,6 +29,7 @@ use crate::model::classifier::TrainedModel;
 use crate::model::rule::{EnvelopeRule, RuleSettings};
 use crate::model::{export, OnnxClassifier};
 use crate::sim::dataset::{generate, CalibratedDraws, DatasetSummary};
+use crate::sim::dataset_pair::{generate_pair, simulate_ahead, Ahead, DatasetJob};
 use crate::sim::plan::Plan;
 use crate::train::dataset::RecordingFeatures;
 use crate::train::featurise::featurise_all;
@@ -40,7 +42,7 @@ use preflight::LabelledSet;
 use rayon::prelude::*;
 use serde::Serialize;
 use std::path::{Path, PathBuf};
-use std::time::Instant;
+use std::sync::atomic::{AtomicBool, Ordering};
 use timing::{StepTime, Stopwatch};
 
 /// What `rigmon adapt` is asked to do.
@@ -227,11 +229,7 @@ fn simulate_and_featurise(
         o.progress,
         CalibratedDraws::Spread,
     )?;
-    let entries = read_manifest(&dir.join("labels.csv"))?;
-    let pb = file_bar(o.progress, entries.len(), "features");
-    let recs = featurise_all(&entries, rig, &pb)?;
-    pb.finish_and_clear();
-    Ok((s, recs))
+    Ok((s, featurise_dataset(rig, dir, o)?))
 }
 
 /// Train one seed (epochs counted on the shared bar `pb`).
@@ -516,51 +514,126 @@ fn score_and_check(
     ))
 }
 
-/// Calibrate, and simulate the zero-shot dataset (the plan on the uncalibrated rig)
-/// alongside on the same cores (it needs nothing from the calibration). Returns the
-/// calibrated rig, the calibration summary, the zero-shot dataset's features and the wall
-/// seconds of each branch.
-#[allow(clippy::type_complexity)]
-fn calibrate_and_zero_shot(
-    pre: &preflight::Checked,
+/// Featurise the dataset `generate` or `generate_pair` wrote into `dir`.
+fn featurise_dataset(
+    rig: &RigConfig,
+    dir: &Path,
     o: &AdaptOptions,
+) -> Result<Vec<RecordingFeatures>> {
+    let entries = read_manifest(&dir.join("labels.csv"))?;
+    let pb = file_bar(o.progress, entries.len(), "features");
+    let recs = featurise_all(&entries, rig, &pb)?;
+    pb.finish_and_clear();
+    Ok(recs)
+}
+
+/// The calibrated dataset and, without a baseline model, the zero-shot one (the plan
+/// before shaping on the uncalibrated rig), simulated together so that the runs whose
+/// mechanics calibration did not change run them once ([`generate_pair`]; the zero-shot
+/// runs in `ahead` were simulated while the calibration ran). Returns the
+/// calibrated dataset's summary and features, the zero-shot features and how many runs
+/// shared their mechanics.
+fn simulate_datasets(
+    (zero_job, cal_rig, plan): (DatasetJob, &RigConfig, &Plan),
+    ahead: &Ahead,
     work: &Path,
-) -> Result<(
-    RigConfig,
-    serde_json::Value,
-    Option<Vec<RecordingFeatures>>,
-    f64,
-    f64,
-)> {
-    let rig = &pre.rig;
-    let (cal, zero) = std::thread::scope(|s| {
-        let zero = o.baseline_model.is_none().then(|| {
-            s.spawn(|| {
-                let t = Instant::now();
-                let r = simulate_and_featurise(rig, &pre.plan, &work.join("uncalibrated"), o);
-                (r, t.elapsed().as_secs_f64())
-            })
+    o: &AdaptOptions,
+) -> Result<SimulatedDatasets> {
+    let cal_dir = work.join("calibrated");
+    if o.baseline_model.is_some() {
+        let (summary, recs) = simulate_and_featurise(cal_rig, plan, &cal_dir, o)?;
+        return Ok(SimulatedDatasets {
+            summary,
+            recs,
+            recs0: None,
+            shared_runs: 0,
         });
-        let t = Instant::now();
-        let c = calibrate_step(
+    }
+    let jobs = [
+        zero_job,
+        DatasetJob {
+            rig: cal_rig,
+            plan,
+            dir: &cal_dir,
+        },
+    ];
+    let pair = generate_pair(
+        jobs,
+        ahead,
+        "mcap",
+        o.threads,
+        o.progress,
+        CalibratedDraws::Spread,
+    )?;
+    Ok(SimulatedDatasets {
+        summary: pair.second,
+        recs: featurise_dataset(cal_rig, &cal_dir, o)?,
+        recs0: Some(featurise_dataset(zero_job.rig, zero_job.dir, o)?),
+        shared_runs: pair.shared_runs,
+    })
+}
+
+/// What [`simulate_datasets`] gives.
+struct SimulatedDatasets {
+    summary: DatasetSummary,
+    recs: Vec<RecordingFeatures>,
+    recs0: Option<Vec<RecordingFeatures>>,
+    shared_runs: usize,
+}
+
+/// Calibrate, with the zero-shot dataset's first runs simulated alongside on one thread
+/// until the calibration ends ([`simulate_ahead`]; none with a baseline model).
+fn calibrate_with_zero_shot_ahead(
+    pre: &preflight::Checked,
+    zero_job: DatasetJob,
+    o: &AdaptOptions,
+) -> Result<(RigConfig, serde_json::Value, Ahead)> {
+    let stop = AtomicBool::new(false);
+    let (cal, ahead) = std::thread::scope(|s| {
+        let ahead = o
+            .baseline_model
+            .is_none()
+            .then(|| s.spawn(|| simulate_ahead(zero_job, "mcap", CalibratedDraws::Spread, &stop)));
+        let cal = calibrate_step(
             &o.rig,
-            rig,
+            &pre.rig,
             &pre.calibrated,
             pre.calibration_seconds,
             &o.out,
         );
-        let cal_s = t.elapsed().as_secs_f64();
-        (
-            (c, cal_s),
-            zero.map(|h| h.join().expect("the zero-shot simulation panicked")),
-        )
+        stop.store(true, Ordering::Relaxed);
+        let ahead = ahead.map(|h| h.join().expect("the zero-shot simulation panicked"));
+        (cal, ahead)
     });
-    let ((cal_rig, summary), cal_s) = (cal.0?, cal.1);
-    let (recs0, zero_s) = match zero {
-        Some((r, s)) => (Some(r?.1), s),
-        None => (None, 0.0),
+    let (cal_rig, calibration) = cal?;
+    Ok((cal_rig, calibration, ahead.transpose()?.unwrap_or_default()))
+}
+
+/// Shape a derived plan with the labelled faults (a given `--plan` stays as it is); writes
+/// `plan.toml` (and `plan-zero-shot.toml` when shaped).
+fn shape_step(
+    pre: &preflight::Checked,
+    cal_rig: &RigConfig,
+    o: &AdaptOptions,
+) -> Result<(Plan, Vec<shape::ShapedFault>)> {
+    let (the_plan, shaped) = if o.plan.is_none() {
+        let faults: Vec<(String, String, f64, &crate::recording::Recording)> = pre
+            .recordings
+            .iter()
+            .map(|(n, l, r, rec)| (n.clone(), l.clone(), *r, rec))
+            .collect();
+        shape::shape(&pre.plan, cal_rig, &faults)?
+    } else {
+        (pre.plan.clone(), Vec::new())
     };
-    Ok((cal_rig, summary, recs0, cal_s, zero_s))
+    std::fs::write(o.out.join("plan.toml"), toml::to_string(&the_plan)?)?;
+    if !shaped.is_empty() {
+        std::fs::write(
+            o.out.join("plan-zero-shot.toml"),
+            toml::to_string(&pre.plan)?,
+        )?;
+    }
+    Ok((the_plan, shaped))
 }
 
 /// Run the whole adaptation; writes `o.out` and returns what the report holds.
@@ -575,40 +648,37 @@ pub fn adapt(o: &AdaptOptions) -> Result<AdaptOutcome> {
     clock.lap("check inputs and plan (featurise the labelled recordings, simulate one)");
     steps.inc(1);
 
-    steps.set_message("calibrating; simulating the uncalibrated rig alongside");
+    steps.set_message("calibrating; simulating the zero-shot dataset ahead alongside");
     let work = o.out.join("datasets");
-    let (cal_rig, calibration, recs0, cal_s, zero_s) = calibrate_and_zero_shot(&pre, o, &work)?;
-    clock.lap(&if recs0.is_some() {
-        format!("calibrate ({cal_s:.1} s wall) with the zero-shot dataset simulated alongside ({zero_s:.1} s wall)")
-    } else {
-        "calibrate".to_string()
-    });
+    let zero_dir = work.join("uncalibrated");
+    let zero_job = DatasetJob {
+        rig,
+        plan: &pre.plan,
+        dir: &zero_dir,
+    };
+    let (cal_rig, calibration, ahead) = calibrate_with_zero_shot_ahead(&pre, zero_job, o)?;
+    clock.lap(&format!(
+        "calibrate (with {} zero-shot runs simulated alongside)",
+        ahead.len()
+    ));
     steps.inc(1);
 
     steps.set_message("shaping the plan with the labelled faults");
-    let (the_plan, shaped) = if o.plan.is_none() {
-        let faults: Vec<(String, String, f64, &crate::recording::Recording)> = pre
-            .recordings
-            .iter()
-            .map(|(n, l, r, rec)| (n.clone(), l.clone(), *r, rec))
-            .collect();
-        shape::shape(&pre.plan, &cal_rig, &faults)?
-    } else {
-        (pre.plan.clone(), Vec::new())
-    };
-    std::fs::write(o.out.join("plan.toml"), toml::to_string(&the_plan)?)?;
-    if !shaped.is_empty() {
-        std::fs::write(
-            o.out.join("plan-zero-shot.toml"),
-            toml::to_string(&pre.plan)?,
-        )?;
-    }
+    let (the_plan, shaped) = shape_step(&pre, &cal_rig, o)?;
     clock.lap("shape the plan with the labelled faults");
     steps.inc(1);
 
-    steps.set_message("simulating the calibrated rig");
-    let (summary, recs) = simulate_and_featurise(&cal_rig, &the_plan, &work.join("calibrated"), o)?;
-    clock.lap("simulate (calibrated rig)");
+    steps.set_message("simulating the calibrated rig (and the zero-shot dataset)");
+    let sims = simulate_datasets((zero_job, &cal_rig, &the_plan), &ahead, &work, o)?;
+    let (summary, recs, recs0) = (sims.summary, sims.recs, sims.recs0);
+    clock.lap(&if recs0.is_some() {
+        format!(
+            "simulate the calibrated and the zero-shot dataset ({} of {} runs share their mechanics), featurise both",
+            sims.shared_runs, summary.recordings
+        )
+    } else {
+        "simulate (calibrated rig), featurise".to_string()
+    });
     steps.inc(1);
 
     steps.set_message(format!(

@@ -73,6 +73,44 @@ fn apply_calibration(
     Ok(runs)
 }
 
+/// The runs of `plan` on `rig`, its calibration kept as `calibrated` says (checks that the
+/// rig has a simulation section).
+pub fn expand_for(
+    rig: &RigConfig,
+    plan: &Plan,
+    calibrated: CalibratedDraws,
+) -> Result<Vec<PlannedRun>> {
+    super::rig_simulation(rig)?;
+    apply_calibration(rig.calibration.as_ref(), plan, calibrated)
+}
+
+/// The progress bar of a dataset's recordings (hidden without `progress`).
+pub fn recordings_bar(progress: bool, n: u64) -> ProgressBar {
+    let bar = if progress {
+        ProgressBar::new(n)
+    } else {
+        ProgressBar::hidden()
+    };
+    bar.set_style(
+        ProgressStyle::with_template(
+            "{bar:40} {pos}/{len} recordings, {elapsed} elapsed, eta {eta} {msg}",
+        )
+        .unwrap_or_else(|_| ProgressStyle::default_bar()),
+    );
+    bar
+}
+
+/// Write `<dir>/labels.csv` from (file name, label) rows, sorted.
+pub fn write_labels(dir: &Path, rows: &mut [(String, String)]) -> Result<()> {
+    rows.sort();
+    let mut csv = String::from("path,label\n");
+    for (p, l) in rows.iter() {
+        csv.push_str(&format!("{p},{l}\n"));
+    }
+    let labels = dir.join("labels.csv");
+    std::fs::write(&labels, csv).with_context(|| format!("cannot write {}", labels.display()))
+}
+
 /// Generate a dataset (library entry point, also used by the benchmark).
 pub fn generate(
     rig: &RigConfig,
@@ -83,24 +121,13 @@ pub fn generate(
     progress: bool,
     calibrated: CalibratedDraws,
 ) -> Result<DatasetSummary> {
-    super::rig_simulation(rig)?;
-    let runs = apply_calibration(rig.calibration.as_ref(), plan, calibrated)?;
+    let runs = expand_for(rig, plan, calibrated)?;
     std::fs::create_dir_all(dir)
         .with_context(|| format!("cannot create output directory {}", dir.display()))?;
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(threads.unwrap_or(0))
         .build()?;
-    let bar = if progress {
-        ProgressBar::new(runs.len() as u64)
-    } else {
-        ProgressBar::hidden()
-    };
-    bar.set_style(
-        ProgressStyle::with_template(
-            "{bar:40} {pos}/{len} recordings, {elapsed} elapsed, eta {eta} {msg}",
-        )
-        .unwrap_or_else(|_| ProgressStyle::default_bar()),
-    );
+    let bar = recordings_bar(progress, runs.len() as u64);
     let t0 = std::time::Instant::now();
     let results: Vec<Result<(String, String)>> = pool.install(|| {
         runs.par_iter()
@@ -119,13 +146,7 @@ pub fn generate(
     for r in results {
         rows.push(r?);
     }
-    rows.sort();
-    let mut csv = String::from("path,label\n");
-    for (p, l) in &rows {
-        csv.push_str(&format!("{p},{l}\n"));
-    }
-    let labels = dir.join("labels.csv");
-    std::fs::write(&labels, csv).with_context(|| format!("cannot write {}", labels.display()))?;
+    write_labels(dir, &mut rows)?;
     let (n, seconds) = plan.totals();
     Ok(DatasetSummary {
         recordings: n,

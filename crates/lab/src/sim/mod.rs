@@ -9,11 +9,13 @@
 //! apart from the mechanics, so calibration re-runs only it), [`profile`]
 //! (speed), [`integrate`] (the stepper), [`decimate`] (anti-aliasing), [`sensor`] (noise,
 //! electrical and shaft-order lines, units, tacho: the stage after the mechanics, see
-//! [`run_engine`]), [`scenario`], [`plan`] (datasets) and [`output`] (MCAP/WAV); its
+//! [`run_engine`]), [`scenario`], [`plan`] and [`dataset`] (datasets; [`dataset_pair`] simulates adapt's two
+//! datasets sharing their mechanics) and [`output`] (MCAP/WAV); its
 //! `[simulation]` rig-file section is [`crate::config::simulation`].
 
 pub(crate) mod bearing_contact;
 pub mod dataset;
+pub mod dataset_pair;
 pub(crate) mod decimate;
 pub mod defects;
 pub(crate) mod integrate;
