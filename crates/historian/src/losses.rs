@@ -80,13 +80,6 @@ impl Ranges {
         self.0.is_empty()
     }
 
-    pub(crate) fn contains(&self, seq: u64) -> bool {
-        self.0
-            .range(..=seq)
-            .next_back()
-            .is_some_and(|(_, &l)| l >= seq)
-    }
-
     /// Take out the lowest ranges, at most `max_windows` windows in at most `max_ranges`
     /// ranges (at least one window when not empty).
     pub(crate) fn take_front(&mut self, max_windows: u64, max_ranges: usize) -> Vec<(u64, u64)> {
