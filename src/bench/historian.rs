@@ -202,6 +202,8 @@ struct Report {
     historian_lost_ranges: u64,
     /// Gaps the historian's tracker saw (windows that did not arrive live) ...
     gaps: u64,
+    /// ... windows it asked the points' recent history for,
+    requested: u64,
     /// ... windows it recovered from the points' recent history,
     recovered: u64,
     /// ... and windows the simulated points answered from their recent history.
@@ -225,6 +227,8 @@ struct Report {
     dropped: u64,
     spilled: u64,
     sustained: bool,
+    /// Where the historian's time went (whole run, wall seconds of each step).
+    profile: crate::historian::status::Profile,
 }
 
 fn status_mb(pid: u32, key: &str) -> f64 {
@@ -399,6 +403,8 @@ fn report(
         lost_unaccounted_examples: miss.unaccounted_examples,
         historian_lost_ranges: last.lost.ranges.len() as u64 + last.lost.ranges_left_off,
         gaps: last.recovery.gaps,
+        requested: last.recovery.requested,
+        profile: last.profile,
         recovered: last.recovery.recovered,
         answered_from_history: fleet.answered.load(std::sync::atomic::Ordering::Relaxed),
         no_route_slices: fleet.no_route_slices,
@@ -452,9 +458,10 @@ async fn wait_caught_up(
                 st.rows.committed,
                 st.received.health,
                 r.requested,
-                r.recovered + r.lost,
+                r.recovered + r.lost + r.late,
             ];
-            if progress != last || st.buffer.memory + st.buffer.spilled > 0 {
+            let busy = st.buffer.memory + st.buffer.spilled + r.waiting + r.in_flight > 0;
+            if progress != last || busy {
                 (last, still_since) = (progress, Instant::now());
             } else if still_since.elapsed() > Duration::from_secs(3) {
                 break;
@@ -501,7 +508,9 @@ fn print(r: &Report, json: bool) -> Result<()> {
             "rows in the database {} of {} published; spilled to disk {}, dropped by the historian's buffer {}",
             r.rows_in_db, r.published, r.spilled, r.dropped
         );
-        println!("missed live (congestion policy Drop): the historian saw {} gaps and recovered {} windows from the points' recent history ({} answered); the bench had no router in {} publishing slices", r.gaps, r.recovered, r.answered_from_history, r.no_route_slices);
+        println!("missed live (congestion policy Drop): the historian saw {} gaps, asked for {} windows and recovered {} from the points' recent history ({} answered); the bench had no router in {} publishing slices", r.gaps, r.requested, r.recovered, r.answered_from_history, r.no_route_slices);
+        let p = &r.profile;
+        println!("historian's time (whole run, wall s): zenoh callbacks {:.1}, buffer take (spill reads) {:.1}, decode {:.1}, write (COPY + insert + commit, database included) {:.1}", p.intake_s, p.take_s, p.decode_s, p.write_s);
         println!(
             "not in the database {}: counted lost by the historian with point and seq range {} ({} ranges in its status), put by the bench into a closed transport {}, not accounted for {}{}",
             r.lost,

@@ -1,7 +1,7 @@
 //! The simulated fleet of `rigmon bench historian`: N points publishing health at 2
 //! windows/s on one client session, with the fleet's congestion policy
 //! ([`FLEET_CONGESTION`]), each answering its recent history as a daemon does
-//! (`<base>/recent?run=..;seq=[a..b]`; regenerated on demand, since every window is a function
+//! (`<base>/recent?run=..;seq=[a..b]|[c..d]`; regenerated on demand, since every window is a function
 //! of point, seq and run, so 10,000 points need no 1.8 GB ring), and noting every window it
 //! put while its session had no router (sent into a closed transport: the bench counts those
 //! itself, by point and seq).
@@ -240,8 +240,12 @@ fn answer(
     if rq.run_start_ns.is_some_and(|r| !same_run(r, run_ns)) {
         return;
     }
-    let (a, b) = rq.seq.unwrap_or((1, high));
-    for seq in a.max(1)..=b.min(high) {
+    let ranges = if rq.seq.is_empty() {
+        vec![(1, high)]
+    } else {
+        rq.seq
+    };
+    for seq in ranges.into_iter().flat_map(|(a, b)| a.max(1)..=b.min(high)) {
         let mut m = window(tag, i, seq, run_ns);
         m.publish_time_ns = now_ns();
         let Ok(json) = serde_json::to_vec(&m) else {

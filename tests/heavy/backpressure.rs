@@ -178,7 +178,8 @@ fn a_historian_slower_than_its_fleet_loses_nothing_in_silence() {
                 let r = &s.recovery;
                 s.buffer.memory + s.buffer.spilled == 0
                     && r.gaps > 0
-                    && r.recovered + r.lost >= r.requested
+                    && r.waiting + r.in_flight == 0
+                    && r.recovered + r.lost + r.late >= r.requested
                     && stored().iter().filter(|(_, q)| *q > TICKS as i64).count()
                         >= POINTS * TAIL as usize
             })

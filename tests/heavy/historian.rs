@@ -523,7 +523,9 @@ fn three_daemons_a_router_and_the_historian_keep_every_window_once_through_outag
                 s.database.connected
                     && s.recovery.gaps >= points.len() as u64
                     && s.recovery.recovered > 0
-                    && s.recovery.recovered + s.recovery.lost >= s.recovery.requested
+                    && s.recovery.waiting + s.recovery.in_flight == 0
+                    && s.recovery.recovered + s.recovery.lost + s.recovery.late
+                        >= s.recovery.requested
                     && s.buffer.memory == 0
                     && s.buffer.spilled == 0
             })

@@ -117,6 +117,27 @@ pub struct RecoverySettings {
     /// How long to wait for a daemon's answer, s.
     #[serde(default = "default_query_timeout")]
     pub query_timeout_s: f64,
+    /// Requests to the daemons' recent history out at once.
+    #[serde(default = "default_in_flight")]
+    pub in_flight: usize,
+    /// Windows one request asks for at most (a point's further gaps wait for its next turn).
+    #[serde(default = "default_request_windows")]
+    pub max_request_windows: u64,
+    /// How long a gap waits for a late (out of order) window before it is asked for, ms.
+    #[serde(default = "default_grace_ms")]
+    pub grace_ms: u64,
+}
+
+impl RecoverySettings {
+    /// How the recovery plan paces its requests.
+    pub fn pacing(&self) -> super::recovery_plan::Pacing {
+        super::recovery_plan::Pacing {
+            in_flight: self.in_flight,
+            max_windows: self.max_request_windows,
+            max_ranges: 32,
+            grace: std::time::Duration::from_millis(self.grace_ms),
+        }
+    }
 }
 
 /// `[history]`: answering `get` with `_time=[..]`.
@@ -184,6 +205,15 @@ fn yes() -> bool {
 fn default_query_timeout() -> f64 {
     10.0
 }
+fn default_in_flight() -> usize {
+    8
+}
+fn default_request_windows() -> u64 {
+    240
+}
+fn default_grace_ms() -> u64 {
+    1000
+}
 fn default_max_replies() -> u64 {
     200_000
 }
@@ -229,6 +259,9 @@ impl Default for RecoverySettings {
         RecoverySettings {
             enabled: true,
             query_timeout_s: default_query_timeout(),
+            in_flight: default_in_flight(),
+            max_request_windows: default_request_windows(),
+            grace_ms: default_grace_ms(),
         }
     }
 }
@@ -357,6 +390,9 @@ impl HistorianConfig {
             bail!(
                 "recovery.query_timeout_s and status_every_s must be positive numbers of seconds"
             );
+        }
+        if self.recovery.in_flight == 0 || self.recovery.max_request_windows == 0 {
+            bail!("recovery.in_flight and recovery.max_request_windows must be at least 1");
         }
         if self.history.max_replies == 0 {
             bail!("history.max_replies must be at least 1");

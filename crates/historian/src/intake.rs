@@ -24,6 +24,7 @@ pub async fn subscribe(
         let sub = session
             .declare_subscriber(key.clone())
             .callback(move |s| {
+                let t0 = std::time::Instant::now();
                 let c = match kind {
                     Kind::Health => &counters.received_health,
                     Kind::Status => &counters.received_status,
@@ -50,6 +51,7 @@ pub async fn subscribe(
                     payload: s.payload().to_bytes().into_owned(),
                     recovered: false,
                 });
+                Counters::time(&counters.intake_ns, t0);
             })
             .await
             .map_err(|e| anyhow!("cannot subscribe to {key}: {e}"))?;

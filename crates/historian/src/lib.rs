@@ -29,6 +29,7 @@ pub mod partitions;
 pub mod pgpass;
 pub(crate) mod point_config;
 pub mod recovery;
+pub mod recovery_plan;
 pub mod row;
 pub mod service;
 pub mod spill;

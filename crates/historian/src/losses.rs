@@ -27,13 +27,14 @@ pub struct LostRange {
     pub last: u64,
 }
 
-/// Inclusive ranges of seq, disjoint and not touching.
+/// Inclusive ranges of seq, disjoint and not touching (also the recovery plan's missing
+/// windows, [`super::recovery_plan`]).
 #[derive(Debug, Default, Clone)]
-struct Ranges(BTreeMap<u64, u64>);
+pub(crate) struct Ranges(BTreeMap<u64, u64>);
 
 impl Ranges {
     /// Add `first..=last`; returns how many seqs were new.
-    fn insert(&mut self, mut first: u64, mut last: u64) -> u64 {
+    pub(crate) fn insert(&mut self, mut first: u64, mut last: u64) -> u64 {
         let before = self.len();
         // Merge with every range that overlaps or touches.
         let lo = first.saturating_sub(1);
@@ -54,7 +55,7 @@ impl Ranges {
     }
 
     /// Take `seq` out; true when it was in.
-    fn remove(&mut self, seq: u64) -> bool {
+    pub(crate) fn remove(&mut self, seq: u64) -> bool {
         let Some((&f, &l)) = self.0.range(..=seq).next_back() else {
             return false;
         };
@@ -71,8 +72,31 @@ impl Ranges {
         true
     }
 
-    fn len(&self) -> u64 {
+    pub(crate) fn len(&self) -> u64 {
         self.0.iter().map(|(f, l)| l - f + 1).sum()
+    }
+
+    pub(crate) fn is_empty(&self) -> bool {
+        self.0.is_empty()
+    }
+
+    /// Take out the lowest ranges, at most `max_windows` windows in at most `max_ranges`
+    /// ranges (at least one window when not empty).
+    pub(crate) fn take_front(&mut self, max_windows: u64, max_ranges: usize) -> Vec<(u64, u64)> {
+        let mut out = Vec::new();
+        let mut left = max_windows.max(1);
+        while left > 0 && out.len() < max_ranges.max(1) {
+            let Some((f, l)) = self.0.pop_first() else {
+                break;
+            };
+            let end = l.min(f.saturating_add(left - 1));
+            if end < l {
+                self.0.insert(end + 1, l);
+            }
+            left -= end - f + 1;
+            out.push((f, end));
+        }
+        out
     }
 }
 

@@ -1,22 +1,26 @@
 //! Nothing missed without a count: every daemon numbers its windows (`seq`, from 1 per run;
 //! a run is told apart by its clock origin, [`run_start_ns`](rigmon_runtime::publish::recent::run_start_ns)).
 //! The [`Tracker`] follows each point's run and highest `seq`, seeded at start from what the
-//! database already holds, and turns every jump into a [`Gap`]; [`recover`] asks the daemon's
-//! recent history (`<base>/recent?run=..;seq=[a..b]`) for exactly those windows and feeds the
-//! answers back into the buffer. Windows still missing afterwards are counted as lost, exactly.
+//! database already holds, and turns every jump into a [`Gap`]; the gaps go into the
+//! [`recovery plan`](super::recovery_plan) (merged per point, a grace period for late
+//! windows, a bounded number of requests out), and [`run`] asks each daemon's recent history
+//! (`<base>/recent?run=..;seq=[a..b]|[c..d]`) for exactly those windows and feeds the answers
+//! back into the buffer. Windows still missing afterwards are counted as lost, exactly.
 //! Bound: a daemon keeps `[zenoh] history_windows` windows (default 1200 = 10 min at 2/s), so a
 //! historian down for less than that loses nothing. Not recoverable: windows a daemon
 //! published and then forgot because it restarted while the historian was down (its old run's
 //! tail); the new run is recovered from its first window.
 
 use super::buffer::{Buffer, Incoming, Kind};
+use super::config::RecoverySettings;
 use super::losses::LossLedger;
+use super::recovery_plan::{Pacing, Plan, Request, Target};
 use super::status::Counters;
 use rigmon_runtime::publish::recent::{same_run, RecentQuery, SUFFIX};
 use rigmon_runtime::publish::zenoh::FLEET_CONGESTION;
 use std::collections::{HashMap, HashSet};
-use std::sync::Arc;
-use std::time::Duration;
+use std::sync::{Arc, Mutex};
+use std::time::{Duration, Instant};
 
 /// Windows missing from one point's run (inclusive seq range).
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -62,6 +66,14 @@ impl Tracker {
                 .map(|(k, (run_start_ns, high))| (k, Track { run_start_ns, high }))
                 .collect(),
         }
+    }
+
+    /// True when `seq` of this run is older than the point's newest window (it arrives
+    /// late, out of order).
+    pub fn is_late(&self, key: &str, run_start_ns: u64, seq: u64) -> bool {
+        self.points
+            .get(key)
+            .is_some_and(|t| same_run(t.run_start_ns, run_start_ns) && seq < t.high)
     }
 
     /// A live window arrived; returns the gap it reveals, if any.
@@ -111,113 +123,279 @@ impl Tracker {
     }
 }
 
-/// Fetch one gap from the daemon's recent history into the buffer; update the counters.
-pub async fn recover(
+/// The recovery plan shared by the write loop (gaps in, late windows out) and the recovery
+/// task (requests out), and the bell that wakes the task.
+#[derive(Debug, Default)]
+pub struct Missing {
+    plan: Mutex<Plan>,
+    wake: tokio::sync::Notify,
+}
+
+impl Missing {
+    pub fn new(pacing: Pacing) -> Missing {
+        Missing {
+            plan: Mutex::new(Plan::new(pacing)),
+            wake: tokio::sync::Notify::new(),
+        }
+    }
+
+    fn plan(&self) -> std::sync::MutexGuard<'_, Plan> {
+        self.plan.lock().unwrap_or_else(|e| e.into_inner())
+    }
+
+    /// A gap the tracker found: into the plan, asked for after the grace period.
+    pub fn gap(&self, g: Gap) {
+        let target = Target {
+            key: g.key,
+            run_start_ns: g.run_start_ns,
+            counted: g.counted,
+        };
+        self.plan().add(target, g.first, g.last, Instant::now());
+        self.wake.notify_one();
+    }
+
+    /// A live window that arrived after a later one of its point (out of order).
+    pub fn arrived(&self, key: &str, run_start_ns: u64, seq: u64) {
+        self.plan().arrived(key, run_start_ns, seq);
+    }
+
+    /// Windows waiting to be asked for, and requests out.
+    pub fn level(&self) -> (u64, u64) {
+        let p = self.plan();
+        (p.waiting_windows(), p.in_flight() as u64)
+    }
+}
+
+/// What one request's answer brought.
+struct Answer {
+    got: HashSet<u64>,
+    /// The query ended by its timeout (a reply or its end was dropped on the way).
+    timed_out: bool,
+}
+
+/// Ask a daemon's recent history for `ranges` of `target`; push what comes into the buffer.
+/// Ends as soon as every asked window came (a dropped end-of-replies does not hold it up).
+async fn ask(
     session: &zenoh::Session,
     prefix: &str,
-    gap: Gap,
+    target: &Target,
+    ranges: &[(u64, u64)],
     buffer: &Buffer,
-    counters: &Counters,
     timeout: Duration,
-) {
+) -> Answer {
     let query = RecentQuery {
-        run_start_ns: Some(gap.run_start_ns),
-        seq: Some((gap.first, gap.last)),
+        run_start_ns: Some(target.run_start_ns),
+        seq: ranges.to_vec(),
         time: None,
     };
-    let selector = format!("{prefix}/{}/{SUFFIX}?{}", gap.key, query.to_parameters());
-    Counters::add(&counters.requested, gap.len());
-    let mut got: HashSet<u64> = HashSet::new();
+    let want: u64 = ranges.iter().map(|(a, b)| b - a + 1).sum();
+    let selector = format!("{prefix}/{}/{SUFFIX}?{}", target.key, query.to_parameters());
+    let mut answer = Answer {
+        got: HashSet::new(),
+        timed_out: false,
+    };
+    let t0 = Instant::now();
     // Every reply has the same key: no consolidation, or only the last would be kept.
     // Replies travel with the query's congestion control: `Drop`, so that replies queued to a
     // historian that reads slowly cannot close its transport (`Block` would, after 5 s; see
-    // `FLEET_CONGESTION`); a dropped reply is a window counted lost with its seq range.
+    // `FLEET_CONGESTION`); a dropped reply is asked again, then counted lost by seq range.
     let replies = session
         .get(selector.clone())
         .congestion_control(FLEET_CONGESTION)
         .consolidation(zenoh::query::ConsolidationMode::None)
         .timeout(timeout)
         .await;
-    match replies {
-        Ok(replies) => {
-            while let Ok(reply) = replies.recv_async().await {
-                let Ok(sample) = reply.result() else { continue };
-                let payload = sample.payload().to_bytes().into_owned();
-                let seq = serde_json::from_slice::<serde_json::Value>(&payload)
-                    .ok()
-                    .and_then(|v| v["seq"].as_u64());
-                let Some(seq) = seq.filter(|s| (gap.first..=gap.last).contains(s)) else {
-                    continue;
-                };
-                // Only a window the buffer kept is recovered: one it had to drop (memory and
-                // spill full) is in the loss ledger and must stay there.
-                if !got.contains(&seq)
-                    && buffer.push(Incoming {
-                        kind: Kind::Health,
-                        key: format!("{prefix}/{}/health", gap.key),
-                        payload,
-                        recovered: true,
-                    })
-                {
-                    got.insert(seq);
-                }
-            }
+    let replies = match replies {
+        Ok(r) => r,
+        Err(e) => {
+            tracing::warn!("asking {selector} for missed windows failed: {e}");
+            return answer;
         }
-        Err(e) => tracing::warn!("asking {selector} for missed windows failed: {e}"),
+    };
+    while (answer.got.len() as u64) < want {
+        let Ok(reply) = replies.recv_async().await else {
+            answer.timed_out = t0.elapsed() >= timeout.mul_f64(0.9);
+            break;
+        };
+        let Ok(sample) = reply.result() else { continue };
+        let payload = sample.payload().to_bytes().into_owned();
+        let Some(seq) =
+            seq_of(&payload).filter(|s| ranges.iter().any(|&(a, b)| (a..=b).contains(s)))
+        else {
+            continue;
+        };
+        // Only a window the buffer kept is recovered: one it had to drop (memory and
+        // spill full) is in the loss ledger and must stay there.
+        if !answer.got.contains(&seq)
+            && buffer.push(Incoming {
+                kind: Kind::Health,
+                key: format!("{prefix}/{}/health", target.key),
+                payload,
+                recovered: true,
+            })
+        {
+            answer.got.insert(seq);
+        }
     }
+    answer
+}
+
+/// The `seq` of a health message, read without decoding the rest.
+fn seq_of(payload: &[u8]) -> Option<u64> {
+    #[derive(serde::Deserialize)]
+    struct Seq {
+        seq: u64,
+    }
+    serde_json::from_slice::<Seq>(payload).ok().map(|s| s.seq)
+}
+
+/// Asks after a timeout for what is still missing, before it is counted lost.
+const ATTEMPTS: u32 = 3;
+
+/// Send one request (asking again, up to [`ATTEMPTS`] times, for what a timed-out answer
+/// lacked); what came is recovered, what arrived live meanwhile is late, the rest is lost.
+async fn recover(ctx: Arc<Ctx>, request: Request) {
+    let Ctx {
+        session,
+        prefix,
+        buffer,
+        counters,
+        missing,
+        timeout,
+        enabled,
+    } = &*ctx;
+    let target = &request.target;
+    Counters::add(&counters.requested, request.len());
+    let mut ranges = request.ranges.clone();
+    let mut got: HashSet<u64> = HashSet::new();
+    for attempt in (1..=ATTEMPTS).filter(|_| *enabled) {
+        let a = ask(session, prefix, target, &ranges, buffer, *timeout).await;
+        got.extend(a.got);
+        if !a.timed_out || attempt == ATTEMPTS {
+            break;
+        }
+        ranges = uncovered(&request.ranges, &got);
+        if ranges.is_empty() {
+            break;
+        }
+    }
+    let late: HashSet<u64> = missing
+        .plan()
+        .finished(request.id)
+        .into_iter()
+        .filter(|s| !got.contains(s))
+        .collect();
+    missing.wake.notify_one();
+    Counters::add(&counters.late, late.len() as u64);
     let found = got.len() as u64;
-    let missing = gap.len().saturating_sub(found);
-    if gap.counted {
-        enter(&counters.losses, &gap, &got);
+    let lost = request.len().saturating_sub(found + late.len() as u64);
+    if target.counted {
+        got.extend(&late);
+        enter(&counters.losses, &request, &got);
         Counters::add(&counters.recovered, found);
-        Counters::add(&counters.lost, missing);
-        if missing > 0 {
+        Counters::add(&counters.lost, lost);
+        if lost > 0 {
             tracing::warn!(
-                "{}: windows {}..={} of run {} missed; {found} recovered, {missing} lost (older than the daemon's recent history, or the daemon is gone)",
-                gap.key, gap.first, gap.last, gap.run_start_ns
+                "{}: windows {:?} of run {} missed; {found} recovered, {lost} lost (older than the daemon's recent history, or the daemon is gone)",
+                target.key, request.ranges, target.run_start_ns
             );
         } else {
-            tracing::info!(
-                "{}: windows {}..={} missed and recovered",
-                gap.key,
-                gap.first,
-                gap.last
+            tracing::debug!(
+                "{}: windows {:?} missed and recovered",
+                target.key,
+                request.ranges
             );
         }
     } else {
         Counters::add(&counters.backfilled, found);
-        Counters::add(&counters.not_backfilled, missing);
+        Counters::add(&counters.not_backfilled, lost);
     }
 }
 
-/// Enter a counted gap in the loss ledger: what was found comes out of it, the rest goes in.
-fn enter(ledger: &LossLedger, gap: &Gap, got: &HashSet<u64>) {
-    let mut found: Vec<u64> = got.iter().copied().collect();
-    found.sort_unstable();
-    let mut next = gap.first;
-    for &seq in &found {
-        ledger.recovered(&gap.key, gap.run_start_ns, seq);
-        if seq > next {
-            ledger.add(&gap.key, gap.run_start_ns, next, seq - 1);
+/// The seqs of `ranges` not in `got`, as ranges.
+fn uncovered(ranges: &[(u64, u64)], got: &HashSet<u64>) -> Vec<(u64, u64)> {
+    let mut out: Vec<(u64, u64)> = Vec::new();
+    for &(a, b) in ranges {
+        for s in a..=b {
+            if got.contains(&s) {
+                continue;
+            }
+            match out.last_mut() {
+                Some(last) if last.1 + 1 == s => last.1 = s,
+                _ => out.push((s, s)),
+            }
         }
-        next = seq.saturating_add(1);
     }
-    if next <= gap.last && (found.last() != Some(&u64::MAX)) {
-        ledger.add(&gap.key, gap.run_start_ns, next, gap.last);
+    out
+}
+
+/// Enter a counted request in the loss ledger: what was found (or arrived live) comes out
+/// of it, the rest of each range goes in.
+fn enter(ledger: &LossLedger, request: &Request, got: &HashSet<u64>) {
+    let (key, run) = (&request.target.key, request.target.run_start_ns);
+    for &(first, last) in &request.ranges {
+        let mut found: Vec<u64> = got
+            .iter()
+            .copied()
+            .filter(|s| (first..=last).contains(s))
+            .collect();
+        found.sort_unstable();
+        let mut next = first;
+        for &seq in &found {
+            ledger.recovered(key, run, seq);
+            if seq > next {
+                ledger.add(key, run, next, seq - 1);
+            }
+            next = seq.saturating_add(1);
+        }
+        if next <= last && (found.last() != Some(&u64::MAX)) {
+            ledger.add(key, run, next, last);
+        }
     }
 }
 
-/// The task that works through the gaps in order.
+/// What every request needs.
+struct Ctx {
+    session: zenoh::Session,
+    prefix: String,
+    buffer: Arc<Buffer>,
+    counters: Arc<Counters>,
+    missing: Arc<Missing>,
+    timeout: Duration,
+    /// `[recovery] enabled`: false, every gap is counted lost without asking.
+    enabled: bool,
+}
+
+/// The recovery task: sends each request of the plan as it falls due, at most the plan's
+/// `in_flight` at once, each in its own task.
 pub async fn run(
     session: zenoh::Session,
     prefix: String,
-    mut gaps: tokio::sync::mpsc::UnboundedReceiver<Gap>,
+    missing: Arc<Missing>,
     buffer: Arc<Buffer>,
     counters: Arc<Counters>,
-    timeout: Duration,
+    settings: RecoverySettings,
 ) {
-    while let Some(gap) = gaps.recv().await {
-        recover(&session, &prefix, gap, &buffer, &counters, timeout).await;
+    let ctx = Arc::new(Ctx {
+        session,
+        prefix,
+        buffer,
+        counters,
+        missing: missing.clone(),
+        timeout: Duration::from_secs_f64(settings.query_timeout_s),
+        enabled: settings.enabled,
+    });
+    loop {
+        let now = Instant::now();
+        while let Some(request) = missing.plan().next(now) {
+            tokio::spawn(recover(ctx.clone(), request));
+        }
+        let wait = missing
+            .plan()
+            .next_due()
+            .map_or(Duration::from_secs(1), |d| d.saturating_duration_since(now))
+            .clamp(Duration::from_millis(10), Duration::from_secs(1));
+        let _ = tokio::time::timeout(wait, missing.wake.notified()).await;
     }
 }
 
@@ -262,22 +440,28 @@ mod tests {
     #[test]
     fn a_gap_enters_the_ledger_by_seq_range_less_what_was_recovered() {
         let ledger = LossLedger::default();
-        let gap = Gap {
-            key: "m/a/p".into(),
-            run_start_ns: 9,
-            first: 10,
-            last: 19,
-            counted: true,
+        let request = Request {
+            id: 1,
+            target: Target {
+                key: "m/a/p".into(),
+                run_start_ns: 9,
+                counted: true,
+            },
+            ranges: vec![(10, 19), (30, 31)],
         };
         ledger.add("m/a/p", 9, 12, 12);
-        enter(&ledger, &gap, &[12, 13, 17].into());
-        enter(&ledger, &gap, &[12, 13, 17].into());
+        enter(&ledger, &request, &[12, 13, 17, 30].into());
+        enter(&ledger, &request, &[12, 13, 17, 30].into());
         let s = ledger.summary(10);
         let got: Vec<(u64, u64)> = s.ranges.iter().map(|r| (r.first, r.last)).collect();
-        assert_eq!(got, [(10, 11), (14, 16), (18, 19)]);
-        assert_eq!(s.windows, 7);
-        enter(&ledger, &gap, &(10..=19).collect());
+        assert_eq!(got, [(10, 11), (14, 16), (18, 19), (31, 31)]);
+        assert_eq!(s.windows, 8);
+        enter(&ledger, &request, &(10..=31).collect());
         assert_eq!(ledger.total(), 0, "all recovered after all");
+        assert_eq!(
+            uncovered(&request.ranges, &[10, 11, 15, 31].into()),
+            [(12, 14), (16, 19), (30, 30)]
+        );
     }
 
     /// Issue 38, F2: a forged seq of 2^64-1 wrapped `high + 1` to 0, so every later window

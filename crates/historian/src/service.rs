@@ -9,7 +9,7 @@ use super::buffer::{Batch, Buffer, Incoming, Kind};
 use super::config::HistorianConfig;
 use super::database::Target;
 use super::latency::LatencyHistogram;
-use super::recovery::{Gap, Tracker};
+use super::recovery::{Missing, Tracker};
 use super::row::WindowRow;
 use super::status::{self, Counters, HistorianStatus, Phase};
 use super::writer::{is_connection_error, StatusRow, Writer};
@@ -38,6 +38,8 @@ struct Shared {
     target: Target,
     buffer: Arc<Buffer>,
     counters: Arc<Counters>,
+    /// The recovery plan: gaps in (write loop), requests out (recovery task).
+    missing: Arc<Missing>,
     latency: Mutex<LatencyHistogram>,
     /// ms since start at the write loop's last turn.
     heartbeat_ms: AtomicU64,
@@ -69,11 +71,13 @@ pub fn run(cfg: HistorianConfig, opts: RunOptions) -> Result<HistorianStatus> {
         .thread_name("rigmon-historian")
         .build()
         .context("cannot start the tokio runtime")?;
+    let missing = Arc::new(Missing::new(cfg.recovery.pacing()));
     let shared = Arc::new(Shared {
         cfg,
         target,
         buffer,
         counters,
+        missing,
         latency: Mutex::default(),
         heartbeat_ms: AtomicU64::new(0),
         draining: AtomicBool::new(false),
@@ -100,14 +104,13 @@ async fn serve(sh: Arc<Shared>, opts: RunOptions) -> Result<HistorianStatus> {
         .declare_publisher(cfg.status_key())
         .await
         .map_err(|e| anyhow!("declaring {}: {e}", cfg.status_key()))?;
-    let (gap_tx, gap_rx) = unbounded_channel::<Gap>();
-    tokio::spawn(recovery::run(
+    let recovery_task = tokio::spawn(recovery::run(
         session.clone(),
         prefix.clone(),
-        gap_rx,
+        sh.missing.clone(),
         sh.buffer.clone(),
         sh.counters.clone(),
-        Duration::from_secs_f64(cfg.recovery.query_timeout_s),
+        cfg.recovery.clone(),
     ));
     let history_task = tokio::spawn(history::serve(
         session.clone(),
@@ -116,7 +119,7 @@ async fn serve(sh: Arc<Shared>, opts: RunOptions) -> Result<HistorianStatus> {
         cfg.history.max_replies,
         sh.counters.clone(),
     ));
-    let writer = tokio::spawn(write_loop(sh.clone(), session.clone(), gap_tx));
+    let writer = tokio::spawn(write_loop(sh.clone(), session.clone()));
     tracing::info!(
         "historian {}: subscribed to {prefix}/**/{{health,status}} (zenoh {} connect {:?}), writing to {}, status on {}",
         cfg.name, cfg.zenoh.mode, cfg.zenoh.connect, sh.target.describe(), cfg.status_key()
@@ -162,6 +165,7 @@ async fn serve(sh: Arc<Shared>, opts: RunOptions) -> Result<HistorianStatus> {
         tracing::warn!("{unkept} buffered messages could not be kept (no spill folder): the daemons' recent history has them for the next start");
     }
     history_task.abort();
+    recovery_task.abort();
     sh.counters.losses.log_new();
     let last = snapshot(&sh, Phase::Finished);
     let _ = status_pub.put(serde_json::to_vec(&last)?).await;
@@ -253,6 +257,9 @@ fn snapshot(sh: &Shared, phase: Phase) -> HistorianStatus {
             lost: g(&c.lost),
             backfilled: g(&c.backfilled),
             not_backfilled: g(&c.not_backfilled),
+            late: g(&c.late),
+            waiting: sh.missing.level().0,
+            in_flight: sh.missing.level().1,
         },
         latency: sh.latency.lock().map(|h| h.summary()).unwrap_or_default(),
         history: status::HistoryAnswers {
@@ -264,6 +271,7 @@ fn snapshot(sh: &Shared, phase: Phase) -> HistorianStatus {
             Phase::Finished => usize::MAX,
             _ => super::losses::STATUS_RANGES,
         }),
+        profile: c.profile(),
     }
 }
 
@@ -278,7 +286,8 @@ struct Pending {
 
 /// Parse a batch: bad messages, refused ones ([`admit`]) and expired rows are counted and
 /// left out; live windows go through the gap tracker.
-fn parse(sh: &Shared, batch: Batch, tracker: &mut Tracker, gaps: &UnboundedSender<Gap>) -> Pending {
+fn parse(sh: &Shared, batch: Batch, tracker: &mut Tracker) -> Pending {
+    let t0 = Instant::now();
     let now = now_ns();
     let horizon =
         now.saturating_sub(u64::from(sh.cfg.retention.windows_days) * 86_400 * 1_000_000_000);
@@ -299,10 +308,7 @@ fn parse(sh: &Shared, batch: Batch, tracker: &mut Tracker, gaps: &UnboundedSende
                 Ok(r) if refuse(sh, m, admit::window(&rules, &m.key, &r, now)) => {}
                 Ok(r) => {
                     if !m.recovered {
-                        if let Some(g) = tracker.observe(&r.point.key(), r.run_start_ns, r.seq) {
-                            Counters::add(&sh.counters.gaps, 1);
-                            let _ = gaps.send(g);
-                        }
+                        track(sh, tracker, &r);
                         p.live_publish_ns.push(r.publish_ns);
                     }
                     p.rows.push(r);
@@ -317,7 +323,21 @@ fn parse(sh: &Shared, batch: Batch, tracker: &mut Tracker, gaps: &UnboundedSende
         }
     }
     p.batch = batch;
+    Counters::time(&sh.counters.decode_ns, t0);
     p
+}
+
+/// A live window through the gap tracker: a gap it opens goes into the recovery plan, a
+/// window older than its point's newest (late, out of order) comes out of it.
+fn track(sh: &Shared, tracker: &mut Tracker, r: &WindowRow) {
+    let key = r.point.key();
+    let late = tracker.is_late(&key, r.run_start_ns, r.seq);
+    if let Some(g) = tracker.observe(&key, r.run_start_ns, r.seq) {
+        Counters::add(&sh.counters.gaps, 1);
+        sh.missing.gap(g);
+    } else if late {
+        sh.missing.arrived(&key, r.run_start_ns, r.seq);
+    }
 }
 
 /// True (counted by reason, logged) when admission refused the message.
@@ -364,11 +384,7 @@ async fn gather(sh: &Shared) -> bool {
 }
 
 /// The write loop; returns the messages it could not write when told to stop.
-async fn write_loop(
-    sh: Arc<Shared>,
-    session: zenoh::Session,
-    gaps: UnboundedSender<Gap>,
-) -> Vec<Incoming> {
+async fn write_loop(sh: Arc<Shared>, session: zenoh::Session) -> Vec<Incoming> {
     let (limits_tx, mut limits_rx) = unbounded_channel::<(i32, [f64; 3])>();
     let mut writer: Option<Writer> = None;
     let mut tracker: Option<Tracker> = None;
@@ -393,7 +409,7 @@ async fn write_loop(
         if writer.is_none() {
             match connect(&sh).await {
                 Ok((w, seed)) => {
-                    tracker = Some(reseeded(seed, pending.as_ref(), &gaps, &sh));
+                    tracker = Some(reseeded(seed, pending.as_ref(), &sh));
                     writer = Some(w);
                     backoff = Duration::from_millis(250);
                 }
@@ -428,15 +444,19 @@ async fn write_loop(
                 }
                 continue;
             }
+            let t0 = Instant::now();
             let batch = sh
                 .buffer
                 .take(sh.cfg.batch.max_rows, sh.cfg.batch_max_bytes());
+            Counters::time(&sh.counters.take_ns, t0);
             let t = tracker.get_or_insert_with(Tracker::default);
-            pending = Some(parse(&sh, batch, t, &gaps));
+            pending = Some(parse(&sh, batch, t));
         }
         let Some(p) = pending.as_mut() else { continue };
+        let t0 = Instant::now();
         let result =
             tokio::time::timeout(Duration::from_secs(30), w.write(&mut p.rows, &p.statuses)).await;
+        Counters::time(&sh.counters.write_ns, t0);
         match result {
             Ok(Ok(outcome)) => {
                 committed(&sh, p, &outcome);
@@ -473,15 +493,11 @@ async fn write_loop(
 fn reseeded(
     seed: std::collections::HashMap<String, (u64, u64)>,
     pending: Option<&Pending>,
-    gaps: &UnboundedSender<Gap>,
     sh: &Shared,
 ) -> Tracker {
     let mut t = Tracker::seeded(seed);
     for r in pending.map_or(&[][..], |p| &p.rows) {
-        if let Some(g) = t.observe(&r.point.key(), r.run_start_ns, r.seq) {
-            Counters::add(&sh.counters.gaps, 1);
-            let _ = gaps.send(g);
-        }
+        track(sh, &mut t, r);
     }
     t
 }

@@ -26,6 +26,8 @@ const MAX_RECORD: u32 = 64 * 1024 * 1024;
 const MARKER: [u8; 4] = *b"RSP2";
 /// Marker, length, CRC.
 const HEADER: u64 = 12;
+/// Bytes of a segment read at once when reading it back.
+const CHUNK: u64 = 4 * 1024 * 1024;
 const CRC32: Crc<u32> = Crc::<u32>::new(&CRC_32_ISO_HDLC);
 
 /// Where reading stands: segment number and byte offset.
@@ -358,10 +360,16 @@ impl Spill {
     }
 
     /// Up to `max` records from the read position, and the cursor after them (not committed).
+    /// The intact records of a segment are read a chunk at a time ([`Spill::read_chunk`]);
+    /// a damaged or old-format stretch goes record by record ([`Spill::read_one`]).
     pub fn peek(&self, max: usize) -> Result<(Vec<Incoming>, Cursor)> {
         let mut out = Vec::new();
         let mut c = self.read;
         while out.len() < max {
+            if let Some(next) = self.read_chunk(c, max - out.len(), &mut out)? {
+                c = next;
+                continue;
+            }
             match self.read_one(c)? {
                 Some((m, next)) => {
                     out.push(m);
@@ -371,6 +379,38 @@ impl Spill {
             }
         }
         Ok((out, c))
+    }
+
+    /// Up to [`CHUNK`] bytes of `c`'s segment read at once (one open and two reads, instead
+    /// of an open and three reads per record): up to `max` whole intact records from its
+    /// start go to `out`. Returns the cursor after them, or None when the chunk starts with
+    /// none (damage, an old-format segment, a record larger than the chunk, the segment's
+    /// end): the careful path decides then.
+    fn read_chunk(&self, c: Cursor, max: usize, out: &mut Vec<Incoming>) -> Result<Option<Cursor>> {
+        let Some(&(_, size)) = self.segments.iter().find(|s| s.0 == c.segment) else {
+            return Ok(None);
+        };
+        if c.offset >= size {
+            return Ok(None);
+        }
+        let mut f = File::open(segment_path(&self.dir, c.segment))?;
+        if read_at(&mut f, 0, 4, size)?[..] != MARKER {
+            return Ok(None);
+        }
+        let chunk = read_at(&mut f, c.offset, CHUNK, size)?;
+        let (mut at, mut n) = (0usize, 0usize);
+        while n < max {
+            let Some((m, used)) = chunk.get(at..).and_then(record_at) else {
+                break;
+            };
+            out.push(m);
+            at += used as usize;
+            n += 1;
+        }
+        Ok((at > 0).then_some(Cursor {
+            segment: c.segment,
+            offset: c.offset + at as u64,
+        }))
     }
 
     /// Everything before `c` is committed: delete the segments read to the end.

@@ -47,6 +47,13 @@ pub struct Counters {
     pub backfilled: AtomicU64,
     /// ...and those already gone from it (not counted as lost: never seen).
     pub not_backfilled: AtomicU64,
+    /// Asked for, then arrived live while the request was out.
+    pub late: AtomicU64,
+    /// Nanoseconds spent in each step ([`Profile`]).
+    pub intake_ns: AtomicU64,
+    pub take_ns: AtomicU64,
+    pub decode_ns: AtomicU64,
+    pub write_ns: AtomicU64,
     pub queries_answered: AtomicU64,
     pub history_rows_sent: AtomicU64,
     pub last_error: Mutex<Option<String>>,
@@ -61,6 +68,22 @@ impl Counters {
 
     pub fn get(c: &AtomicU64) -> u64 {
         c.load(Ordering::Relaxed)
+    }
+
+    /// Add the time since `t0` to a nanosecond counter.
+    pub fn time(c: &AtomicU64, t0: std::time::Instant) {
+        Counters::add(c, t0.elapsed().as_nanos() as u64);
+    }
+
+    /// The profile so far.
+    pub fn profile(&self) -> Profile {
+        let s = |c: &AtomicU64| Counters::get(c) as f64 / 1e9;
+        Profile {
+            intake_s: s(&self.intake_ns),
+            take_s: s(&self.take_ns),
+            decode_s: s(&self.decode_ns),
+            write_s: s(&self.write_ns),
+        }
     }
 
     /// The counter of one refusal reason.
@@ -113,6 +136,8 @@ pub struct HistorianStatus {
     /// in the daemon's recent history.
     #[serde(default)]
     pub lost: super::losses::LostSummary,
+    #[serde(default)]
+    pub profile: Profile,
 }
 
 #[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
@@ -194,6 +219,27 @@ pub struct Recovery {
     pub lost: u64,
     pub backfilled: u64,
     pub not_backfilled: u64,
+    /// Asked for, then arrived live after all (out of order) while the request was out.
+    #[serde(default)]
+    pub late: u64,
+    /// Windows in the recovery plan not yet asked for, and requests out now.
+    #[serde(default)]
+    pub waiting: u64,
+    #[serde(default)]
+    pub in_flight: u64,
+}
+
+/// Where the historian's time went (seconds, cumulative; wall time of each step, which on a
+/// busy machine includes waiting for a core): the Zenoh callbacks (push into the buffer,
+/// memory or spill append), taking batches from the buffer (spill reads), decoding the JSON
+/// into rows (with admission and gap tracking), and writing them (COPY, insert, commit: the
+/// database's time included).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize)]
+pub struct Profile {
+    pub intake_s: f64,
+    pub take_s: f64,
+    pub decode_s: f64,
+    pub write_s: f64,
 }
 
 #[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize)]

@@ -1,9 +1,10 @@
 //! The daemon's recent history for late joiners: the last `[zenoh] history_windows` health
 //! messages (default 1200 = 10 minutes at 2 windows/s) kept in memory and answered on
 //! `<base>/recent`. A historian that was down, or that saw a gap in a point's `seq`, asks
-//! `<base>/recent?run=<run start ns>;seq=[a..b]` (or `_time=[..]`) and gets back exactly the
-//! messages it missed, as long as they are still here; what is older is gone and the
-//! historian counts it as lost. Read-only: the query payload is ignored.
+//! `<base>/recent?run=<run start ns>;seq=[a..b]` (or several ranges in one request,
+//! `seq=[a..b]|[c..d]`, or `_time=[..]`) and gets back exactly the messages it missed, as
+//! long as they are still here; what is older is gone and the historian counts it as lost.
+//! Read-only: the query payload is ignored.
 
 use super::time_range::{TimeRange, PARAMETER as TIME};
 use anyhow::{anyhow, bail, Context, Result};
@@ -54,19 +55,22 @@ struct Entry {
 #[derive(Debug, Default, PartialEq)]
 pub struct RecentQuery {
     pub run_start_ns: Option<u64>,
-    /// Inclusive seq range.
-    pub seq: Option<(u64, u64)>,
+    /// Inclusive seq ranges (empty: any seq).
+    pub seq: Vec<(u64, u64)>,
     pub time: Option<TimeRange>,
 }
 
 impl RecentQuery {
-    /// Read `run=..;seq=[a..b];_time=[..]` from a selector's parameters.
+    /// Read `run=..;seq=[a..b]|[c..d];_time=[..]` from a selector's parameters.
     pub fn parse(params: &zenoh::query::Parameters, now_ns: u64) -> Result<Self> {
         let run_start_ns = params
             .get("run")
             .map(|r| r.parse::<u64>().map_err(|e| anyhow!("run={r:?}: {e}")))
             .transpose()?;
-        let seq = params.get("seq").map(parse_seq).transpose()?;
+        let seq = match params.get("seq") {
+            Some(v) => v.split('|').map(parse_seq).collect::<Result<Vec<_>>>()?,
+            None => Vec::new(),
+        };
         let time = params
             .get(TIME)
             .map(|t| TimeRange::parse(t, now_ns))
@@ -84,8 +88,13 @@ impl RecentQuery {
         if let Some(r) = self.run_start_ns {
             p.push(format!("run={r}"));
         }
-        if let Some((a, b)) = self.seq {
-            p.push(format!("seq=[{a}..{b}]"));
+        if !self.seq.is_empty() {
+            let ranges: Vec<String> = self
+                .seq
+                .iter()
+                .map(|(a, b)| format!("[{a}..{b}]"))
+                .collect();
+            p.push(format!("seq={}", ranges.join("|")));
         }
         if let Some(t) = self.time {
             p.push(format!("{TIME}={}", t.to_selector_value()));
@@ -96,7 +105,7 @@ impl RecentQuery {
     fn matches(&self, e: &Entry) -> bool {
         self.run_start_ns
             .is_none_or(|r| same_run(r, e.run_start_ns))
-            && self.seq.is_none_or(|(a, b)| (a..=b).contains(&e.seq))
+            && (self.seq.is_empty() || self.seq.iter().any(|&(a, b)| (a..=b).contains(&e.seq)))
             && self.time.is_none_or(|t| t.contains(e.end_ns))
     }
 }
@@ -213,7 +222,7 @@ mod tests {
     fn query_parameters_round_trip_and_select() {
         let q = RecentQuery {
             run_start_ns: Some(42),
-            seq: Some((3, 5)),
+            seq: vec![(3, 5)],
             time: None,
         };
         let p = zenoh::query::Parameters::from(q.to_parameters());
@@ -230,6 +239,15 @@ mod tests {
             "a run origin read back from µs is the same run"
         );
         assert_eq!(parse_seq("7").unwrap(), (7, 7));
+        let two = RecentQuery {
+            run_start_ns: Some(42),
+            seq: vec![(3, 5), (9, 9)],
+            time: None,
+        };
+        assert_eq!(two.to_parameters(), "run=42;seq=[3..5]|[9..9]");
+        let p = zenoh::query::Parameters::from(two.to_parameters());
+        assert_eq!(RecentQuery::parse(&p, 0).unwrap(), two);
+        assert!(two.matches(&e(9, 42)) && !two.matches(&e(7, 42)));
         assert!(parse_seq("[9..2]").is_err());
         assert_eq!(run_start_ns(5_500_000_123, 1.5), 4_000_000_123);
     }
