@@ -55,6 +55,11 @@ struct Track {
 #[derive(Debug, Default)]
 pub struct Tracker {
     points: HashMap<String, Track>,
+    /// When the historian began listening (ns since the Unix epoch): a point seen for the
+    /// first time whose run started later should have arrived whole, so its missing first
+    /// windows are counted (lost if not recovered); a run that started before is a
+    /// backfill, never counted. `None`: every first sight is a backfill.
+    listening_since_ns: Option<u64>,
 }
 
 impl Tracker {
@@ -65,7 +70,14 @@ impl Tracker {
                 .into_iter()
                 .map(|(k, (run_start_ns, high))| (k, Track { run_start_ns, high }))
                 .collect(),
+            listening_since_ns: None,
         }
+    }
+
+    /// The tracker of a historian that began listening at `ns` (ns since the Unix epoch).
+    pub fn listening_since(mut self, ns: u64) -> Tracker {
+        self.listening_since_ns = Some(ns);
+        self
     }
 
     /// True when `seq` of this run is older than the point's newest window (it arrives
@@ -117,7 +129,8 @@ impl Tracker {
                         high: seq,
                     },
                 );
-                gap(1, seq.saturating_sub(1), false)
+                let counted = self.listening_since_ns.is_some_and(|t| run_start_ns >= t);
+                gap(1, seq.saturating_sub(1), counted)
             }
         }
     }
@@ -462,6 +475,19 @@ mod tests {
             uncovered(&request.ranges, &[10, 11, 15, 31].into()),
             [(12, 14), (16, 19), (30, 30)]
         );
+    }
+
+    /// A point first seen with its window 1 missing: counted when its run started after the
+    /// historian began listening (the window should have come), a backfill otherwise.
+    #[test]
+    fn a_new_points_missing_first_windows_count_when_its_run_began_after_the_historian() {
+        let mut t = Tracker::default().listening_since(1_000);
+        let after = t.observe("m/a/new", 2_000, 3).unwrap();
+        assert_eq!((after.first, after.last, after.counted), (1, 2, true));
+        let before = t.observe("m/a/old", 500, 3).unwrap();
+        assert_eq!((before.first, before.last, before.counted), (1, 2, false));
+        let mut plain = Tracker::default();
+        assert!(!plain.observe("m/a/new", 2_000, 3).unwrap().counted);
     }
 
     /// Issue 38, F2: a forged seq of 2^64-1 wrapped `high + 1` to 0, so every later window

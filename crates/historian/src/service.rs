@@ -48,6 +48,8 @@ struct Shared {
     /// Stop writing at once; return the batch in hand.
     abandon: AtomicBool,
     started: Instant,
+    /// `started` as ns since the Unix epoch (the recovery's [`Tracker::listening_since`]).
+    started_unix_ns: u64,
 }
 
 /// Run until stopped; returns the last status.
@@ -83,6 +85,9 @@ pub fn run(cfg: HistorianConfig, opts: RunOptions) -> Result<HistorianStatus> {
         draining: AtomicBool::new(false),
         abandon: AtomicBool::new(false),
         started: Instant::now(),
+        started_unix_ns: std::time::SystemTime::now()
+            .duration_since(std::time::UNIX_EPOCH)
+            .map_or(0, |d| d.as_nanos() as u64),
     });
     if opts.use_signals {
         signals::install();
@@ -449,7 +454,8 @@ async fn write_loop(sh: Arc<Shared>, session: zenoh::Session) -> Vec<Incoming> {
                 .buffer
                 .take(sh.cfg.batch.max_rows, sh.cfg.batch_max_bytes());
             Counters::time(&sh.counters.take_ns, t0);
-            let t = tracker.get_or_insert_with(Tracker::default);
+            let t = tracker
+                .get_or_insert_with(|| Tracker::default().listening_since(sh.started_unix_ns));
             pending = Some(parse(&sh, batch, t));
         }
         let Some(p) = pending.as_mut() else { continue };
@@ -495,7 +501,7 @@ fn reseeded(
     pending: Option<&Pending>,
     sh: &Shared,
 ) -> Tracker {
-    let mut t = Tracker::seeded(seed);
+    let mut t = Tracker::seeded(seed).listening_since(sh.started_unix_ns);
     for r in pending.map_or(&[][..], |p| &p.rows) {
         track(sh, &mut t, r);
     }
