@@ -246,7 +246,7 @@ fn case(name: &str, m: Machine, hz: &dyn Fn(f64) -> f64, seed: u64) -> Readings 
 #[test]
 fn a_weak_1x_at_588_rpm_is_read() {
     let hz = |_: f64| 588.0 / 60.0;
-    let x = signal(healthy(588.0), 30.0, &hz, 3);
+    let x = signal(healthy(588.0), 30.0, hz, 3);
     let r = Readings::of("healthy 588 steady", &x, &hz);
     let unsure = |p: JointParts| {
         windows(&x, settings(None), &hz, p)
@@ -273,7 +273,7 @@ fn a_weak_1x_at_588_rpm_is_read() {
     let hz = |_: f64| 1188.0 / 60.0;
     Readings::of(
         "healthy 1188 steady",
-        &signal(healthy(1188.0), 30.0, &hz, 4),
+        &signal(healthy(1188.0), 30.0, hz, 4),
         &hz,
     );
 }
