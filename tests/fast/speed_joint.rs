@@ -19,7 +19,9 @@
 
 use rigmon::bearing::{BearingGeometry, FaultOrders};
 use rigmon::dsp::fault_family::FamilySettings;
-use rigmon::dsp::speed_tracker::{SpeedHint, SpeedTracker, TrackedSpeed, TrackerSettings};
+use rigmon::dsp::speed_tracker::{
+    JointParts, SpeedHint, SpeedTracker, TrackedSpeed, TrackerSettings,
+};
 use std::f64::consts::TAU;
 
 const FS: f64 = 10_000.0;
@@ -149,10 +151,10 @@ fn windows(
     x: &[f32],
     s: TrackerSettings,
     hz: &dyn Fn(f64) -> f64,
-    joint: bool,
+    parts: JointParts,
 ) -> Vec<(f64, TrackedSpeed, f64)> {
     let mut tr = SpeedTracker::new(s, FS).unwrap();
-    tr.set_joint(joint);
+    tr.set_joint_parts(parts);
     let full = tr.history_s();
     let mut out = Vec::new();
     for (k, c) in x.chunks(HOP).enumerate() {
@@ -193,51 +195,100 @@ fn healthy(rpm: f64) -> Machine {
     }
 }
 
-/// Runs one case both ways and returns (p95 now, p95 before); prints both.
-fn p95(name: &str, m: Machine, hz: &dyn Fn(f64) -> f64, seed: u64) -> (f64, f64) {
-    let x = signal(m, 30.0, hz, seed);
-    let now = errors(&windows(&x, settings(None), hz, true));
-    let before = errors(&windows(&x, settings(None), hz, false));
-    let (a, b) = (quantile(&now, 0.95), quantile(&before, 0.95));
-    eprintln!(
-        "{name}: p95 {:.3} % (before {:.3} %), median {:.3} % (before {:.3} %)",
-        100.0 * a,
-        100.0 * b,
-        100.0 * quantile(&now, 0.5),
-        100.0 * quantile(&before, 0.5)
-    );
-    (a, b)
+/// One case read three ways on the same samples: the errors (sorted) of the tracker's
+/// default reading (the joint reading), of the joint reading with the phase fit
+/// (`speed_phase`, measured but not on by default) and of the reading before issue 34; all
+/// printed.
+struct Readings {
+    now: Vec<f64>,
+    phase: Vec<f64>,
+    before: Vec<f64>,
 }
 
-/// A healthy machine at 588 rpm, steady: the joint reading's median within 0.5 % and its
-/// p95 below the reading before (its windows jump to other lines). Issue 34's target (p95
-/// <= 0.5 %) is not met yet: see docs/speed.md.
+impl Readings {
+    fn of(name: &str, x: &[f32], hz: &dyn Fn(f64) -> f64) -> Readings {
+        let run = |p: JointParts| errors(&windows(x, settings(None), hz, p));
+        let r = Readings {
+            now: run(JointParts::default_on()),
+            phase: run(JointParts::all(true)),
+            before: run(JointParts::all(false)),
+        };
+        let pm = |e: &[f64]| {
+            format!(
+                "p95 {:.3} % median {:.3} %",
+                100.0 * quantile(e, 0.95),
+                100.0 * quantile(e, 0.5)
+            )
+        };
+        eprintln!(
+            "{name} ({} windows): joint {} | with the phase fit {} | before issue 34 {}",
+            r.now.len(),
+            pm(&r.now),
+            pm(&r.phase),
+            pm(&r.before)
+        );
+        r
+    }
+
+    fn p95(&self) -> f64 {
+        quantile(&self.now, 0.95)
+    }
+}
+
+fn case(name: &str, m: Machine, hz: &dyn Fn(f64) -> f64, seed: u64) -> Readings {
+    Readings::of(name, &signal(m, 30.0, hz, seed), hz)
+}
+
+/// A healthy machine at 588 rpm (weak 1x), steady: the joint reading's median within
+/// 0.5 % and its p95 below the reading before; the phase fit's p95 below the joint
+/// reading's. Issue 34's target (p95 <= 0.5 %, every window confident) is not met yet:
+/// docs/speed.md. 1188 rpm is printed beside it.
 #[test]
 fn a_weak_1x_at_588_rpm_is_read() {
     let hz = |_: f64| 588.0 / 60.0;
     let x = signal(healthy(588.0), 30.0, hz, 3);
-    let now = errors(&windows(&x, settings(None), &hz, true));
-    let before = errors(&windows(&x, settings(None), &hz, false));
+    let r = Readings::of("healthy 588 steady", &x, &hz);
+    let unsure = |p: JointParts| {
+        windows(&x, settings(None), &hz, p)
+            .iter()
+            .filter(|(_, e, _)| e.uncertain())
+            .count()
+    };
     eprintln!(
-        "588 steady: {:?} / before {:?}",
-        quantile(&now, 0.95),
-        quantile(&before, 0.95)
+        "healthy 588 steady: uncertain windows {} joint, {} with the phase fit",
+        unsure(JointParts::default_on()),
+        unsure(JointParts::all(true))
     );
     assert!(
-        quantile(&now, 0.5) <= 0.005,
+        quantile(&r.now, 0.5) <= 0.005,
         "median {}",
-        quantile(&now, 0.5)
+        quantile(&r.now, 0.5)
     );
-    assert!(quantile(&now, 0.95) < quantile(&before, 0.95));
+    assert!(r.p95() < quantile(&r.before, 0.95));
+    assert!(
+        quantile(&r.phase, 0.95) < r.p95(),
+        "phase fit p95 {}",
+        quantile(&r.phase, 0.95)
+    );
+    let hz = |_: f64| 1188.0 / 60.0;
+    Readings::of(
+        "healthy 1188 steady",
+        &signal(healthy(1188.0), 30.0, hz, 4),
+        &hz,
+    );
 }
 
-/// The same with the speed fluctuating +-2 % at 0.3 Hz: better than before (target p95
-/// <= 1.5 % not met yet).
+/// The speed fluctuating +-2 % at 0.3 Hz: better than before, and the phase fit's median
+/// below the joint reading's (which reads the history's mean). Target p95 <= 1.5 % not met
+/// yet. 1188 rpm is printed beside it.
 #[test]
 fn a_fluctuating_speed_is_read_better_than_before() {
     let hz = |t: f64| 588.0 / 60.0 * (1.0 + 0.02 * (TAU * 0.3 * t).sin());
-    let (now, before) = p95("healthy 588 fluctuating", healthy(588.0), &hz, 5);
-    assert!(now < before, "p95 {now} against {before}");
+    let r = case("healthy 588 fluctuating", healthy(588.0), &hz, 5);
+    assert!(r.p95() < quantile(&r.before, 0.95), "p95 {}", r.p95());
+    assert!(quantile(&r.phase, 0.5) < quantile(&r.now, 0.5));
+    let hz = |t: f64| 1188.0 / 60.0 * (1.0 + 0.02 * (TAU * 0.3 * t).sin());
+    case("healthy 1188 fluctuating", healthy(1188.0), &hz, 6);
 }
 
 /// A clean 1x line alone at 1188 rpm is read without bias: the median within 0.1 %.
@@ -248,15 +299,12 @@ fn a_clean_line_is_read_without_bias() {
         shaft: (0.44, 0.0),
         fault: None,
     };
-    let x = signal(m, 30.0, hz, 7);
-    let e = errors(&windows(&x, settings(None), &hz, true));
-    let before = errors(&windows(&x, settings(None), &hz, false));
-    eprintln!(
-        "clean 1188: median {:.3} % (before {:.3} %)",
-        100.0 * quantile(&e, 0.5),
-        100.0 * quantile(&before, 0.5)
+    let r = case("clean 1188", m, &hz, 7);
+    assert!(
+        quantile(&r.now, 0.5) <= 0.001,
+        "median {}",
+        quantile(&r.now, 0.5)
     );
-    assert!(quantile(&e, 0.5) <= 0.001, "median {}", quantile(&e, 0.5));
 }
 
 /// An outer race at 588 rpm whose BPFO comb (45, 90, 135 Hz) stands above the shaft lines:
@@ -269,8 +317,8 @@ fn a_bearing_comb_does_not_become_the_shaft() {
         ..healthy(588.0)
     };
     // a shaft read from the comb is 30 % or more off (1350, 1800 or 2700 rpm)
-    let (now, _) = p95("outer race 588", m, &hz, 9);
-    assert!(now < 0.1, "p95 {now}");
+    let r = case("outer race 588", m, &hz, 9);
+    assert!(r.p95() < 0.1, "p95 {}", r.p95());
 }
 
 /// An impulsive inner race with a weak shaft line at 588 rpm.
@@ -281,16 +329,16 @@ fn an_impulsive_inner_race_keeps_the_shaft() {
         fault: Some((Fault::Inner, 6.0)),
         ..healthy(588.0)
     };
-    let (now, _) = p95("inner race 588", m, &hz, 13);
-    assert!(now < 0.1, "p95 {now}");
+    let r = case("inner race 588", m, &hz, 13);
+    assert!(r.p95() < 0.1, "p95 {}", r.p95());
 }
 
-/// A slow drift 588 -> 700 rpm over 30 s is followed better than before (target 0.5 % not met).
+/// A slow drift 588 -> 700 rpm over 30 s is followed better than before.
 #[test]
 fn a_slow_drift_is_followed() {
     let hz = |t: f64| (588.0 + 112.0 * t / 30.0) / 60.0;
-    let (now, before) = p95("drift 588-700", healthy(600.0), &hz, 17);
-    assert!(now < before, "p95 {now} against {before}");
+    let r = case("drift 588-700", healthy(600.0), &hz, 17);
+    assert!(r.p95() < quantile(&r.before, 0.95), "p95 {}", r.p95());
 }
 
 /// A healthy record without any line is never a confident speed.
@@ -302,7 +350,7 @@ fn no_lines_no_speed() {
         fault: None,
     };
     let x = signal(m, 20.0, hz, 19);
-    for (t, e, _) in windows(&x, settings(None), &hz, true) {
+    for (t, e, _) in windows(&x, settings(None), &hz, JointParts::all(true)) {
         assert!(e.uncertain(), "at {t} s: {e:?}");
     }
 }

@@ -30,7 +30,9 @@
 //! - **the joint reading** (issue 34, on by default, [`JointParts`]): a lone strong 1x line
 //!   counts as shaft evidence, the speed is read from the harmonics' own interpolated peaks
 //!   (no bias from the harmonic sum's grid), and a comb may be a bearing's impact train
-//!   ([`super::speed_comb`]) when a slower shaft shows lines of its own beside it.
+//!   ([`super::speed_comb`]) when a slower shaft shows lines of its own beside it. A fourth
+//!   part, the speed over the history from the harmonics' phase ([`super::speed_phase`]), is
+//!   measured but off by default (`JointParts::default_on`; docs/speed.md says why).
 //!
 //! A hint (a fixed or nominal speed) narrows the search to a band around it and is used
 //! itself when the vibration shows no clear line there.
@@ -44,6 +46,7 @@ use super::fault_family::{EnvelopeFeed, FamilyEvidence, FamilySettings};
 use super::harmonic_sum::{fundamental, on_mains_harmonic, Whitened, Whitener, HARMONICS};
 use super::speed::SpeedTrack;
 use super::speed_comb::{best_own, comb_spans, train_present, unexplained};
+use super::speed_phase::{self, PhaseFit};
 use crate::vocabulary::SpeedSourceKind;
 use anyhow::{bail, Result};
 
@@ -227,6 +230,9 @@ pub struct JointParts {
     pub line_speed: bool,
     /// A comb may be a bearing's train ([`super::speed_comb`]).
     pub comb: bool,
+    /// The speed over the history is read from the harmonics' phase ([`super::speed_phase`]),
+    /// which also says whether the newest second still shows the line.
+    pub phase: bool,
 }
 
 impl JointParts {
@@ -236,6 +242,17 @@ impl JointParts {
             lone: on,
             line_speed: on,
             comb: on,
+            phase: on,
+        }
+    }
+
+    /// The tracker's default: every part but the phase reading, which is measured
+    /// (`tests/fast/speed_joint.rs`) but not yet on (docs/speed.md: it made mains hum and one
+    /// CWRU record confident at a wrong speed).
+    pub fn default_on() -> JointParts {
+        JointParts {
+            phase: false,
+            ..JointParts::all(true)
         }
     }
 }
@@ -304,7 +321,7 @@ impl SpeedTracker {
             },
             env_span: None,
             recent_spec: Whitened::default(),
-            joint: JointParts::all(true),
+            joint: JointParts::default_on(),
         })
     }
 
@@ -312,7 +329,11 @@ impl SpeedTracker {
     /// mean of five harmonics, the harmonic sum's grid maximum, no comb explained as a
     /// train). For measuring one against the other.
     pub fn set_joint(&mut self, on: bool) {
-        self.set_joint_parts(JointParts::all(on));
+        self.set_joint_parts(if on {
+            JointParts::default_on()
+        } else {
+            JointParts::all(false)
+        });
     }
 
     /// Switch the joint reading's parts one by one.
@@ -398,7 +419,55 @@ impl SpeedTracker {
             None => self.acquire(n),
         };
         best.recent = self.recent_support(best.hz, best.trend);
-        Ok(self.decide(best, t_end))
+        let phase = self.phase_reading(&best);
+        if let Some(p) = &phase {
+            // the line followed in phase through the history and the newest second
+            (best.recent, best.phase, best.hz) = (true, true, p.hz_end());
+            best.followed = best.followed || self.near_lock(best.hz);
+        }
+        let mut e = self.decide(best, t_end);
+        if let Some(p) = phase.filter(|_| e.status == SpeedStatus::Tracking) {
+            self.apply_phase(&mut e, &p, t_end);
+        }
+        Ok(e)
+    }
+
+    /// The phase of the candidate's harmonics over the span it was found in
+    /// ([`speed_phase::fit`]; joint reading only), when the newest second shows the line
+    /// along it.
+    fn phase_reading(&self, c: &Candidate) -> Option<PhaseFit> {
+        if !self.joint.phase {
+            return None;
+        }
+        let last = self.hist.len();
+        let m = ((c.span * self.fs_d).round() as usize).min(last);
+        speed_phase::fit(&self.hist[last - m..], self.fs_d, c.hz, c.trend, RECENT_S)
+            .filter(PhaseFit::newest_shows_line)
+    }
+
+    /// `hz` is where the line followed is predicted now (within [`FOLLOW_BAND`]).
+    fn near_lock(&self, hz: f64) -> bool {
+        self.lock.is_some_and(|l| {
+            let pred = l.hz * (1.0 + l.trend * (self.t_newest() - l.t));
+            (hz / pred - 1.0).abs() < FOLLOW_BAND
+        })
+    }
+
+    /// The window's speed from the phase fit: its track over the history (half a second
+    /// beyond at the end's speed), its speed at the end, and the line followed from there.
+    fn apply_phase(&mut self, e: &mut TrackedSpeed, p: &PhaseFit, t_end: f64) {
+        let mut ts: Vec<f64> = p.t.iter().map(|t| t + t_end).collect();
+        let mut hz = p.hz.clone();
+        ts.push(t_end + 0.5);
+        hz.push(p.hz_end());
+        let Ok(track) = SpeedTrack::from_profile(&ts, &hz, SpeedSourceKind::Estimate) else {
+            return;
+        };
+        e.track = track;
+        e.rpm = p.hz_end() * 60.0;
+        if let Some(l) = self.lock.as_mut().filter(|l| l.t == t_end) {
+            l.hz = p.hz_end();
+        }
     }
 
     /// Following a line: the spectrum over [`HISTORY_REVS`] revolutions at the line's speed
@@ -528,6 +597,7 @@ impl SpeedTracker {
             by_family: false,
             held: None,
             recent: true,
+            phase: false,
         };
         if let Some(lock) = self.lock {
             let t = self.t_newest();
@@ -883,11 +953,17 @@ struct Candidate {
     held: Option<(f64, f64)>,
     /// The newest stretch of the signal shows a line of this speed.
     recent: bool,
+    /// The harmonics' phase follows the line through the history and the newest second
+    /// ([`super::speed_phase`]): a line, however low its prominence.
+    phase: bool,
 }
 
 impl Candidate {
     /// How clearly the line stands above its background (0-1).
     fn clear(&self) -> f64 {
+        if self.phase {
+            return 1.0;
+        }
         ((self.score - SCORE_NOISE) / (SCORE_CLEAR - SCORE_NOISE)).clamp(0.0, 1.0)
     }
 
@@ -1118,6 +1194,7 @@ mod tests {
             by_family: false,
             held: Some((20.0, 3.0)),
             recent: true,
+            phase: false,
         }
     }
 

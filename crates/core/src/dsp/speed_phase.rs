@@ -1,0 +1,395 @@
+//! The shaft's speed over the tracker's history read from the phase of its harmonics (issue
+//! 34): the history is demodulated along the speed the spectrum found (each harmonic k moved
+//! to 0 Hz), averaged over blocks of whole revolutions (the other harmonics cancel there),
+//! Hann-weighted (a strong line elsewhere, a mains line, leaks no phase of its own into
+//! the block), and the phase left in each block, unwrapped and divided by k, is the shaft angle's
+//! departure from that speed. A polynomial in time fitted to it (weighted least squares, the
+//! harmonics sharing the polynomial, each its own offset; the degree chosen by the Bayesian
+//! information criterion, so a steady shaft keeps one straight line over the whole history and
+//! a fluctuating one gets the curve it needs) gives the speed at every time of the history:
+//! the speed of the newest second from its slope there, no longer the history's mean.
+//!
+//! The same fit says whether the newest second still shows the line: the harmonics'
+//! demodulated amplitude over that second, coherently along the fit, against the scatter of
+//! the blocks around it (the noise): a matched filter at a known frequency, where the check
+//! of the newest spectrum has to search every bin for a peak.
+
+use super::harmonic_sum::{on_mains_harmonic, HARMONICS};
+use std::f64::consts::TAU;
+
+/// Revolution count of a block is chosen so that it lasts about this long, s (at least two
+/// revolutions: the other harmonics then fall on the Hann window's nulls): long enough for a weak 1x to keep its phase (a 1x 24x its floor in 20 s
+/// reads +-0.3 rad per block), short enough to follow a fluctuation of a few tenths of a hertz.
+const BLOCK_S: f64 = 0.2;
+/// Fewest blocks for a fit.
+const MIN_BLOCKS: usize = 8;
+/// Highest degree of the phase polynomial.
+const MAX_DEGREE: usize = 6;
+/// Power signal-to-noise ratio per block a harmonic needs to take part (its phase then
+/// scatters about 0.7 rad; a slip of a whole turn needs a 4.5 sigma excursion).
+const MIN_BLOCK_SNR: f64 = 1.0;
+/// ... and the harmonic the others are unwrapped against, whose phase is unwrapped block to
+/// block (the difference of two blocks scatters 0.7 rad at most).
+const LEAD_BLOCK_SNR: f64 = 2.0;
+/// Detection statistic of the newest stretch above which it shows the line: under noise
+/// alone it is a sum of K unit exponentials (K harmonics); P(> 12) < 1e-3 for K <= 5.
+const NEWEST_DETECT: f64 = 12.0;
+
+/// The speed law the phase fit found over the history.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PhaseFit {
+    /// Times (s, relative to the newest sample: <= 0) and shaft speeds (Hz) there, from the
+    /// oldest block's centre to the newest sample.
+    pub t: Vec<f64>,
+    pub hz: Vec<f64>,
+    /// Degree of the phase polynomial chosen.
+    pub degree: usize,
+    /// Harmonics that took part.
+    pub harmonics: usize,
+    /// Detection statistic of the line over the newest stretch ([`NEWEST_DETECT`]).
+    pub newest: f64,
+}
+
+impl PhaseFit {
+    /// Shaft speed at the newest sample, Hz.
+    pub fn hz_end(&self) -> f64 {
+        *self.hz.last().expect("a fit has knots")
+    }
+
+    /// The newest stretch shows the line along the fit.
+    pub fn newest_shows_line(&self) -> bool {
+        self.newest >= NEWEST_DETECT
+    }
+}
+
+/// One harmonic's blocks: demodulated mean per block (complex, as (re, im)).
+struct Harmonic {
+    k: usize,
+    z: Vec<(f64, f64)>,
+    /// Unwrapped phase per block, in shaft cycles (phase / 2 pi k).
+    cyc: Vec<f64>,
+    /// Inverse variance of one block's `cyc` (k^2 x its SNR per block).
+    weight: f64,
+}
+
+/// Fit the phase of the harmonics of a shaft near `hz` (Hz at the newest sample, relative
+/// trend `r` per second) over the samples `x` (rate `fs`, the newest last). `newest_s`: the
+/// stretch checked for the line. None when no harmonic keeps its phase well enough.
+pub fn fit(x: &[f32], fs: f64, hz: f64, r: f64, newest_s: f64) -> Option<PhaseFit> {
+    let revs = (BLOCK_S * hz).round().max(2.0);
+    let len = (revs / hz * fs).round() as usize;
+    if len < 4 {
+        return None;
+    }
+    let blocks = x.len() / len;
+    if blocks < MIN_BLOCKS {
+        return None;
+    }
+    let n = blocks * len;
+    let x = &x[x.len() - n..];
+    // block b's centre, t = 0 at the newest sample
+    let tb: Vec<f64> = (0..blocks)
+        .map(|b| -((n - 1 - b * len) as f64 - 0.5 * (len - 1) as f64) / fs)
+        .collect();
+    let mut hs = demodulate(x, fs, hz, r, len, -((n - 1) as f64) / fs);
+    // a harmonic's block SNR from its blocks' coherence with their neighbours
+    hs.retain_mut(|h| {
+        let snr = neighbour_snr(&h.z);
+        h.weight = (h.k * h.k) as f64 * snr;
+        snr >= MIN_BLOCK_SNR
+    });
+    let lead = hs
+        .iter()
+        .enumerate()
+        .filter(|(_, h)| neighbour_snr(&h.z) >= LEAD_BLOCK_SNR)
+        .max_by(|a, b| a.1.weight.total_cmp(&b.1.weight))?
+        .0;
+    hs.swap(0, lead);
+    unwrap_sequential(&mut hs[0]);
+    let span = (tb[blocks - 1] - tb[0]).max(1e-9);
+    let u: Vec<f64> = tb.iter().map(|t| 2.0 * (t - tb[0]) / span - 1.0).collect();
+    // the lead alone, then every harmonic unwrapped to its prediction, then all together
+    let (lead_fit, _) = best_degree(&hs[..1], &u)?;
+    for h in hs.iter_mut().skip(1) {
+        unwrap_to(h, &lead_fit, &u);
+    }
+    let (coef, degree) = best_degree(&hs, &u)?;
+    let newest = newest_detection(&hs, &coef, &u, &tb, newest_s);
+    let du_dt = 2.0 / span;
+    let knots = (((-tb[0]) / 0.1).ceil() as usize).max(2);
+    let (t, dev): (Vec<f64>, Vec<f64>) = (0..=knots)
+        .map(|i| {
+            let t = tb[0] * (1.0 - i as f64 / knots as f64);
+            (
+                t,
+                du_dt * poly_slope(&coef.poly, 2.0 * (t - tb[0]) / span - 1.0),
+            )
+        })
+        .unzip();
+    // a line that leaves the reference by a quarter turn per block is not followed: its
+    // blocks' phases no longer tell the turns apart
+    if dev.iter().any(|d| !(d.abs() * len as f64 / fs < 0.25)) {
+        return None;
+    }
+    let f: Vec<f64> = t
+        .iter()
+        .zip(&dev)
+        .map(|(t, d)| hz * (1.0 + r * t) + d)
+        .collect();
+    if f.iter().any(|v| !(v.is_finite() && *v > 0.0)) {
+        return None;
+    }
+    Some(PhaseFit {
+        t,
+        hz: f,
+        degree,
+        harmonics: hs.len(),
+        newest,
+    })
+}
+
+/// Blocks of `len` samples of `x` demodulated at each harmonic of the reference shaft
+/// (speed `hz` (1 + r t), t = 0 at the newest sample, `t0` the first sample's time), mains
+/// harmonics within a block's bandwidth left out.
+fn demodulate(x: &[f32], fs: f64, hz: f64, r: f64, len: usize, t0: f64) -> Vec<Harmonic> {
+    let blocks = x.len() / len;
+    let tol = fs / len as f64;
+    let ks: Vec<usize> = (1..=HARMONICS)
+        .filter(|&k| !on_mains_harmonic(k as f64 * hz, tol))
+        .collect();
+    let mut z = vec![vec![(0.0, 0.0); blocks]; ks.len()];
+    let kmax = ks.last().copied().unwrap_or(0);
+    let mut rot = vec![(0.0, 0.0); kmax + 1];
+    let hann: Vec<f64> = (0..len)
+        .map(|i| 0.5 - 0.5 * (TAU * (i as f64 + 0.5) / len as f64).cos())
+        .collect();
+    let norm: f64 = hann.iter().sum();
+    for (j, &v) in x.iter().enumerate() {
+        let t = t0 + j as f64 / fs;
+        let theta = hz * (t + 0.5 * r * t * t);
+        let (s, c) = (TAU * theta).sin_cos();
+        // e^{-i k theta} by powers of e^{-i theta}
+        rot[0] = (1.0, 0.0);
+        for k in 1..=kmax {
+            let (a, b) = rot[k - 1];
+            rot[k] = (a * c + b * s, b * c - a * s);
+        }
+        let (b, v) = (j / len, v as f64 * hann[j % len]);
+        for (zk, &k) in z.iter_mut().zip(&ks) {
+            let (a, bb) = rot[k];
+            zk[b].0 += v * a;
+            zk[b].1 += v * bb;
+        }
+    }
+    ks.into_iter()
+        .zip(z)
+        .map(|(k, mut z)| {
+            z.iter_mut().for_each(|c| {
+                c.0 /= norm;
+                c.1 /= norm;
+            });
+            Harmonic {
+                k,
+                z,
+                cyc: Vec::new(),
+                weight: 0.0,
+            }
+        })
+        .collect()
+}
+
+/// Power SNR per block of a line from its neighbouring blocks: for a line of power a^2 in
+/// noise of power s^2 per block, E[z_b conj z_(b+1)] is a^2 (the phase moves little from a
+/// block to the next) and E|z_b|^2 is a^2 + s^2.
+fn neighbour_snr(z: &[(f64, f64)]) -> f64 {
+    let (mut re, mut im) = (0.0, 0.0);
+    for w in z.windows(2) {
+        let (a, b) = (w[1], w[0]);
+        re += a.0 * b.0 + a.1 * b.1;
+        im += a.1 * b.0 - a.0 * b.1;
+    }
+    let cross = (re * re + im * im).sqrt() / (z.len() - 1) as f64;
+    let power = z.iter().map(|c| c.0 * c.0 + c.1 * c.1).sum::<f64>() / z.len() as f64;
+    let noise = power - cross;
+    if noise <= 0.0 {
+        return f64::INFINITY;
+    }
+    cross / noise
+}
+
+/// Unwrap `h`'s phases block to block (each within half a turn of the one before).
+fn unwrap_sequential(h: &mut Harmonic) {
+    let k = h.k as f64;
+    let mut prev: Option<f64> = None;
+    h.cyc =
+        h.z.iter()
+            .map(|c| {
+                let p = c.1.atan2(c.0) / TAU;
+                let v = prev.map_or(p, |q| q + (p - q + 0.5).rem_euclid(1.0) - 0.5);
+                prev = Some(v);
+                v / k
+            })
+            .collect();
+}
+
+/// Unwrap `h`'s phases to the nearest turn of the lead's fit (its own offset first).
+fn unwrap_to(h: &mut Harmonic, lead: &Coef, u: &[f64]) {
+    let k = h.k as f64;
+    let (mut re, mut im) = (0.0, 0.0);
+    let pred: Vec<f64> = u.iter().map(|&uu| k * poly(&lead.poly, uu)).collect();
+    for (c, p) in h.z.iter().zip(&pred) {
+        let (s, co) = (TAU * p).sin_cos();
+        re += c.0 * co + c.1 * s;
+        im += c.1 * co - c.0 * s;
+    }
+    let offset = im.atan2(re) / TAU;
+    h.cyc =
+        h.z.iter()
+            .zip(&pred)
+            .map(|(c, p)| {
+                let q = p + offset;
+                let ph = c.1.atan2(c.0) / TAU;
+                (q + (ph - q + 0.5).rem_euclid(1.0) - 0.5) / k
+            })
+            .collect();
+}
+
+/// A fit: the shared polynomial (coefficients of u^1..u^d, shaft cycles) and each
+/// harmonic's offset.
+#[derive(Debug, Clone)]
+struct Coef {
+    poly: Vec<f64>,
+    offsets: Vec<f64>,
+}
+
+fn poly(p: &[f64], u: f64) -> f64 {
+    p.iter().rev().fold(0.0, |acc, c| (acc + c) * u)
+}
+
+fn poly_slope(p: &[f64], u: f64) -> f64 {
+    p.iter()
+        .enumerate()
+        .rev()
+        .fold(0.0, |acc, (j, c)| acc * u + (j + 1) as f64 * c)
+}
+
+/// The degree (1..=[`MAX_DEGREE`], fewer than a third of the blocks) with the smallest
+/// Bayesian information criterion, and its fit.
+fn best_degree(hs: &[Harmonic], u: &[f64]) -> Option<(Coef, usize)> {
+    let n = (hs.len() * u.len()) as f64;
+    let top = MAX_DEGREE.min(u.len() / 3).max(1);
+    let mut best: Option<(f64, Coef, usize)> = None;
+    for d in 1..=top {
+        let Some((coef, rss)) = solve(hs, u, d) else {
+            continue;
+        };
+        let wsum: f64 = hs.iter().map(|h| h.weight).sum::<f64>() * u.len() as f64;
+        let bic = n * (rss / wsum).max(1e-300).ln() + (d + hs.len()) as f64 * n.ln();
+        if best.as_ref().is_none_or(|(b, _, _)| bic < *b) {
+            best = Some((bic, coef, d));
+        }
+    }
+    best.map(|(_, c, d)| (c, d))
+}
+
+/// Weighted least squares of degree `d`: the coefficients and the weighted residual sum.
+fn solve(hs: &[Harmonic], u: &[f64], d: usize) -> Option<(Coef, f64)> {
+    let m = hs.len() + d;
+    let mut a = vec![vec![0.0; m + 1]; m];
+    let mut row = vec![0.0; m + 1];
+    for (i, h) in hs.iter().enumerate() {
+        for (&uu, &y) in u.iter().zip(&h.cyc) {
+            row.fill(0.0);
+            row[i] = 1.0;
+            let mut p = 1.0;
+            for j in 0..d {
+                p *= uu;
+                row[hs.len() + j] = p;
+            }
+            row[m] = y;
+            for (ar, &xr) in a.iter_mut().zip(&row) {
+                for (acc, &xc) in ar.iter_mut().zip(&row) {
+                    *acc += h.weight * xr * xc;
+                }
+            }
+        }
+    }
+    let sol = gauss(a)?;
+    let coef = Coef {
+        offsets: sol[..hs.len()].to_vec(),
+        poly: sol[hs.len()..].to_vec(),
+    };
+    let mut rss = 0.0;
+    for (h, off) in hs.iter().zip(&coef.offsets) {
+        for (&uu, &y) in u.iter().zip(&h.cyc) {
+            let e = y - off - poly(&coef.poly, uu);
+            rss += h.weight * e * e;
+        }
+    }
+    Some((coef, rss))
+}
+
+/// Solve the augmented system `a` (m rows, m + 1 columns) by elimination with pivoting.
+fn gauss(mut a: Vec<Vec<f64>>) -> Option<Vec<f64>> {
+    let m = a.len();
+    for c in 0..m {
+        let p = (c..m).max_by(|&i, &j| a[i][c].abs().total_cmp(&a[j][c].abs()))?;
+        if a[p][c].abs() < 1e-12 {
+            return None;
+        }
+        a.swap(c, p);
+        let (top, rest) = a.split_at_mut(c + 1);
+        let pivot = &top[c];
+        for row in rest.iter_mut() {
+            let f = row[c] / pivot[c];
+            for (v, p) in row[c..].iter_mut().zip(&pivot[c..]) {
+                *v -= f * p;
+            }
+        }
+    }
+    let mut x = vec![0.0; m];
+    for r in (0..m).rev() {
+        let s: f64 = (r + 1..m).map(|k| a[r][k] * x[k]).sum();
+        x[r] = (a[r][m] - s) / a[r][r];
+    }
+    Some(x)
+}
+
+/// The line's detection statistic over the blocks of the newest `s` seconds: per harmonic,
+/// the power of their mean along the fit against the blocks' scatter around it over the whole
+/// history divided by their number (about 1 under noise alone), summed over the harmonics.
+fn newest_detection(hs: &[Harmonic], coef: &Coef, u: &[f64], tb: &[f64], s: f64) -> f64 {
+    let first = tb.iter().position(|&t| t >= -s).unwrap_or(tb.len() - 1);
+    let count = (tb.len() - first) as f64;
+    let mut total = 0.0;
+    for (h, off) in hs.iter().zip(&coef.offsets) {
+        let k = h.k as f64;
+        // each block rotated back along the fit: a line leaves a constant there
+        let rotated: Vec<(f64, f64)> =
+            h.z.iter()
+                .zip(u)
+                .map(|(c, &uu)| {
+                    let (sn, cs) = (TAU * k * (off + poly(&coef.poly, uu))).sin_cos();
+                    (c.0 * cs + c.1 * sn, c.1 * cs - c.0 * sn)
+                })
+                .collect();
+        let all = rotated.len() as f64;
+        let mean = rotated
+            .iter()
+            .fold((0.0, 0.0), |a, c| (a.0 + c.0, a.1 + c.1));
+        let mean = (mean.0 / all, mean.1 / all);
+        let scatter = rotated
+            .iter()
+            .map(|c| (c.0 - mean.0).powi(2) + (c.1 - mean.1).powi(2))
+            .sum::<f64>()
+            / (all - 1.0);
+        let new = rotated[first..]
+            .iter()
+            .fold((0.0, 0.0), |a, c| (a.0 + c.0, a.1 + c.1));
+        let new = (new.0 / count, new.1 / count);
+        if scatter > 0.0 {
+            total += (new.0 * new.0 + new.1 * new.1) / (scatter / count);
+        }
+    }
+    total
+}
