@@ -16,6 +16,7 @@
 use super::historian_fleet::{window, Fleet, RATE};
 use super::{cpu_seconds, free_port, machine_line};
 use crate::historian::database::{self, DatabaseSettings, Target};
+use crate::historian::recovery::TAIL_SILENCE;
 use crate::historian::row::WindowRow;
 use crate::historian::status::HistorianStatus;
 use crate::historian::writer::Writer;
@@ -458,12 +459,14 @@ async fn wait_caught_up(
                 st.rows.committed,
                 st.received.health,
                 r.requested,
-                r.recovered + r.lost + r.late,
+                r.recovered + r.lost + r.late + r.backfilled + r.not_backfilled,
             ];
             let busy = st.buffer.memory + st.buffer.spilled + r.waiting + r.in_flight > 0;
             if progress != last || busy {
                 (last, still_since) = (progress, Instant::now());
-            } else if still_since.elapsed() > Duration::from_secs(3) {
+            } else if still_since.elapsed() > TAIL_SILENCE + Duration::from_secs(3) {
+                // still for longer than the historian waits before it asks a silent
+                // point's tail, so the tails it asks are in
                 break;
             }
         }

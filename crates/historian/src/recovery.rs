@@ -22,6 +22,10 @@ use std::collections::{HashMap, HashSet};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
+/// Points silent for this long have their tail asked of their daemon, once per silence
+/// ([`Tracker::silent_tails`]).
+pub const TAIL_SILENCE: Duration = Duration::from_secs(5);
+
 /// Windows missing from one point's run (inclusive seq range).
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct Gap {
@@ -49,6 +53,21 @@ impl Gap {
 struct Track {
     run_start_ns: u64,
     high: u64,
+    /// When its newest window came (or the tracker learnt of the point).
+    seen: Instant,
+    /// Its tail was asked for since then ([`Tracker::silent_tails`]).
+    tail_asked: bool,
+}
+
+impl Track {
+    fn new(run_start_ns: u64, high: u64) -> Track {
+        Track {
+            run_start_ns,
+            high,
+            seen: Instant::now(),
+            tail_asked: false,
+        }
+    }
 }
 
 /// Each point's run and highest seq.
@@ -68,7 +87,7 @@ impl Tracker {
         Tracker {
             points: last
                 .into_iter()
-                .map(|(k, (run_start_ns, high))| (k, Track { run_start_ns, high }))
+                .map(|(k, (run_start_ns, high))| (k, Track::new(run_start_ns, high)))
                 .collect(),
             listening_since_ns: None,
         }
@@ -103,6 +122,9 @@ impl Tracker {
             Some(t) if same_run(t.run_start_ns, run_start_ns) => {
                 let before = t.high;
                 t.high = t.high.max(seq);
+                if seq > before {
+                    (t.seen, t.tail_asked) = (Instant::now(), false);
+                }
                 // Keep the daemon's own value (the database's is rounded to µs).
                 t.run_start_ns = run_start_ns;
                 // Checked: a seq near 2^64 (refused by admission anyway) must not wrap.
@@ -115,24 +137,43 @@ impl Tracker {
             Some(t) if run_start_ns < t.run_start_ns => None,
             // The daemon restarted: its new run from window 1.
             Some(t) => {
-                *t = Track {
-                    run_start_ns,
-                    high: seq,
-                };
+                *t = Track::new(run_start_ns, seq);
                 gap(1, seq.saturating_sub(1), true)
             }
             None => {
-                self.points.insert(
-                    key.to_string(),
-                    Track {
-                        run_start_ns,
-                        high: seq,
-                    },
-                );
+                self.points
+                    .insert(key.to_string(), Track::new(run_start_ns, seq));
                 let counted = self.listening_since_ns.is_some_and(|t| run_start_ns >= t);
                 gap(1, seq.saturating_sub(1), counted)
             }
         }
+    }
+
+    /// The tail of every point silent for `idle` since its newest window, asked once per
+    /// silence: the `n` windows after its newest as a gap that is not counted (they may
+    /// never have been made: the daemon stopped). A window dropped on the way with no later
+    /// window behind it opens no gap; asking the daemon's recent history for the tail
+    /// brings it back while the daemon still has it.
+    pub fn silent_tails(&mut self, idle: Duration, n: u64) -> Vec<Gap> {
+        let now = Instant::now();
+        let mut out = Vec::new();
+        for (key, t) in &mut self.points {
+            if t.tail_asked || now.duration_since(t.seen) < idle || n == 0 {
+                continue;
+            }
+            t.tail_asked = true;
+            let Some(first) = t.high.checked_add(1) else {
+                continue;
+            };
+            out.push(Gap {
+                key: key.clone(),
+                run_start_ns: t.run_start_ns,
+                first,
+                last: first.saturating_add(n - 1),
+                counted: false,
+            });
+        }
+        out
     }
 }
 
@@ -488,6 +529,29 @@ mod tests {
         assert_eq!((before.first, before.last, before.counted), (1, 2, false));
         let mut plain = Tracker::default();
         assert!(!plain.observe("m/a/new", 2_000, 3).unwrap().counted);
+    }
+
+    /// A point gone silent has its tail asked once (uncounted), again only after a newer
+    /// window came and it fell silent anew.
+    #[test]
+    fn a_silent_points_tail_is_asked_once_per_silence() {
+        let mut t = Tracker::default();
+        t.observe("m/a/p", 7, 1);
+        t.observe("m/a/p", 7, 2);
+        assert!(t.silent_tails(Duration::from_secs(3600), 8).is_empty());
+        let tails = t.silent_tails(Duration::ZERO, 8);
+        assert_eq!(tails.len(), 1);
+        let g = &tails[0];
+        assert_eq!(
+            (g.first, g.last, g.counted, g.run_start_ns),
+            (3, 10, false, 7)
+        );
+        assert!(
+            t.silent_tails(Duration::ZERO, 8).is_empty(),
+            "once per silence"
+        );
+        t.observe("m/a/p", 7, 3);
+        assert_eq!(t.silent_tails(Duration::ZERO, 8)[0].first, 4);
     }
 
     /// Issue 38, F2: a forged seq of 2^64-1 wrapped `high + 1` to 0, so every later window

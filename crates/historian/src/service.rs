@@ -334,6 +334,18 @@ fn parse(sh: &Shared, batch: Batch, tracker: &mut Tracker) -> Pending {
 
 /// A live window through the gap tracker: a gap it opens goes into the recovery plan, a
 /// window older than its point's newest (late, out of order) comes out of it.
+/// Every second at most: ask the tail of every point gone silent ([`Tracker::silent_tails`]).
+fn ask_silent_tails(sh: &Shared, tracker: &mut Tracker, last_scan: &mut Instant) {
+    if last_scan.elapsed() < Duration::from_secs(1) || !sh.cfg.recovery.enabled {
+        return;
+    }
+    *last_scan = Instant::now();
+    let n = sh.cfg.recovery.pacing().max_windows;
+    for g in tracker.silent_tails(crate::recovery::TAIL_SILENCE, n) {
+        sh.missing.gap(g);
+    }
+}
+
 fn track(sh: &Shared, tracker: &mut Tracker, r: &WindowRow) {
     let key = r.point.key();
     let late = tracker.is_late(&key, r.run_start_ns, r.seq);
@@ -396,6 +408,7 @@ async fn write_loop(sh: Arc<Shared>, session: zenoh::Session) -> Vec<Incoming> {
     let mut pending: Option<Pending> = None;
     let mut backoff = Duration::from_millis(250);
     let mut last_retention: Option<Instant> = None;
+    let mut last_tail_scan = Instant::now();
     loop {
         sh.heartbeat_ms
             .store(sh.started.elapsed().as_millis() as u64, Ordering::Relaxed);
@@ -441,6 +454,9 @@ async fn write_loop(sh: Arc<Shared>, session: zenoh::Session) -> Vec<Incoming> {
         }
         while let Ok((id, limits)) = limits_rx.try_recv() {
             let _ = w.set_iso_limits(id, limits).await;
+        }
+        if let Some(t) = tracker.as_mut() {
+            ask_silent_tails(&sh, t, &mut last_tail_scan);
         }
         if pending.is_none() {
             if !gather(&sh).await {

@@ -43,9 +43,11 @@ pub struct Counters {
     pub recovered: AtomicU64,
     /// Windows missed after the historian knew the point, not recoverable (exact count).
     pub lost: AtomicU64,
-    /// Windows from before the historian first saw a point, fetched from the daemon's cache.
+    /// Windows from before the historian first saw a point, fetched from the daemon's cache,
+    /// and windows after a silent point's newest one fetched when its tail was asked.
     pub backfilled: AtomicU64,
-    /// ...and those already gone from it (not counted as lost: never seen).
+    /// ...and those the daemon did not have (not counted as lost: never seen, or, for a
+    /// silent point's tail, never made).
     pub not_backfilled: AtomicU64,
     /// Asked for, then arrived live while the request was out.
     pub late: AtomicU64,
