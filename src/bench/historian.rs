@@ -343,7 +343,9 @@ pub fn run(points: usize, seconds: f64, json: bool) -> Result<()> {
         database::block_on(async { count_rows(&target.connect().await?, &tag, ticks).await })??;
     fleet.publish(t0, ticks + 1, ticks + TAIL_TICKS)?;
     let published = ticks * points as u64;
-    let limit = Duration::from_secs_f64(seconds.max(60.0) * 3.0);
+    // late is allowed: wait while the historian still moves (the wait ends 3 s past the
+    // tail silence after it stops), up to ten times the publishing time for a backlog
+    let limit = Duration::from_secs_f64(seconds.max(60.0) * 10.0);
     let catch_up = database::block_on(wait_caught_up(
         &target,
         &tag,

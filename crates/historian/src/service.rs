@@ -334,9 +334,15 @@ fn parse(sh: &Shared, batch: Batch, tracker: &mut Tracker) -> Pending {
 
 /// A live window through the gap tracker: a gap it opens goes into the recovery plan, a
 /// window older than its point's newest (late, out of order) comes out of it.
-/// Every second at most: ask the tail of every point gone silent ([`Tracker::silent_tails`]).
+/// Every second at most, while the historian keeps up: ask the tail of every point gone
+/// silent ([`Tracker::silent_tails`]).
 fn ask_silent_tails(sh: &Shared, tracker: &mut Tracker, last_scan: &mut Instant) {
-    if last_scan.elapsed() < Duration::from_secs(1) || !sh.cfg.recovery.enabled {
+    // only while the historian keeps up (nothing spilled, at most one batch waiting): with
+    // a backlog a point's newer windows may wait in the buffer (a silence of the tracker,
+    // not of the point), and asking their tails would only bring back what it holds
+    let level = sh.buffer.level();
+    let backlog = level.spilled > 0 || level.memory > sh.cfg.batch.max_rows as u64;
+    if last_scan.elapsed() < Duration::from_secs(1) || !sh.cfg.recovery.enabled || backlog {
         return;
     }
     *last_scan = Instant::now();

@@ -337,6 +337,14 @@ mod tests {
         worst
     }
 
+    /// Each rig's dataset of `plan` simulated alone (the reference), into `dirs`.
+    fn simulated_alone(rigs: [&RigConfig; 2], plan: &Plan, dirs: [&Path; 2]) {
+        for (r, dir) in rigs.into_iter().zip(dirs) {
+            dataset::generate(r, plan, dir, "wav", Some(2), false, CalibratedDraws::Spread)
+                .unwrap();
+        }
+    }
+
     /// With a moved, more damped mode and more noise (structure and sensor only), every
     /// run shares its mechanics and each dataset is the one `generate` writes alone, to
     /// rounding; with a changed contact angle (mechanics) nothing is shared.
@@ -375,18 +383,7 @@ mod tests {
         };
         let pair = jobs(&za, &ca, &rig1).unwrap();
         assert_eq!(pair.shared_runs, 2);
-        for (r, dir) in [(&rig0, &zb), (&rig1, &cb)] {
-            dataset::generate(
-                r,
-                &plan,
-                dir,
-                "wav",
-                Some(2),
-                false,
-                CalibratedDraws::Spread,
-            )
-            .unwrap();
-        }
+        simulated_alone([&rig0, &rig1], &plan, [&zb, &cb]);
         assert!(worst_difference(&za, &zb) < 1e-5);
         assert!(worst_difference(&ca, &cb) < 1e-5);
         // the two datasets do differ (the calibration matters)
@@ -409,18 +406,7 @@ mod tests {
         let tmp = tempfile::tempdir().unwrap();
         let d = |s: &str| tmp.path().join(s);
         let (zb, cb) = (d("z-alone"), d("c-alone"));
-        for (r, dir) in [(&rig0, &zb), (&rig1, &cb)] {
-            dataset::generate(
-                r,
-                &plan,
-                dir,
-                "wav",
-                Some(2),
-                false,
-                CalibratedDraws::Spread,
-            )
-            .unwrap();
-        }
+        simulated_alone([&rig0, &rig1], &plan, [&zb, &cb]);
         let stop = AtomicBool::new(false);
         let job0 = DatasetJob {
             rig: &rig0,
