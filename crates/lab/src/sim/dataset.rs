@@ -111,6 +111,21 @@ pub fn write_labels(dir: &Path, rows: &mut [(String, String)]) -> Result<()> {
     std::fs::write(&labels, csv).with_context(|| format!("cannot write {}", labels.display()))
 }
 
+/// Simulate one planned run on its own and write it as `<dir>/<stem>.<ext>`; returns its
+/// labels.csv row (file name, label).
+pub fn simulate_run(
+    rig: &RigConfig,
+    run: &PlannedRun,
+    dir: &Path,
+    ext: &str,
+) -> Result<(String, String)> {
+    let rec =
+        super::simulate(rig, &run.scenario).with_context(|| format!("simulating {}", run.stem))?;
+    let name = format!("{}.{ext}", run.stem);
+    super::output::write(&dir.join(&name), &rec, rig)?;
+    Ok((name, run.scenario.label().to_string()))
+}
+
 /// Generate a dataset (library entry point, also used by the benchmark).
 pub fn generate(
     rig: &RigConfig,
@@ -132,12 +147,9 @@ pub fn generate(
     let results: Vec<Result<(String, String)>> = pool.install(|| {
         runs.par_iter()
             .map(|run| {
-                let rec = super::simulate(rig, &run.scenario)
-                    .with_context(|| format!("simulating {}", run.stem))?;
-                let name = format!("{}.{ext}", run.stem);
-                super::output::write(&dir.join(&name), &rec, rig)?;
+                let row = simulate_run(rig, run, dir, ext)?;
                 bar.inc(1);
-                Ok((name, run.scenario.label().to_string()))
+                Ok(row)
             })
             .collect()
     });

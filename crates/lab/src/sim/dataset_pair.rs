@@ -132,9 +132,7 @@ fn write(
 
 /// Simulate one run of one dataset alone.
 fn alone(job: &DatasetJob, run: &PlannedRun, ext: &str) -> Result<(String, String)> {
-    let rec = super::simulate(job.rig, &run.scenario)
-        .with_context(|| format!("simulating {}", run.stem))?;
-    write(job, run, &rec, ext)
+    dataset::simulate_run(job.rig, run, job.dir, ext)
 }
 
 /// Rows of each dataset a task wrote: (dataset 0 or 1, file name, label).
