@@ -567,7 +567,11 @@ fn three_daemons_a_router_and_the_historian_keep_every_window_once_through_outag
                 .iter()
                 .map(|(k, v)| (k.clone(), v.len(), v.keys().last().copied()))
                 .collect();
-            panic!("not every window the router saw is in the database: {r:?} vs {want:?}\nstatus {:?}\nlog tail:\n{}", st(), tail.join("\n"));
+            let missing: Vec<(&str, Vec<u64>)> = points
+                .iter()
+                .map(|p| (*p, seen_not_stored(&rt, &db, p, &seen[*p])))
+                .collect();
+            panic!("not every window the router saw is in the database: {r:?} vs {want:?}\nmissing {missing:?}\nstatus {:?}\nlog tail:\n{}", st(), tail.join("\n"));
         }
         std::thread::sleep(Duration::from_millis(200));
     }
@@ -613,6 +617,28 @@ fn three_daemons_a_router_and_the_historian_keep_every_window_once_through_outag
         log.lines().rev().take(20).collect::<Vec<_>>().join("\n")
     );
     drop(router);
+}
+
+/// The seqs the router carried for `point` that the database does not hold.
+fn seen_not_stored(
+    rt: &tokio::runtime::Runtime,
+    db: &tokio_postgres::Client,
+    point: &str,
+    seen: &BTreeMap<u64, bool>,
+) -> Vec<u64> {
+    let stored: BTreeSet<u64> = rt
+        .block_on(db.query(
+            "SELECT w.seq FROM windows w JOIN points p USING (point_id) WHERE p.key = $1",
+            &[&point],
+        ))
+        .unwrap()
+        .iter()
+        .map(|r| r.get::<_, i64>(0) as u64)
+        .collect();
+    seen.keys()
+        .filter(|s| !stored.contains(s))
+        .copied()
+        .collect()
 }
 
 /// One row per window per point: each run's seqs 1..=max, none twice, none missing, and

@@ -126,6 +126,12 @@ pub struct RecoverySettings {
     /// How long a gap waits for a late (out of order) window before it is asked for, ms.
     #[serde(default = "default_grace_ms")]
     pub grace_ms: u64,
+    /// At start, look this far back (s) from each point's newest stored window for holes in
+    /// its run and ask the daemons for them (a historian stopped while it was recovering
+    /// forgets what it was asking for). 0: no scan. The default spans the daemons' default
+    /// recent history (1,200 windows at a 0.5 s hop).
+    #[serde(default = "default_hole_scan_s")]
+    pub hole_scan_s: f64,
 }
 
 impl RecoverySettings {
@@ -214,6 +220,9 @@ fn default_request_windows() -> u64 {
 fn default_grace_ms() -> u64 {
     1000
 }
+fn default_hole_scan_s() -> f64 {
+    600.0
+}
 fn default_max_replies() -> u64 {
     200_000
 }
@@ -262,6 +271,7 @@ impl Default for RecoverySettings {
             in_flight: default_in_flight(),
             max_request_windows: default_request_windows(),
             grace_ms: default_grace_ms(),
+            hole_scan_s: default_hole_scan_s(),
         }
     }
 }
@@ -393,6 +403,10 @@ impl HistorianConfig {
         }
         if self.recovery.in_flight == 0 || self.recovery.max_request_windows == 0 {
             bail!("recovery.in_flight and recovery.max_request_windows must be at least 1");
+        }
+        let scan = self.recovery.hole_scan_s;
+        if !(scan.is_finite() && scan >= 0.0) {
+            bail!("recovery.hole_scan_s = {scan}: must be 0 (no scan) or a positive number of seconds");
         }
         if self.history.max_replies == 0 {
             bail!("history.max_replies must be at least 1");

@@ -50,6 +50,8 @@ struct Shared {
     started: Instant,
     /// `started` as ns since the Unix epoch (the recovery's [`Tracker::listening_since`]).
     started_unix_ns: u64,
+    /// The database's recent windows were searched for holes (once per process).
+    holes_scanned: AtomicBool,
 }
 
 /// Run until stopped; returns the last status.
@@ -88,6 +90,7 @@ pub fn run(cfg: HistorianConfig, opts: RunOptions) -> Result<HistorianStatus> {
         started_unix_ns: std::time::SystemTime::now()
             .duration_since(std::time::UNIX_EPOCH)
             .map_or(0, |d| d.as_nanos() as u64),
+        holes_scanned: AtomicBool::new(false),
     });
     if opts.use_signals {
         signals::install();
@@ -558,6 +561,9 @@ async fn connect(sh: &Shared) -> Result<(Writer, std::collections::HashMap<Strin
         .await?;
     w.load_points().await?;
     let seed = w.last_positions().await?;
+    if !sh.holes_scanned.swap(true, Ordering::SeqCst) {
+        ask_recent_holes(sh, &w).await;
+    }
     sh.counters
         .schema_version
         .store(i64::from(version), Ordering::Relaxed);
@@ -568,6 +574,31 @@ async fn connect(sh: &Shared) -> Result<(Writer, std::collections::HashMap<Strin
         sh.target.describe()
     );
     Ok((w, seed))
+}
+
+/// Once per process, at the first connection: the holes inside each point's recent windows
+/// (what a historian stopped mid-recovery never got back) are asked of the daemons, counted.
+async fn ask_recent_holes(sh: &Shared, w: &Writer) {
+    let span = sh.cfg.recovery.hole_scan_s;
+    if span <= 0.0 || !sh.cfg.recovery.enabled {
+        return;
+    }
+    match w.recent_holes(span).await {
+        Ok(holes) => {
+            let windows: u64 = holes.iter().map(|g| g.len()).sum();
+            if !holes.is_empty() {
+                tracing::info!(
+                    "{windows} windows missing in {} holes within the last {span} s of the database: asked of their daemons",
+                    holes.len()
+                );
+            }
+            for g in holes {
+                Counters::add(&sh.counters.gaps, 1);
+                sh.missing.gap(g);
+            }
+        }
+        Err(e) => tracing::warn!("{e:#}; holes left before this start are not asked for"),
+    }
 }
 
 fn note_down(sh: &Shared, e: &anyhow::Error) {
