@@ -10,6 +10,8 @@ mod common;
 mod daemon_harness;
 #[path = "../common/estimate_rig.rs"]
 mod estimate_rig;
+#[path = "../common/femto_life.rs"]
+mod femto_life;
 #[path = "../common/wrong_shape.rs"]
 mod wrong_shape;
 

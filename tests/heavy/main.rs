@@ -8,8 +8,11 @@
 mod common;
 #[path = "../common/estimate_rig.rs"]
 mod estimate_rig;
+#[path = "../common/femto_life.rs"]
+mod femto_life;
 
 mod adapt;
+mod adapt_captures;
 mod backpressure;
 mod calibrate;
 mod estimate_mode;

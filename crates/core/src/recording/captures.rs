@@ -97,10 +97,26 @@ pub fn spans(rec: &Recording) -> Result<Vec<CaptureSpan>, String> {
     Ok(out)
 }
 
+/// The time line a cut's times are on.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Timeline {
+    /// The capture clock: time since the first capture, gaps between captures included (a
+    /// manifest row's `start_s`/`end_s`).
+    Clock,
+    /// The signal: the captures' samples one after the other, gaps left out (seconds of
+    /// signal, as `Recording::duration_s` counts them).
+    Signal,
+}
+
 /// Keep the captures that start in `[t0, t0 + seconds)` of a capture-series recording (times
 /// on its clock: since the first capture), the first kept at time 0. Returns false (and
 /// leaves the recording alone) when it is not a capture series.
 pub fn cut(rec: &mut Recording, t0: f64, seconds: f64) -> bool {
+    cut_on(rec, t0, seconds, Timeline::Clock)
+}
+
+/// [`cut`] with the times on `timeline`.
+pub fn cut_on(rec: &mut Recording, t0: f64, seconds: f64, timeline: Timeline) -> bool {
     if !is_capture_series(&rec.metadata) {
         return false;
     }
@@ -112,7 +128,11 @@ pub fn cut(rec: &mut Recording, t0: f64, seconds: f64) -> bool {
     let kept: Vec<CaptureSpan> = all
         .into_iter()
         .filter(|s| {
-            let t = s.clock as f64 / fs;
+            let at = match timeline {
+                Timeline::Clock => s.clock,
+                Timeline::Signal => s.start as u64,
+            };
+            let t = at as f64 / fs;
             t >= t0 && t < t1
         })
         .collect();
@@ -138,6 +158,45 @@ pub fn cut(rec: &mut Recording, t0: f64, seconds: f64) -> bool {
         .collect();
     write_starts(&mut rec.metadata, &starts);
     true
+}
+
+/// Each capture of a capture-series recording as a recording of its own (no capture
+/// metadata left; an analog tacho cut with it); None when it is not a capture series.
+pub fn pieces(rec: &Recording) -> Option<Vec<Recording>> {
+    if !is_capture_series(&rec.metadata) {
+        return None;
+    }
+    let all = spans(rec).ok()?;
+    let mut metadata = rec.metadata.clone();
+    metadata.remove(META_CAPTURE_INTERVAL);
+    metadata.remove(META_CAPTURE_STARTS);
+    let step_ns = 1e9 / rec.sample_rate;
+    let piece = |s: &CaptureSpan| Recording {
+        sample_rate: rec.sample_rate,
+        start_time_ns: rec.start_time_ns + (s.clock as f64 * step_ns) as u64,
+        channels: rec
+            .channels
+            .iter()
+            .map(|c| super::Channel {
+                name: c.name.clone(),
+                axis: c.axis.clone(),
+                unit: c.unit.clone(),
+                samples: c.samples[s.start..s.end].to_vec(),
+            })
+            .collect(),
+        tacho: match &rec.tacho {
+            Some(super::Tacho::Analog { samples, unit }) => Some(super::Tacho::Analog {
+                samples: samples[s.start.min(samples.len())..s.end.min(samples.len())].to_vec(),
+                unit: unit.clone(),
+            }),
+            _ => None,
+        },
+        rpm: rec.rpm,
+        nominal_rpm: rec.nominal_rpm.clone(),
+        provenance: rec.provenance.clone(),
+        metadata: metadata.clone(),
+    };
+    Some(all.iter().map(piece).collect())
 }
 
 #[cfg(test)]
@@ -217,6 +276,41 @@ mod tests {
                 .map(|s| (s.start, s.end, s.clock))
                 .collect::<Vec<_>>(),
             vec![(0, 10, 0), (10, 20, 1000)]
+        );
+    }
+
+    #[test]
+    fn a_cut_on_the_signal_counts_samples_and_pieces_are_the_captures() {
+        let mut r = rec(30);
+        r.channels[0].samples = (0..30).map(|i| i as f32).collect();
+        assert!(pieces(&r).is_none(), "not a series");
+        r.metadata.insert(META_CAPTURE_INTERVAL.into(), "10".into());
+        let starts: Vec<CaptureStart> = (0..3)
+            .map(|k| CaptureStart {
+                index: 10 * k,
+                clock: 1000 * k,
+            })
+            .collect();
+        write_starts(&mut r.metadata, &starts);
+        // 0.3 s of signal (100 Hz): the second half of it, [0.15 s, 0.3 s), holds the capture
+        // that starts at sample 20 only; on the clock that span holds none.
+        let mut on_clock = r.clone();
+        assert!(cut_on(&mut on_clock, 0.15, 0.15, Timeline::Clock));
+        assert_eq!(on_clock.len(), 0);
+        let mut on_signal = r.clone();
+        assert!(cut_on(&mut on_signal, 0.15, 0.15, Timeline::Signal));
+        assert_eq!(on_signal.channels[0].samples[0], 20.0);
+        assert_eq!(on_signal.len(), 10);
+        let p = pieces(&r).unwrap();
+        assert_eq!(p.len(), 3);
+        assert_eq!(
+            p[1].channels[0].samples,
+            (10..20).map(|i| i as f32).collect::<Vec<_>>()
+        );
+        assert!(!is_capture_series(&p[1].metadata));
+        assert_eq!(
+            p[2].start_time_ns, 20_000_000_000,
+            "the capture's time on the clock"
         );
     }
 }

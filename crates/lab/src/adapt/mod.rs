@@ -36,6 +36,7 @@ use crate::train::featurise::featurise_all;
 use crate::train::fit::{class_labels, fit, FitReport};
 use crate::train::score::{model_outcomes, rule_labels, rule_outcomes};
 use crate::train::trainer::TrainConfig;
+use crate::vocabulary::Condition;
 use anyhow::{bail, Context, Result};
 use indicatif::{ProgressBar, ProgressStyle};
 use preflight::LabelledSet;
@@ -254,11 +255,21 @@ fn train_seed(
 /// trained when none is labelled healthy.
 /// Healthy recordings without a speed (`speed_free`: name, windows' kurtosis) add their
 /// kurtosis to the speed-free part of the baseline, not to the spectral reference.
+/// The speed-free health indicators' baseline comes from every measured row labelled
+/// healthy, its speed read or not.
 fn align_step(
     models: Vec<TrainedModel>,
-    healthy: &[RecordingFeatures],
-    speed_free: &[(String, Vec<f32>)],
+    pre: &preflight::Checked,
+    rig: &RigConfig,
 ) -> Result<(Vec<TrainedModel>, Option<serde_json::Value>)> {
+    let (healthy, speed_free) = (&pre.healthy, &pre.speed_free);
+    let healthy_rows: Vec<ManifestEntry> = pre
+        .measured
+        .entries
+        .iter()
+        .filter(|e| Condition::is_healthy(&e.label))
+        .cloned()
+        .collect();
     if healthy.is_empty() {
         tracing::warn!(
             "no measured recording is labelled healthy: the model is not aligned to the machine"
@@ -273,9 +284,14 @@ fn align_step(
         names.push(format!("{name} (kurtosis only: no speed)"));
         kurtosis.extend_from_slice(k);
     }
+    let baseline = healthy_indicator_baseline(&healthy_rows, rig)?;
     let aligned = models
         .iter()
-        .map(|m| align_to_healthy(m, windows.view(), Some(&kurtosis), &names))
+        .map(|m| {
+            let mut a = align_to_healthy(m, windows.view(), Some(&kurtosis), &names)?;
+            store_healthy_indicators(&mut a, baseline)?;
+            Ok(a)
+        })
         .collect::<Result<Vec<_>>>()?;
     let info = serde_json::to_value(&aligned[0].meta.alignment)?;
     Ok((aligned, Some(info)))
@@ -295,16 +311,33 @@ pub fn align_to_recordings(
     let names: Vec<String> = recs.iter().map(|r| r.path_text.clone()).collect();
     let kurtosis = healthy_kurtosis(&recs);
     let mut aligned = align_to_healthy(model, windows.view(), Some(&kurtosis), &names)?;
-    store_healthy_indicators(&mut aligned, healthy, rig)?;
+    let baseline = healthy_indicator_baseline(healthy, rig)?;
+    store_healthy_indicators(&mut aligned, baseline)?;
     Ok(aligned)
 }
 
-/// Fit the machine's healthy indicator baseline on the windows of its `healthy` recordings
-/// (each within its manifest span, in manifest and time order) and store it in `model`'s
-/// alignment (`healthy_indicators`). Returns the baseline, or None when the recordings hold
-/// too few sound windows to smooth once (the model then carries none, as before).
+/// Store the machine's healthy indicator baseline in `model`'s alignment
+/// (`healthy_indicators`); None (too few sound windows to smooth once) stores nothing.
 fn store_healthy_indicators(
     model: &mut TrainedModel,
+    baseline: Option<crate::model::indicators::IndicatorBaseline>,
+) -> Result<()> {
+    let Some(b) = baseline else {
+        return Ok(());
+    };
+    let Some(alignment) = model.meta.alignment.as_mut() else {
+        anyhow::bail!(
+            "the health indicators' baseline belongs to an aligned model; align it first"
+        );
+    };
+    alignment.healthy_indicators = Some(b);
+    Ok(())
+}
+
+/// The machine's healthy indicator baseline fitted on the windows of its `healthy`
+/// recordings (each within its manifest span, in manifest and time order); None when they
+/// hold too few sound windows to smooth once (the model then carries none).
+fn healthy_indicator_baseline(
     healthy: &[ManifestEntry],
     rig: &RigConfig,
 ) -> Result<Option<crate::model::indicators::IndicatorBaseline>> {
@@ -319,18 +352,10 @@ fn store_healthy_indicators(
         .with_context(|| format!("health indicators of {}", e.path.display()))?;
         windows.extend(series.iter().filter_map(|w| w.indicators));
     }
-    let Some(b) =
-        crate::model::departure::fit_baseline(&windows, crate::model::departure::MEDIAN_OF)
-    else {
-        return Ok(None);
-    };
-    let Some(alignment) = model.meta.alignment.as_mut() else {
-        anyhow::bail!(
-            "the health indicators' baseline belongs to an aligned model; align it first"
-        );
-    };
-    alignment.healthy_indicators = Some(b);
-    Ok(Some(b))
+    Ok(crate::model::departure::fit_baseline(
+        &windows,
+        crate::model::departure::MEDIAN_OF,
+    ))
 }
 
 /// The healthy recordings' excess kurtosis per window, in the row order of their
@@ -696,7 +721,7 @@ pub fn adapt(o: &AdaptOptions) -> Result<AdaptOutcome> {
 
     steps.set_message("aligning the model to the machine's healthy recordings");
     let (seeds, chosen_seed) = (trained.seeds.clone(), trained.chosen_seed);
-    let (models, alignment) = align_step(trained.models, &pre.healthy, &pre.speed_free)?;
+    let (models, alignment) = align_step(trained.models, &pre, rig)?;
     let trained = Trained { models, ..trained };
     let (after, before, before_name) = write_models(trained, rig, o)?;
     clock.lap("align and write");

@@ -104,7 +104,7 @@ fn measured_speed(
     let mut rec = crate::importers::load(&e.path, rig, &e.import_options())
         .with_context(|| format!("loading {}", e.path.display()))?;
     let (a, b) = e.span.unwrap_or((0.0, f64::INFINITY));
-    measured::cut(&mut rec, a, b - a);
+    measured::cut_span(&mut rec, a, b);
     let whole = rec.duration_s();
     let mut s = seconds.min(whole);
     loop {

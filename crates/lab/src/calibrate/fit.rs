@@ -305,7 +305,7 @@ fn runs_within(bytes: f64, rig: &RigConfig, ops: &[Measured], forces: bool) -> u
     let largest = ops
         .iter()
         .map(|m| {
-            let twin = views::segment_seconds(m.recording.duration_s());
+            let twin = views::twin_seconds(&m.recording);
             let fs = m.recording.sample_rate;
             let mut b = twin * fs * (channels + 1.0) * 8.0;
             if forces {
@@ -441,7 +441,7 @@ impl<'a> Twin<'a> {
         s.sample_rate_hz = Some(m.recording.sample_rate);
         let dur = m.recording.duration_s();
         let twin_s = if self.options.segmented {
-            views::segment_seconds(dur)
+            views::twin_seconds(&m.recording)
         } else {
             dur
         };
@@ -588,6 +588,32 @@ fn whole_piece(
     let dur = rec.duration_s();
     v.speed = views::speed_view(&track, dur, v.rpm);
     Ok(v)
+}
+
+/// Say what the measured recordings' length leaves out: a speed fluctuation slower than half
+/// the shortest one, or (a series of short captures) any speed fluctuation at all.
+fn warn_short(ops: &[Measured]) {
+    let shortest = ops
+        .iter()
+        .map(|m| m.recording.duration_s())
+        .fold(f64::INFINITY, f64::min);
+    let captures = ops
+        .iter()
+        .any(|m| crate::recording::captures::is_capture_series(&m.recording.metadata));
+    if captures {
+        tracing::info!(
+            "a series of short captures holds no speed fluctuation view: `speed_fluctuation` \
+             cannot be fitted from it"
+        );
+    } else if shortest < 2.0 * LONGEST_PERIOD_S {
+        tracing::warn!(
+            "the shortest analysed recording is {shortest:.1} s: a speed fluctuation slower \
+             than {:.1} s per period (half of it) cannot be resolved (the catalog searches up to \
+             {LONGEST_PERIOD_S} s); analyse {:.0} s or more (--seconds, or longer recordings)",
+            shortest / 2.0,
+            2.0 * LONGEST_PERIOD_S
+        );
+    }
 }
 
 /// Extra, reportable parameters derived from the simulation: for `unbalance` the total 1x
@@ -836,19 +862,7 @@ pub fn calibrate_with(
     options: Options,
 ) -> Result<Outcome> {
     let base = rig_simulation(rig)?.clone();
-    let shortest = ops
-        .iter()
-        .map(|m| m.recording.duration_s())
-        .fold(f64::INFINITY, f64::min);
-    if shortest < 2.0 * LONGEST_PERIOD_S {
-        tracing::warn!(
-            "the shortest analysed recording is {shortest:.1} s: a speed fluctuation slower \
-             than {:.1} s per period (half of it) cannot be resolved (the catalog searches up to \
-             {LONGEST_PERIOD_S} s); analyse {:.0} s or more (--seconds, or longer recordings)",
-            shortest / 2.0,
-            2.0 * LONGEST_PERIOD_S
-        );
-    }
+    warn_short(ops);
     let started = std::time::Instant::now();
     let twin = Twin::with_options(rig, ops, options)?;
     let measured_views_wall_s = started.elapsed().as_secs_f64();

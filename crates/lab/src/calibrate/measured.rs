@@ -8,6 +8,7 @@ use super::rate;
 use crate::config::RigConfig;
 use crate::importers::{self, ImportOptions};
 use crate::manifest::{manifest_path, read_manifest};
+use crate::recording::captures::{self, Timeline};
 use crate::recording::Recording;
 use crate::vocabulary::Condition;
 use anyhow::{bail, Context, Result};
@@ -132,7 +133,8 @@ fn load_one(rig: &RigConfig, file: ToLoad, max_seconds: f64) -> Result<Measured>
     // A manifest row may name part of its file (`start_s`/`end_s`): only that part is
     // analysed, and at most `max_seconds` of it.
     let (start_s, end_s) = span.unwrap_or((0.0, f64::INFINITY));
-    cut(&mut rec, start_s, (end_s - start_s).min(max_seconds));
+    cut_span(&mut rec, start_s, end_s);
+    cut(&mut rec, 0.0, max_seconds);
     if rec.is_empty() {
         bail!(
                 "{}: nothing left between start_s {start_s} and end_s {end_s}; the recording is shorter, widen the span in the manifest",
@@ -176,10 +178,19 @@ pub fn split_needs_s(rec: &Recording, rig: &RigConfig) -> Result<Option<f64>> {
     Ok(speed.history_s().map(|h| 2.0 * h))
 }
 
-/// Keep samples in [t0, t0 + seconds) of every channel and the analog tacho.
+/// Keep a manifest row's span `[start_s, end_s)`: times on the recording's clock (for a
+/// series of captures, since the first capture, the time between captures included).
+pub fn cut_span(rec: &mut Recording, start_s: f64, end_s: f64) {
+    if !captures::cut_on(rec, start_s, end_s - start_s, Timeline::Clock) {
+        cut(rec, start_s, end_s - start_s);
+    }
+}
+
+/// Keep samples in [t0, t0 + seconds) of every channel and the analog tacho: seconds of
+/// signal, as [`Recording::duration_s`] counts them (a series of captures keeps the whole
+/// captures that start in it, never a piece of one).
 pub fn cut(rec: &mut Recording, t0: f64, seconds: f64) {
-    // A series of captures: whole captures by their time, never a piece of one.
-    if crate::recording::captures::cut(rec, t0, seconds) {
+    if captures::cut_on(rec, t0, seconds, Timeline::Signal) {
         return;
     }
     let n = rec.len();

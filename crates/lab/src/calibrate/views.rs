@@ -124,9 +124,51 @@ pub fn segment_seconds(seconds: f64) -> f64 {
     seconds.min(SEGMENT_S)
 }
 
+/// Length of a recording's simulated twin: one analysed segment; for a series of captures,
+/// its shortest capture (each capture is a segment of its own, [`compute`]).
+pub fn twin_seconds(rec: &Recording) -> f64 {
+    match crate::recording::captures::spans(rec) {
+        Ok(s) if crate::recording::captures::is_capture_series(&rec.metadata) => s
+            .iter()
+            .map(|s| (s.end - s.start) as f64 / rec.sample_rate)
+            .fold(f64::INFINITY, f64::min)
+            .min(SEGMENT_S),
+        _ => segment_seconds(rec.duration_s()),
+    }
+}
+
+/// The views of a series of captures: each capture's (one segment each), averaged. No
+/// `speed` view: captures a few revolutions long, seconds apart, say nothing of how the speed
+/// fluctuates (the error then leaves that component out).
+fn compute_captures(
+    captures: Vec<Recording>,
+    rig: &RigConfig,
+    faults: &[Condition],
+) -> Result<Views> {
+    let seconds: f64 = captures.iter().map(|c| c.duration_s()).sum();
+    let parts = captures
+        .into_par_iter()
+        .enumerate()
+        .map(|(i, r)| {
+            compute_segment(&r, rig, faults)
+                .with_context(|| format!("capture {} ({:.2} s)", i + 1, r.duration_s()))
+        })
+        .collect::<Result<Vec<_>>>()?;
+    let n = parts.len() as f64;
+    let rpm = parts.iter().map(|p| p.rpm).sum::<f64>() / n;
+    let mut v = average(parts);
+    v.rpm = rpm;
+    v.speed = Vec::new();
+    v.seconds = seconds;
+    Ok(v)
+}
+
 /// Compute the views of a recording's classifier channel; `faults` is its label. A recording
 /// longer than a segment is averaged over [`segments`]; `speed` covers it whole.
 pub fn compute(rec: &Recording, rig: &RigConfig, faults: &[Condition]) -> Result<Views> {
+    if let Some(captures) = crate::recording::captures::pieces(rec) {
+        return compute_captures(captures, rig, faults);
+    }
     let track = crate::analysis::whole_recording(rec, rig)?;
     let dur = rec.duration_s();
     let k = segments(dur);
