@@ -28,7 +28,7 @@ for b in 1_1 1_2 2_1 2_2 3_1 3_2; do
   "$RIGMON" replay "$dir" --rig "$OUT/a$b/rig.toml" --rpm "$(rpm $b)" --model "$OUT/a$b/model.onnx" \
     --json 2>/dev/null >"$OUT/r$b.jsonl"
   e=$(date +%s.%N)
-  before=$(jq -r --argjson end "$end" 'select(.window.end_s > $end and .indicators.departure.departed_since_s == null) | .state' "$OUT/r$b.jsonl" | sort | uniq -c | tr '\n' ' ')
+  before=$(jq -r --argjson e0 "$end" 'select(.window.end_s > $e0 and .indicators.departure.departed_since_s == null) | .state' "$OUT/r$b.jsonl" | sort | uniq -c | tr '\n' ' ')
   first=$(jq -c -n 'first(inputs | select(.indicators.departure.departed_since_s != null) | [.window.end_s, .state])' "$OUT/r$b.jsonl")
   jq -r --arg b "$b" --arg first "$first" --arg wall "$(echo "$e - $s" | bc)" \
     --arg adapt "$(echo "$a1 - $a0" | bc)" --arg before "$before" \
