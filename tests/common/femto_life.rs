@@ -74,3 +74,16 @@ pub fn life(dir: &Path, with_defect: bool) {
 pub fn capture_at(t: f64) -> usize {
     (t / 10.0).floor() as usize
 }
+
+/// A manifest (in `tmp`) naming the life's folder `d` as healthy over its first [`BASELINE`]
+/// captures, at 1800 rpm.
+pub fn baseline_manifest(tmp: &Path, d: &str) -> std::path::PathBuf {
+    let manifest = tmp.join("healthy.csv");
+    let end = BASELINE as f64 * 10.0;
+    std::fs::write(
+        &manifest,
+        format!("path,label,rpm,start_s,end_s\n{d},healthy,1800,0,{end}\n"),
+    )
+    .unwrap();
+    manifest
+}

@@ -5,7 +5,7 @@
 //! no alarm in the baseline nor from the run-in, the loud capture or the drift; an alarm after
 //! the onset, the state a fault from it to the end. (`adapt` on the same life: the heavy tier.)
 
-use crate::femto_life::{capture_at, life, BASELINE, CAPTURES, ONSET};
+use crate::femto_life::{baseline_manifest, capture_at, life, BASELINE, CAPTURES, ONSET};
 use std::path::Path;
 
 fn rigmon(args: &[&str]) -> (bool, String, String) {
@@ -66,13 +66,7 @@ fn trend(d: &str) -> serde_json::Value {
 /// `rigmon align` on the first captures, then `rigmon replay` of the whole life: the
 /// daemon's state machine departs where the trend did, and the state is a fault from there on.
 fn replay_holds_the_alarm(tmp: &Path, d: &str, trend_alarm: f64) {
-    let manifest = tmp.join("healthy.csv");
-    let end = BASELINE as f64 * 10.0;
-    std::fs::write(
-        &manifest,
-        format!("path,label,rpm,start_s,end_s\n{d},healthy,1800,0,{end}\n"),
-    )
-    .unwrap();
+    let manifest = baseline_manifest(tmp, d);
     let model = tmp.join("aligned.onnx");
     let (ok, out, err) = rigmon(&[
         "align",

@@ -6,7 +6,7 @@
 //! defect's onset, never in the baseline, and holds a fault state to the end.
 
 use crate::common::rigmon;
-use crate::femto_life::{capture_at, life, BASELINE, CAPTURES, ONSET};
+use crate::femto_life::{baseline_manifest, capture_at, life, BASELINE, CAPTURES, ONSET};
 use serde_json::Value;
 
 #[test]
@@ -15,13 +15,7 @@ fn adapt_on_the_first_captures_of_a_life_keeps_the_alarm_that_holds() {
     let dir = tmp.path().join("Bearing9_7");
     life(&dir, true);
     let d = dir.to_str().unwrap();
-    let manifest = tmp.path().join("healthy.csv");
-    let end = BASELINE as f64 * 10.0;
-    std::fs::write(
-        &manifest,
-        format!("path,label,rpm,start_s,end_s\n{d},healthy,1800,0,{end}\n"),
-    )
-    .unwrap();
+    let manifest = baseline_manifest(tmp.path(), d);
     let out = tmp.path().join("adapted");
     let repo = env!("CARGO_MANIFEST_DIR");
     rigmon(&[

@@ -253,11 +253,8 @@ mod tests {
         assert!(spans(&r).unwrap_err().contains("past the 30 samples"));
     }
 
-    #[test]
-    fn a_cut_keeps_the_captures_starting_inside_it() {
-        let mut r = rec(30);
-        r.channels[0].samples = (0..30).map(|i| i as f32).collect();
-        assert!(!cut(&mut r.clone(), 0.0, 1.0), "not a series: left alone");
+    /// Samples 0..30 as three captures of 10 samples at 0, 10 and 20 s on the clock.
+    fn make_series(r: &mut Recording) {
         r.metadata.insert(META_CAPTURE_INTERVAL.into(), "10".into());
         let starts: Vec<CaptureStart> = (0..3)
             .map(|k| CaptureStart {
@@ -266,6 +263,14 @@ mod tests {
             })
             .collect();
         write_starts(&mut r.metadata, &starts);
+    }
+
+    #[test]
+    fn a_cut_keeps_the_captures_starting_inside_it() {
+        let mut r = rec(30);
+        r.channels[0].samples = (0..30).map(|i| i as f32).collect();
+        assert!(!cut(&mut r.clone(), 0.0, 1.0), "not a series: left alone");
+        make_series(&mut r);
         // Captures at 0, 10 and 20 s: [5 s, 25 s) keeps the last two.
         assert!(cut(&mut r, 5.0, 20.0));
         assert_eq!(r.channels[0].samples[0], 10.0);
@@ -284,14 +289,7 @@ mod tests {
         let mut r = rec(30);
         r.channels[0].samples = (0..30).map(|i| i as f32).collect();
         assert!(pieces(&r).is_none(), "not a series");
-        r.metadata.insert(META_CAPTURE_INTERVAL.into(), "10".into());
-        let starts: Vec<CaptureStart> = (0..3)
-            .map(|k| CaptureStart {
-                index: 10 * k,
-                clock: 1000 * k,
-            })
-            .collect();
-        write_starts(&mut r.metadata, &starts);
+        make_series(&mut r);
         // 0.3 s of signal (100 Hz): the second half of it, [0.15 s, 0.3 s), holds the capture
         // that starts at sample 20 only; on the clock that span holds none.
         let mut on_clock = r.clone();
