@@ -20,6 +20,7 @@ pub mod columns;
 pub mod config;
 pub mod database;
 pub mod history;
+pub mod holes;
 pub mod incoming;
 pub(crate) mod intake;
 pub(crate) mod latency;

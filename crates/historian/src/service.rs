@@ -13,7 +13,7 @@ use super::recovery::{Missing, Tracker};
 use super::row::WindowRow;
 use super::status::{self, Counters, HistorianStatus, Phase};
 use super::writer::{is_connection_error, StatusRow, Writer};
-use super::{admit, history, intake, point_config, recovery};
+use super::{admit, history, holes, intake, point_config, recovery};
 use anyhow::{anyhow, Context, Result};
 use rigmon_runtime::daemon::notify::Notifier;
 use rigmon_runtime::daemon::signals;
@@ -555,14 +555,16 @@ fn ask_limits(
 }
 
 /// Open a writer and read where each point stands in the database.
-async fn connect(sh: &Shared) -> Result<(Writer, std::collections::HashMap<String, (u64, u64)>)> {
+async fn connect(
+    sh: &Arc<Shared>,
+) -> Result<(Writer, std::collections::HashMap<String, (u64, u64)>)> {
     let (mut w, version) = Writer::open(&sh.target).await?;
     w.set_synchronous_commit(sh.cfg.batch.synchronous_commit)
         .await?;
     w.load_points().await?;
     let seed = w.last_positions().await?;
     if !sh.holes_scanned.swap(true, Ordering::SeqCst) {
-        ask_recent_holes(sh, &w).await;
+        tokio::spawn(ask_recent_holes(Arc::clone(sh)));
     }
     sh.counters
         .schema_version
@@ -576,14 +578,18 @@ async fn connect(sh: &Shared) -> Result<(Writer, std::collections::HashMap<Strin
     Ok((w, seed))
 }
 
-/// Once per process, at the first connection: the holes inside each point's recent windows
-/// (what a historian stopped mid-recovery never got back) are asked of the daemons, counted.
-async fn ask_recent_holes(sh: &Shared, w: &Writer) {
+/// Once per process, after the first connection, beside the write loop: the holes inside
+/// each point's recent windows ([`holes`]) are asked of the daemons, counted.
+async fn ask_recent_holes(sh: Arc<Shared>) {
     let span = sh.cfg.recovery.hole_scan_s;
     if span <= 0.0 || !sh.cfg.recovery.enabled {
         return;
     }
-    match w.recent_holes(span).await {
+    let found = match sh.target.connect().await {
+        Ok(client) => holes::recent(&client, span).await,
+        Err(e) => Err(e),
+    };
+    match found {
         Ok(holes) => {
             let windows: u64 = holes.iter().map(|g| g.len()).sum();
             if !holes.is_empty() {

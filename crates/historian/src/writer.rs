@@ -9,7 +9,6 @@ use super::columns;
 use super::database::Target;
 use super::migrations;
 use super::partitions::Partitions;
-use super::recovery::Gap;
 use super::row::{ns_of, time_of, ModelKey, PointInfo, WindowRow};
 use anyhow::{Context, Result};
 use rigmon_core::health::UNKNOWN;
@@ -251,37 +250,6 @@ impl Writer {
                 let run: SystemTime = r.get(1);
                 let seq: i64 = r.get(2);
                 (r.get::<_, String>(0), (ns_of(run), seq.max(0) as u64))
-            })
-            .collect())
-    }
-
-    /// The holes inside each point's latest run among its windows of the last `span_s`
-    /// seconds before its newest: windows a previous historian process was still asking its
-    /// daemons for (or had buffered) when it was stopped. Each as a counted gap.
-    pub async fn recent_holes(&self, span_s: f64) -> Result<Vec<Gap>> {
-        let rows = self
-            .client
-            .query(
-                "SELECT p.key, h.run_start, h.prev + 1, h.seq - 1
-                 FROM (SELECT w.point_id, w.run_start, w.seq,
-                              lag(w.seq) OVER (PARTITION BY w.point_id ORDER BY w.time) AS prev
-                       FROM point_latest l JOIN windows w
-                         ON w.point_id = l.point_id AND w.run_start = l.run_start
-                        AND w.time >= l.time - make_interval(secs => $1)) h
-                 JOIN points p USING (point_id)
-                 WHERE h.seq > h.prev + 1",
-                &[&span_s],
-            )
-            .await
-            .context("looking for holes in the recent windows")?;
-        Ok(rows
-            .iter()
-            .map(|r| Gap {
-                key: r.get(0),
-                run_start_ns: ns_of(r.get(1)),
-                first: r.get::<_, i64>(2).max(1) as u64,
-                last: r.get::<_, i64>(3).max(1) as u64,
-                counted: true,
             })
             .collect())
     }
