@@ -8,7 +8,8 @@
 //! Hertz contact), [`defects`] (slot geometry), [`structure`] (resonances; [`split`] runs it
 //! apart from the mechanics, so calibration re-runs only it), [`profile`]
 //! (speed), [`integrate`] (the stepper), [`decimate`] (anti-aliasing), [`sensor`] (noise,
-//! electrical and shaft-order lines, units, tacho: the stage after the mechanics, see
+//! electrical and shaft-order lines, a loose housing's [`landings`], units, tacho: the stage
+//! after the mechanics, see
 //! [`run_engine`]), [`scenario`], [`plan`] (datasets) and [`output`] (MCAP/WAV); its
 //! `[simulation]` rig-file section is [`crate::config::simulation`].
 
@@ -17,6 +18,7 @@ pub mod dataset;
 pub(crate) mod decimate;
 pub mod defects;
 pub(crate) mod integrate;
+pub(crate) mod landings;
 pub(crate) mod linalg;
 pub mod output;
 pub mod plan;
@@ -28,6 +30,7 @@ pub mod signature;
 pub mod split;
 pub mod structure;
 
+pub use landings::peak as landing_peak;
 pub use profile::SpeedProfile;
 pub use scenario::{label_of, Overrides, Scenario};
 
