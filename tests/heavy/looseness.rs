@@ -140,7 +140,14 @@ fn strong_landings_at_a_high_mode_are_looseness() {
     found(&Case {
         name: "strong, 2.5 kHz, clipped rocking",
         args: &[
-            "--impact", "30", "--mode-hz", "2500", "--damping", "0.03", "--seed", "3",
+            "--impact",
+            "30",
+            "--mode-hz",
+            "2500",
+            "--damping",
+            "0.03",
+            "--seed",
+            "3",
         ],
     });
 }
@@ -151,7 +158,15 @@ fn weak_landings_at_a_low_mode_without_rocking_are_looseness() {
     found(&Case {
         name: "weak, 600 Hz, no rocking",
         args: &[
-            "--impact", "1", "--mode-hz", "600", "--damping", "0.05", "--line", "0", "--seed",
+            "--impact",
+            "1",
+            "--mode-hz",
+            "600",
+            "--damping",
+            "0.05",
+            "--line",
+            "0",
+            "--seed",
             "4",
         ],
     });

@@ -874,9 +874,13 @@ pub fn calibrate_with(
     let fit: Vec<usize> = all.iter().copied().filter(|&i| fit_part[i]).collect();
     let held: Vec<usize> = all.iter().copied().filter(|&i| !fit_part[i]).collect();
     let fit_views: Vec<&Views> = fit.iter().map(|&i| &twin.measured[i]).collect();
+    let base_views = fit
+        .iter()
+        .map(|&i| twin.simulated(&base, i))
+        .collect::<Result<Vec<_>>>()?;
     let cx = catalog::Context {
         speed_line: speed_line::find(&fit_views),
-        ringing_hz: ringing_hz(&fit_views),
+        ringing_hz: ringing_hz(&fit_views, &base_views),
         ..context(ops)
     };
     if let Some(l) = cx.speed_line {
@@ -1056,15 +1060,22 @@ fn model_mode_hz(rig: &RigConfig, sim: &SimulationConfig) -> Option<f64> {
     dominant_resonance_hz(rig, sim).filter(|_| sim.loose_impacts.is_none())
 }
 
-/// The dominant resonance the healthy recordings among `views` show where it stands out (the
-/// median over them; all recordings when none is healthy), Hz.
-fn ringing_hz(views: &[&Views]) -> Option<f64> {
-    let any_healthy = views.iter().any(|v| v.healthy);
-    let mut hz: Vec<f64> = views
+/// Where the healthy recordings among `measured` ring that the uncalibrated model (`base`,
+/// the same recordings simulated) does not: the band whose measured level exceeds the
+/// simulated one most (the median over the recordings; all recordings when none is
+/// healthy), Hz. A mode the landings of a loose part ring shows there; the model's own
+/// modes, present on both sides, do not.
+fn ringing_hz(measured: &[&Views], base: &[Arc<Views>]) -> Option<f64> {
+    let any_healthy = measured.iter().any(|v| v.healthy);
+    let mut hz: Vec<f64> = measured
         .iter()
-        .filter(|v| !any_healthy || v.healthy)
-        .filter(|v| v.mode.prominent && v.mode.hz > 0.0)
-        .map(|v| v.mode.hz)
+        .zip(base)
+        .filter(|(m, _)| !any_healthy || m.healthy)
+        .filter_map(|(m, s)| {
+            let excess = m.bands.iter().zip(&s.bands).map(|(a, b)| a - b);
+            let (k, _) = excess.enumerate().max_by(|a, b| a.1.total_cmp(&b.1))?;
+            m.band_lo_hz.get(k).map(|lo| lo + views::BAND_HZ / 2.0)
+        })
         .collect();
     hz.sort_by(f64::total_cmp);
     (!hz.is_empty()).then(|| hz[hz.len() / 2])

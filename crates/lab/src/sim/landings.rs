@@ -42,6 +42,31 @@ impl Radial {
 /// Ring-downs are cut where they have decayed to this fraction of their peak.
 const DECAYED: f64 = 1e-4;
 
+/// A loose joint does not land the same way twice: each landing's time slips by this
+/// fraction of the landing spacing (standard deviation; the 1 % the bearing-impact models of
+/// this project use for a rolling element's slip)...
+const TIME_JITTER: f64 = 0.01;
+/// ... and its strength by this fraction. Without them the train is a perfect comb of lines
+/// up to the mode's frequency, which no real landing train is (at 2.5 kHz and 1200 rpm a
+/// 1 % slip is 1 ms, several periods of the ring: the comb's high lines smear into a band).
+const STRENGTH_JITTER: f64 = 0.1;
+
+/// Two standard normal draws fixed by landing `k` (SplitMix64 and Box-Muller): the same
+/// landing train for every evaluation of a section, so a search sees a smooth objective.
+fn normals(k: i64) -> (f64, f64) {
+    let mix = |mut z: u64| {
+        z = z.wrapping_add(0x9E37_79B9_7F4A_7C15);
+        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+        z ^ (z >> 31)
+    };
+    let a = mix(k as u64);
+    let b = mix(a);
+    let u = |x: u64| ((x >> 11) as f64 + 0.5) / (1u64 << 53) as f64;
+    let (r, th) = ((-2.0 * u(a).ln()).sqrt(), TAU * u(b));
+    (r * th.cos(), r * th.sin())
+}
+
 /// The vertical landing signal (m/s^2) per output sample: `boundary_angles` holds the shaft
 /// angle (rad) at the n + 1 sample boundaries, `fs` the output rate. The horizontal channel
 /// takes `horizontal_ratio` of it.
@@ -63,12 +88,17 @@ pub fn signal(l: &LooseImpactsConfig, boundary_angles: &[f64], fs: f64) -> Vec<f
         if index(a1) <= index(a0) || a1 <= a0 {
             continue;
         }
-        // the landing's angle, and its time inside the sample by linear interpolation
-        let at = phase + 2.0 * TAU * index(a1);
-        let t0 = (i as f64 + (at - a0) / (a1 - a0)) / fs;
+        // the landing's angle, its time inside the sample by linear interpolation, then its
+        // slip and strength ([`TIME_JITTER`], [`STRENGTH_JITTER`])
+        let k = index(a1);
+        let at = phase + 2.0 * TAU * k;
         let rpm = 60.0 * (a1 - a0) * fs / TAU;
-        let peak = l.impact_m_s2 * l.speed_gain(rpm);
-        for (j, v) in y.iter_mut().enumerate().skip(i + 1).take(len) {
+        let (g_time, g_strength) = normals(k as i64);
+        let t0 = (i as f64 + (at - a0) / (a1 - a0)) / fs + TIME_JITTER * 120.0 / rpm * g_time;
+        let peak =
+            l.impact_m_s2 * l.speed_gain(rpm) * (1.0 + STRENGTH_JITTER * g_strength).max(0.0);
+        let first = (t0 * fs).ceil().max(0.0) as usize;
+        for (j, v) in y.iter_mut().enumerate().skip(first).take(len) {
             let t = j as f64 / fs - t0;
             *v += peak * (-decay * t).exp() * (wd * t).sin();
         }
@@ -116,11 +146,14 @@ mod tests {
         let y = signal(&config(900.0), &angles(1200.0), fs);
         // count the landings: samples where the signal jumps from rest
         let peaks: Vec<usize> = (1..n)
-            .filter(|&i| y[i].abs() > 5.0 && y[i - 1].abs() < 1.0)
+            .filter(|&i| y[i].abs() > 3.0 && y[i - 1].abs() < 1.0)
             .collect();
         assert!((19..=21).contains(&peaks.len()), "{}", peaks.len());
         let gaps: Vec<usize> = peaks.windows(2).map(|p| p[1] - p[0]).collect();
-        assert!(gaps.iter().all(|g| (995..=1005).contains(g)), "{gaps:?}");
+        // 1000 samples apart, each landing slipping by 1 % of that (sd 10 samples)
+        let mean = gaps.iter().sum::<usize>() as f64 / gaps.len() as f64;
+        assert!((990.0..=1010.0).contains(&mean), "{gaps:?}");
+        assert!(gaps.iter().all(|g| (900..=1100).contains(g)), "{gaps:?}");
         // zero crossings of the first ring-down: 2 per mode period
         let first = &y[peaks[0]..peaks[0] + 100];
         let crossings = first.windows(2).filter(|w| w[0] * w[1] < 0.0).count();
@@ -128,6 +161,7 @@ mod tests {
         let slow = signal(&config(900.0), &angles(600.0), fs);
         let max = |v: &[f64]| v.iter().fold(0.0f64, |m, x| m.max(x.abs()));
         let ratio = max(&slow) / max(&y);
-        assert!((0.2..0.3).contains(&ratio), "{ratio}");
+        // speed^2, and the strength jitter (10 %) on the largest landing of each
+        assert!((0.17..0.33).contains(&ratio), "{ratio}");
     }
 }
