@@ -7,7 +7,8 @@
 //! mode with no rocking at all); the sweep's other cases are rerun by the command there.
 //! Each: `looseness_impacts` accepted (or `subharmonics` first, then it), its mode and its
 //! landing peak within 20 % of the truth, no `noise` or `resonance` taken before it, and no
-//! unexplained residual where looseness shows (half orders, the impacts' envelope).
+//! unexplained residual where looseness shows (half orders, the impacts' envelope). Not met
+//! yet, so ignored, and `looseness_impacts` is out of `catalog::ALL` (docs/calibration.md).
 
 use serde_json::Value;
 use std::path::PathBuf;
@@ -136,6 +137,7 @@ fn found(case: &Case) {
 /// Strong landings (30 m/s^2 at 1200 rpm) ringing a 2.5 kHz mode, over a rocking clipped at
 /// 60 % of its stroke: the strength at which `noise` used to be named first.
 #[test]
+#[ignore = "issue 39 not done: 470 s in a debug build at load 9, and the landing peak fits 3.1x the truth (mode and damping within 20 %); run with --ignored"]
 fn strong_landings_at_a_high_mode_are_looseness() {
     found(&Case {
         name: "strong, 2.5 kHz, clipped rocking",
@@ -154,6 +156,7 @@ fn strong_landings_at_a_high_mode_are_looseness() {
 
 /// Weak landings (1 m/s^2) ringing a 600 Hz mode with no rocking line at all.
 #[test]
+#[ignore = "issue 39 not done: nothing is accepted on this case (the 10 Hz landing comb is left unexplained in `env`); run with --ignored"]
 fn weak_landings_at_a_low_mode_without_rocking_are_looseness() {
     found(&Case {
         name: "weak, 600 Hz, no rocking",
