@@ -24,6 +24,7 @@ mod features_identity;
 mod house;
 mod importers;
 mod impulsive;
+mod looseness;
 mod model;
 mod novel_faults;
 mod opendaq;
