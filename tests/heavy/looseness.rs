@@ -174,3 +174,180 @@ fn weak_landings_at_a_low_mode_without_rocking_are_looseness() {
         ],
     });
 }
+
+/// Where the healthy recordings ring beyond the uncalibrated model: the middle of the band
+/// whose measured level exceeds the simulated one most (the median over the recordings),
+/// Hz, as `calibrate` starts `looseness_impacts`' mode (`fit::ringing_hz`).
+fn ringing_hz(
+    twin: &rigmon::calibrate::fit::Twin,
+    base: &rigmon::config::simulation::SimulationConfig,
+) -> Option<f64> {
+    use rigmon::calibrate::views::BAND_HZ;
+    let mut hz: Vec<f64> = (0..twin.measured.len())
+        .filter_map(|i| {
+            let (m, s) = (&twin.measured[i], twin.simulated(base, i).unwrap());
+            let excess = m.bands.iter().zip(&s.bands).map(|(a, b)| a - b);
+            let (k, _) = excess.enumerate().max_by(|a, b| a.1.total_cmp(&b.1))?;
+            m.band_lo_hz.get(k).map(|lo| lo + BAND_HZ / 2.0)
+        })
+        .collect();
+    hz.sort_by(f64::total_cmp);
+    (!hz.is_empty()).then(|| hz[hz.len() / 2])
+}
+
+/// The simulator's own landings are fitted back (issue 39's self-consistency check): a loose
+/// housing simulated by rigmon on the LUT rig, healthy at 600 and 1200 rpm, 3 s each, its
+/// landings 5 m/s^2 at 1200 rpm growing with the shaft rate (exponent 1: the housing falls
+/// through a fixed clearance, so its landing speed, and the impulse, follow the shaft rate),
+/// ringing a 1500 Hz joint mode at 4 % damping (a bolted joint's 1-5 %). `looseness_impacts`
+/// is searched on them on its own components from the catalog's start, passes and bounds, as
+/// a calibration's trial runs it (`fit::search_effect`). The landing's peak, the mode and the
+/// damping come back within 20 %: the effect and the views it is judged on agree with each
+/// other, so a strength off on other data comes from what else the model puts in those
+/// relative views (docs/calibration.md, issue 39).
+#[test]
+fn simulated_landings_are_fitted_back() {
+    use rigmon::calibrate::{catalog::Effect, fit, measured::Measured, search};
+    use rigmon::config::simulation::LooseImpactsConfig;
+    use rigmon::sim::{landing_peak, rig_simulation, simulate_with, Scenario};
+    let rig = rigmon::config::RigConfig::load(&repo().join("config/lut-rig.toml")).unwrap();
+    let base = rig_simulation(&rig).unwrap().clone();
+    let loose = LooseImpactsConfig {
+        ref_rpm: 1200.0,
+        exponent: 1.0,
+        impact_m_s2: 5.0,
+        mode_hz: 1500.0,
+        damping: 0.04,
+        horizontal_ratio: 0.5,
+        phase_deg: 0.0,
+    };
+    let mut truth = base.clone();
+    truth.loose_impacts = Some(loose.clone());
+    let ops: Vec<Measured> = [600.0, 1200.0]
+        .into_iter()
+        .enumerate()
+        .map(|(i, rpm)| {
+            let sc = Scenario::constant(&[], rpm, 3.0, 70 + i as u64);
+            let recording = simulate_with(&rig, &truth, &sc).unwrap();
+            Measured {
+                name: format!("healthy-{rpm}"),
+                label: sc.label().to_string(),
+                recorded_sample_rate: recording.sample_rate,
+                recording,
+                faults: Vec::new(),
+                rpm,
+            }
+        })
+        .collect();
+    let twin = fit::Twin::new(&rig, &ops).unwrap();
+    let all = [0, 1];
+    let effect = Effect::LoosenessImpacts;
+    let cx = rigmon::calibrate::catalog::Context {
+        ringing_hz: ringing_hz(&twin, &base),
+        ..fit::context(&ops)
+    };
+    let t0 = std::time::Instant::now();
+    let mut x = effect.start(&base, &cx);
+    let mut evaluations = 0;
+    let mut objective = f64::INFINITY;
+    for _ in 0..effect.search_passes() {
+        let (next, e, n) = search::minimize(&effect.params(&cx), &x, &mut |v| {
+            twin.error_of(&effect.apply(&base, v, &cx), &all, effect.components())
+                .unwrap()
+        });
+        (x, objective, evaluations) = (next, e, evaluations + n);
+    }
+    let fitted = effect.apply(&base, &x, &cx).loose_impacts.unwrap();
+    let at_truth = twin.error_of(&truth, &all, effect.components()).unwrap();
+    eprintln!(
+        "fitted {fitted:?} (peak {:.3}, truth {:.3}), objective {objective:.3} (at the truth \
+         {at_truth:.3}), {evaluations} evaluations, {:.0} s; ringing_hz {:?}",
+        landing_peak(&fitted),
+        landing_peak(&loose),
+        t0.elapsed().as_secs_f64(),
+        cx.ringing_hz
+    );
+    for (what, f, w) in [
+        ("peak_m_s2", landing_peak(&fitted), landing_peak(&loose)),
+        ("mode_hz", fitted.mode_hz, loose.mode_hz),
+        ("damping", fitted.damping, loose.damping),
+    ] {
+        assert!(
+            (f - w).abs() <= 0.2 * w,
+            "{what}: fitted {f}, simulated {w} (more than 20 % off); {fitted:?}"
+        );
+    }
+}
+
+/// Why the landing strength fits 2-3x on `loose_housing.py`'s strong case (30 m/s^2 at 1200
+/// rpm ringing 2.5 kHz at 3 %, seed 3): at the true mode and damping, the own components of
+/// `looseness_impacts` barely tell the strength (all relative views: `impacts` to the local
+/// median, `bands` to the strongest band, `half_orders` to the floors; `bands` keeps falling
+/// past the truth, the model's own resonances sitting lower beside the landings than the
+/// generator's), while the absolute broadband floor of the healthy recordings (`floor`, the
+/// ring-down's skirts) is lowest at the true strength and rises by more than its smallest
+/// meaningful cut at half and at twice it. Prints every component of the scan.
+#[test]
+fn the_absolute_floor_tells_the_landing_strength() {
+    use rigmon::calibrate::{catalog, error::min_cut, fit, measured};
+    use rigmon::vocabulary::ErrorComponent as C;
+    let dir = tempfile::tempdir().unwrap();
+    let gen = Command::new("python3")
+        .arg(repo().join("tests/python/loose_housing.py"))
+        .arg("--out")
+        .arg(dir.path())
+        .args([
+            "--impact",
+            "30",
+            "--mode-hz",
+            "2500",
+            "--damping",
+            "0.03",
+            "--seed",
+            "3",
+        ])
+        .output()
+        .expect("python3 with numpy is needed (tests/python/requirements.txt)");
+    assert!(
+        gen.status.success(),
+        "{}",
+        String::from_utf8_lossy(&gen.stderr)
+    );
+    let rig = rigmon::config::RigConfig::load(&repo().join("config/lut-rig.toml")).unwrap();
+    let base = rigmon::sim::rig_simulation(&rig).unwrap().clone();
+    let ops = measured::load(&rig, &[dir.path().join("labels.csv")], f64::INFINITY).unwrap();
+    let cx = fit::context(&ops);
+    let twin = fit::Twin::new(&rig, &ops).unwrap();
+    let all: Vec<usize> = (0..ops.len()).collect();
+    let effect = catalog::Effect::LoosenessImpacts;
+    // the truth: the landing peak 30 m/s^2 at 1200 rpm (impact_m_s2 a little above it), the
+    // generator's speed law (exponent 1)
+    let scale = [0.5, 1.0, 1.5, 2.0, 3.0];
+    let floor: Vec<f64> = scale
+        .iter()
+        .map(|k| {
+            let mut x = vec![30.0 * k, 2500.0, 0.03, 1.0];
+            let sim = effect.apply(&base, &x, &cx);
+            let peak = rigmon::sim::landing_peak(sim.loose_impacts.as_ref().unwrap());
+            x[0] *= 30.0 * k / peak;
+            let e = twin.error(&effect.apply(&base, &x, &cx), &all).unwrap();
+            eprintln!(
+                "peak {:.1} m/s^2 (x{k}): own {:.3} (impacts {:.3} half_orders {:.3} bands {:.3} \
+                 modes {:.3}), floor {:.3}, total {:.3}",
+                30.0 * k,
+                e.of(effect.components()),
+                e.get(C::Impacts),
+                e.get(C::HalfOrders),
+                e.get(C::Bands),
+                e.get(C::Modes),
+                e.get(C::Floor),
+                e.total
+            );
+            e.get(C::Floor)
+        })
+        .collect();
+    assert!(
+        floor[1] + min_cut(C::Floor) < floor[0] && floor[1] + min_cut(C::Floor) < floor[3],
+        "floor at 0.5x, 1x, 1.5x, 2x, 3x the true landing: {floor:?}"
+    );
+}
