@@ -9,6 +9,8 @@
 //! landing peak within 20 % of the truth, no `noise` or `resonance` taken before it, and no
 //! unexplained residual where looseness shows (half orders, the impacts' envelope). Not met
 //! yet, so ignored, and `looseness_impacts` is out of `catalog::ALL` (docs/calibration.md).
+//! Two checks run (not ignored): the simulator's own landings are fitted back, and the
+//! absolute `floor` is what tells the landing strength on the strong independent case.
 
 use serde_json::Value;
 use std::path::PathBuf;
