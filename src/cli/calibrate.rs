@@ -19,7 +19,7 @@ pub struct Args {
     /// Calibrated rig file to write.
     #[arg(short, long)]
     pub output: PathBuf,
-    /// Report folder (report.md, report.json, spectra.png, residual.png).
+    /// Report folder (report.md, report.json, spectra.png, residual.png, looseness.png).
     #[arg(long)]
     pub report: PathBuf,
     /// Seconds of each recording analysed (from its start); default: the whole recording
@@ -120,19 +120,13 @@ pub fn run(a: Args) -> Result<()> {
             e(*x).total_cmp(&e(*y))
         })
         .unwrap_or(0);
-    let name = &ops[worst].name;
-    plots::spectra(
-        &a.report.join("spectra.png"),
-        name,
-        &outcome.measured_views[worst],
-        &outcome.views_before[worst],
-        &outcome.views_after[worst],
-    )?;
-    plots::residual(
-        &a.report.join("residual.png"),
-        name,
-        &outcome.measured_views[worst],
-        &outcome.views_after[worst],
+    let names: Vec<&str> = ops.iter().map(|m| m.name.as_str()).collect();
+    let views = (&outcome.measured_views, &outcome.views_before);
+    plots::all(
+        &a.report,
+        &names,
+        worst,
+        (views.0, views.1, &outcome.views_after),
     )?;
     let report_s = t_report.elapsed().as_secs_f64();
     eprintln!("report and plots written in {report_s:.1} s");

@@ -26,6 +26,7 @@ mod features_identity;
 mod house;
 mod importers;
 mod impulsive;
+mod looseness;
 mod model;
 mod novel_faults;
 mod opendaq;

@@ -19,3 +19,4 @@ mod estimate_mode;
 mod fleet;
 mod fuzz;
 mod historian;
+mod looseness;

@@ -45,6 +45,10 @@ pub struct SimulationConfig {
     /// gives (found by `rigmon calibrate` as `subharmonics`); off when absent.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub subharmonics: Option<SubharmonicsConfig>,
+    /// Impacts of a loose housing landing once every two revolutions, each ringing a
+    /// structural mode (found by `rigmon calibrate` as `looseness_impacts`); off when absent.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub loose_impacts: Option<LooseImpactsConfig>,
 }
 
 /// `[simulation.shaft_lines]`: vibration locked to the shaft angle at orders 1, 2, ... on the
@@ -164,6 +168,90 @@ impl SubharmonicsConfig {
     }
 }
 
+/// `[simulation.loose_impacts]`: a loose housing (or a part of it) that lifts and lands once
+/// every two shaft revolutions. Each landing is an impact that rings one structural mode of
+/// the loose joint: on the radial channels (vertical, and horizontal at `horizontal_ratio`),
+/// `impact_m_s2 (rpm / ref_rpm)^exponent e^(-damping w t) sin(w_d t)` after the landing, w =
+/// 2 pi `mode_hz`, w_d = w sqrt(1 - damping^2). The landings come at shaft angle
+/// `phase_deg` + 720 k degrees (every other revolution), so the train repeats at 0.5x.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct LooseImpactsConfig {
+    /// Speed at which `impact_m_s2` holds, rpm.
+    pub ref_rpm: f64,
+    /// Growth of the impact with speed (2: the landing's speed squared).
+    pub exponent: f64,
+    /// Peak acceleration of one landing's ring-down at `ref_rpm`, m/s^2.
+    pub impact_m_s2: f64,
+    /// Frequency of the mode the landings ring, Hz.
+    pub mode_hz: f64,
+    /// Its damping ratio.
+    pub damping: f64,
+    /// The horizontal channel's share of the vertical impact.
+    #[serde(default = "default_horizontal_ratio")]
+    pub horizontal_ratio: f64,
+    /// Shaft angle of the first landing relative to the tacho mark, degrees (0-720).
+    #[serde(default)]
+    pub phase_deg: f64,
+}
+
+fn default_horizontal_ratio() -> f64 {
+    0.5
+}
+
+impl LooseImpactsConfig {
+    /// The speed law of the impacts: (rpm / ref_rpm)^exponent.
+    pub fn speed_gain(&self, rpm: f64) -> f64 {
+        (rpm / self.ref_rpm).max(0.0).powf(self.exponent)
+    }
+
+    /// Checks of the section; messages name the key and what to use.
+    fn validate(&self) -> Result<()> {
+        let key = "[simulation.loose_impacts]";
+        let ok = |v: f64, lo: f64, hi: f64| v.is_finite() && (lo..=hi).contains(&v);
+        if !(self.ref_rpm.is_finite() && self.ref_rpm > 0.0) {
+            bail!(
+                "{key} ref_rpm = {}: the speed the impact holds at, rpm; must be > 0",
+                self.ref_rpm
+            );
+        }
+        if !ok(self.exponent, 0.0, 8.0) {
+            bail!(
+                "{key} exponent = {}: growth of the impacts with speed; use 0..8 (2 for speed^2)",
+                self.exponent
+            );
+        }
+        if !ok(self.impact_m_s2, 0.0, 1e4) {
+            bail!(
+                "{key} impact_m_s2 = {}: the peak of one landing in m/s^2; use 0..10000",
+                self.impact_m_s2
+            );
+        }
+        if !(self.mode_hz.is_finite() && self.mode_hz > 0.0) {
+            bail!(
+                "{key} mode_hz = {}: the frequency of the mode the landings ring, Hz; must be > 0",
+                self.mode_hz
+            );
+        }
+        if !ok(self.damping, 1e-4, 0.5) {
+            bail!("{key} damping = {}: the mode's damping ratio; use 0.0001..0.5 (0.02-0.1 is typical)", self.damping);
+        }
+        if !ok(self.horizontal_ratio, 0.0, 10.0) {
+            bail!(
+                "{key} horizontal_ratio = {}: the horizontal channel's share; use 0..10",
+                self.horizontal_ratio
+            );
+        }
+        if !ok(self.phase_deg, -720.0, 720.0) {
+            bail!(
+                "{key} phase_deg = {}: use -720..720 degrees",
+                self.phase_deg
+            );
+        }
+        Ok(())
+    }
+}
+
 /// `[simulation.speed_fluctuation]`: rpm(t) = rpm (1 + fraction sin(2 pi t / period_s)),
 /// applied to constant-speed scenarios.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -192,6 +280,7 @@ impl Default for SimulationConfig {
             speed_fluctuation: None,
             shaft_lines: None,
             subharmonics: None,
+            loose_impacts: None,
         }
     }
 }
@@ -511,17 +600,14 @@ impl SimulationConfig {
         s.structure.line_amplitudes_m_s2 = d.structure.line_amplitudes_m_s2;
         s.shaft_lines = None;
         s.subharmonics = None;
+        s.loose_impacts = None;
         s.tacho = d.tacho;
         s
     }
 
-    /// Physical sanity checks; messages name the key and what to do.
-    pub fn validate(&self) -> Result<()> {
-        if let Some(f) = &self.speed_fluctuation {
-            if !(f.fraction >= 0.0 && f.fraction < 0.5 && f.period_s > 0.0) {
-                bail!("[simulation.speed_fluctuation]: fraction must be in [0, 0.5) and period_s > 0 (got {} and {})", f.fraction, f.period_s);
-            }
-        }
+    /// The sensor-stage sections locked to the shaft: shaft lines, half-order lines and a
+    /// loose housing's landings.
+    fn validate_lines(&self) -> Result<()> {
         if let Some(l) = &self.shaft_lines {
             if !(l.ref_rpm.is_finite() && l.ref_rpm > 0.0)
                 || !(l.exponent.is_finite() && (0.0..=8.0).contains(&l.exponent))
@@ -536,6 +622,20 @@ impl SimulationConfig {
         if let Some(h) = &self.subharmonics {
             h.validate()?;
         }
+        if let Some(l) = &self.loose_impacts {
+            l.validate()?;
+        }
+        Ok(())
+    }
+
+    /// Physical sanity checks; messages name the key and what to do.
+    pub fn validate(&self) -> Result<()> {
+        if let Some(f) = &self.speed_fluctuation {
+            if !(f.fraction >= 0.0 && f.fraction < 0.5 && f.period_s > 0.0) {
+                bail!("[simulation.speed_fluctuation]: fraction must be in [0, 0.5) and period_s > 0 (got {} and {})", f.fraction, f.period_s);
+            }
+        }
+        self.validate_lines()?;
         let pos = |name: &str, v: f64| -> Result<()> {
             if !(v.is_finite() && v > 0.0) {
                 bail!("simulation.{name} = {v}: must be a positive number");
@@ -764,6 +864,34 @@ mod tests {
             let err = c.validate().unwrap_err().to_string();
             assert!(
                 err.contains("[simulation.subharmonics]") && err.contains(key),
+                "{bad}: {err}"
+            );
+        }
+    }
+
+    /// `[simulation.loose_impacts]`: bad values name the key and what to use, the speed law
+    /// holds, and the engine part leaves the landings (a sensor-stage signal) out.
+    #[test]
+    fn loose_impacts_are_checked() {
+        let text = "[loose_impacts]\nref_rpm = 1200.0\nexponent = 2.0\nimpact_m_s2 = 3.0\nmode_hz = 900.0\ndamping = 0.04\n";
+        let c: SimulationConfig = toml::from_str(text).unwrap();
+        c.validate().unwrap();
+        let l = c.loose_impacts.as_ref().unwrap();
+        assert_eq!(l.horizontal_ratio, 0.5);
+        assert!((l.speed_gain(600.0) - 0.25).abs() < 1e-12);
+        assert_eq!(c.engine_part().loose_impacts, None);
+        for (bad, key) in [
+            ("damping = 0.9", "damping"),
+            ("mode_hz = -1.0", "mode_hz"),
+            ("impact_m_s2 = -2.0", "impact_m_s2"),
+            ("exponent = 9.0", "exponent"),
+        ] {
+            let k = bad.split(' ').next().unwrap();
+            let line = text.lines().find(|l| l.starts_with(k)).unwrap();
+            let c: SimulationConfig = toml::from_str(&text.replace(line, bad)).unwrap();
+            let err = c.validate().unwrap_err().to_string();
+            assert!(
+                err.contains("[simulation.loose_impacts]") && err.contains(key),
                 "{bad}: {err}"
             );
         }

@@ -90,6 +90,9 @@ pub struct Trial {
     pub seconds: f64,
     /// Accepted effects re-fitted together with this one.
     pub refits: Vec<Refit>,
+    /// The free effect this shaft-locked one was preferred over, and why ([`choose`]).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub preferred_over: Option<String>,
     /// Parameters that ended within 1 % of a search bound (the bound, not the data, may
     /// have set them).
     pub at_bound: Vec<String>,
@@ -479,7 +482,7 @@ impl<'a> Twin<'a> {
                 Ok(v)
             })?;
         // the simulated side of `modes` is the model's dominant mode (see `error`)
-        if let Some(hz) = dominant_resonance_hz(self.rig, &s) {
+        if let Some(hz) = model_mode_hz(self.rig, &s) {
             v.mode = Mode {
                 hz,
                 prominent: true,
@@ -543,7 +546,7 @@ impl<'a> Twin<'a> {
         if !self.options.own_views {
             return Ok(self.error(sim, idx)?.of(own));
         }
-        let mode_from_spectrum = dominant_resonance_hz(self.rig, sim).is_none();
+        let mode_from_spectrum = model_mode_hz(self.rig, sim).is_none();
         let parts = Parts::for_components(own, mode_from_spectrum);
         let applying: Vec<usize> = idx
             .iter()
@@ -619,12 +622,19 @@ fn warn_short(ops: &[Measured]) {
 /// Extra, reportable parameters derived from the simulation: for `unbalance` the total 1x
 /// and 2x amplitudes (rotor model plus the added lines) at the highest measured speed, m/s^2
 /// (what a measurement of the rig would read); for `subharmonics` the speed its 0.5x
-/// amplitude holds at.
+/// amplitude holds at; for `looseness_impacts` that speed and the peak of one landing's
+/// ring-down there (`peak_m_s2`, what a measurement of one landing would read).
 fn derived(twin: &Twin, effect: Effect, sim: &SimulationConfig) -> Result<BTreeMap<String, f64>> {
     let mut out = BTreeMap::new();
     if effect == Effect::Subharmonics {
         if let Some(h) = &sim.subharmonics {
             out.insert("at_rpm".into(), h.ref_rpm.round());
+        }
+    }
+    if effect == Effect::LoosenessImpacts {
+        if let Some(l) = &sim.loose_impacts {
+            out.insert("at_rpm".into(), l.ref_rpm.round());
+            out.insert("peak_m_s2".into(), round_sig(crate::sim::landing_peak(l)));
         }
     }
     if effect == Effect::Unbalance {
@@ -659,18 +669,25 @@ fn search_effect(
 ) -> Result<(Vec<f64>, f64, usize)> {
     let own = effect.components();
     let mut failure = None;
-    let start = start.map_or_else(|| effect.start(base, cx), <[f64]>::to_vec);
-    let found = search::minimize(&effect.params(cx), &start, &mut |x| match twin.error_of(
-        &effect.apply(base, x, cx),
-        fit,
-        own,
-    ) {
-        Ok(e) => e,
-        Err(e) => {
-            failure.get_or_insert(e);
-            f64::INFINITY
-        }
-    });
+    let mut found = (
+        start.map_or_else(|| effect.start(base, cx), <[f64]>::to_vec),
+        f64::INFINITY,
+        0,
+    );
+    for _ in 0..effect.search_passes() {
+        let (x, e, n) = search::minimize(
+            &effect.params(cx),
+            &found.0,
+            &mut |x| match twin.error_of(&effect.apply(base, x, cx), fit, own) {
+                Ok(e) => e,
+                Err(e) => {
+                    failure.get_or_insert(e);
+                    f64::INFINITY
+                }
+            },
+        );
+        found = (x, e, found.2 + n);
+    }
     match failure {
         Some(e) => Err(e.context(format!("trying effect {}", effect.name()))),
         None => Ok(found),
@@ -801,6 +818,7 @@ impl Round<'_, '_> {
             evaluations: evals,
             seconds: trial_start.elapsed().as_secs_f64(),
             refits,
+            preferred_over: None,
             at_bound: at_bound(effect, &values, cx),
             effect: Some(effect),
             values,
@@ -869,8 +887,14 @@ pub fn calibrate_with(
     let all: Vec<usize> = (0..ops.len()).collect();
     let fit: Vec<usize> = all.iter().copied().filter(|&i| fit_part[i]).collect();
     let held: Vec<usize> = all.iter().copied().filter(|&i| !fit_part[i]).collect();
+    let fit_views: Vec<&Views> = fit.iter().map(|&i| &twin.measured[i]).collect();
+    let base_views = fit
+        .iter()
+        .map(|&i| twin.simulated(&base, i))
+        .collect::<Result<Vec<_>>>()?;
     let cx = catalog::Context {
-        speed_line: speed_line::find(&fit.iter().map(|&i| &twin.measured[i]).collect::<Vec<_>>()),
+        speed_line: speed_line::find(&fit_views),
+        ringing_hz: ringing_hz(&fit_views, &base_views),
         ..context(ops)
     };
     if let Some(l) = cx.speed_line {
@@ -929,15 +953,7 @@ pub fn calibrate_with(
         } else {
             open.iter().map(|e| try_effect(*e)).collect::<Result<_>>()?
         };
-        let best = trials
-            .iter()
-            .enumerate()
-            .filter(|(_, t)| t.accepted)
-            .max_by(|a, b| {
-                let cut = |t: &Trial| t.own_fit_before - t.own_fit_after;
-                cut(a.1).total_cmp(&cut(b.1))
-            })
-            .map(|(i, _)| i);
+        let best = choose(&mut trials);
         for (i, t) in trials.iter_mut().enumerate() {
             t.accepted = Some(i) == best;
         }
@@ -1013,7 +1029,70 @@ pub fn context(ops: &[Measured]) -> catalog::Context {
         max_rpm: rpm.iter().copied().fold(0.0, f64::max),
         several_speeds: several_speeds(&rpm),
         speed_line: None,
+        ringing_hz: None,
     }
+}
+
+/// The trial a round adds, among those that pass [`accepts`]: the one that cuts its own
+/// components most, unless that is a free effect ([`Effect::free`]: broadband noise, a
+/// resonance at any frequency) and an effect locked to the shaft ([`Effect::locked_to_shaft`])
+/// cuts the whole fit error more: a periodic signature is explained, not absorbed. The
+/// preferred trial says why in its `preferred_over` (the error each would leave).
+fn choose(trials: &mut [Trial]) -> Option<usize> {
+    let passed = || trials.iter().enumerate().filter(|(_, t)| t.accepted);
+    let whole = |t: &Trial| t.fit_before - t.fit_after;
+    let own = |t: &Trial| t.own_fit_before - t.own_fit_after;
+    let by_own = passed().max_by(|a, b| own(a.1).total_cmp(&own(b.1)))?.0;
+    let free = trials[by_own].effect.is_some_and(|e| e.free());
+    let locked = passed()
+        .filter(|(_, t)| t.effect.is_some_and(|e| e.locked_to_shaft()))
+        .max_by(|a, b| whole(a.1).total_cmp(&whole(b.1)))
+        .map(|(i, _)| i);
+    match locked {
+        Some(i) if free && whole(&trials[i]) > whole(&trials[by_own]) => {
+            let note = format!(
+                "`{}` (free of the shaft): it would leave a fit error of {:.3} (cut {:.3}), \
+                 `{}` leaves {:.3} (cut {:.3}) with a signature locked to the shaft",
+                trials[by_own].name,
+                trials[by_own].fit_after,
+                whole(&trials[by_own]),
+                trials[i].name,
+                trials[i].fit_after,
+                whole(&trials[i]),
+            );
+            trials[i].preferred_over = Some(note);
+            Some(i)
+        }
+        _ => Some(by_own),
+    }
+}
+
+/// The simulated side of `modes`: the model's dominant structural mode, or none (the twin's
+/// own dominant band) when a loose housing's landings ring a mode of their own, which may
+/// outweigh the structure's.
+fn model_mode_hz(rig: &RigConfig, sim: &SimulationConfig) -> Option<f64> {
+    dominant_resonance_hz(rig, sim).filter(|_| sim.loose_impacts.is_none())
+}
+
+/// Where the healthy recordings among `measured` ring that the uncalibrated model (`base`,
+/// the same recordings simulated) does not: the band whose measured level exceeds the
+/// simulated one most (the median over the recordings; all recordings when none is
+/// healthy), Hz. A mode the landings of a loose part ring shows there; the model's own
+/// modes, present on both sides, do not.
+fn ringing_hz(measured: &[&Views], base: &[Arc<Views>]) -> Option<f64> {
+    let any_healthy = measured.iter().any(|v| v.healthy);
+    let mut hz: Vec<f64> = measured
+        .iter()
+        .zip(base)
+        .filter(|(m, _)| !any_healthy || m.healthy)
+        .filter_map(|(m, s)| {
+            let excess = m.bands.iter().zip(&s.bands).map(|(a, b)| a - b);
+            let (k, _) = excess.enumerate().max_by(|a, b| a.1.total_cmp(&b.1))?;
+            m.band_lo_hz.get(k).map(|lo| lo + views::BAND_HZ / 2.0)
+        })
+        .collect();
+    hz.sort_by(f64::total_cmp);
+    (!hz.is_empty()).then(|| hz[hz.len() / 2])
 }
 
 /// Round to 4 significant digits (reports).
@@ -1051,5 +1130,67 @@ mod tests {
         // no trial in the last round: nothing rules it out
         let p = ErrorParts::default();
         assert!(!ruled_out(e, &[], &p, &p));
+    }
+
+    fn trial(effect: Effect, own_cut: f64, whole_cut: f64) -> Trial {
+        Trial {
+            name: effect.name().into(),
+            params: BTreeMap::new(),
+            fit_before: 10.0,
+            fit_after: 10.0 - whole_cut,
+            held_before: 10.0,
+            held_after: 10.0 - whole_cut,
+            own: Vec::new(),
+            own_fit_before: 5.0,
+            own_fit_after: 5.0 - own_cut,
+            own_held_before: 5.0,
+            own_held_after: 5.0 - own_cut,
+            error_before: 10.0,
+            error_after: 10.0 - whole_cut,
+            components_after: ErrorParts::default(),
+            accepted: true,
+            evaluations: 0,
+            seconds: 0.0,
+            refits: Vec::new(),
+            preferred_over: None,
+            at_bound: Vec::new(),
+            effect: Some(effect),
+            values: Vec::new(),
+            candidate: None,
+        }
+    }
+
+    /// A free effect that cuts its own component most is still passed over for a shaft-locked
+    /// one that cuts the whole error more, and the report says why; against a locked effect
+    /// (unbalance) or when the locked one explains less, the own cut decides.
+    #[test]
+    fn a_periodic_signature_is_explained_not_absorbed() {
+        let mut t = vec![
+            trial(Effect::Noise, 3.0, 1.0),
+            trial(Effect::LoosenessImpacts, 2.0, 2.5),
+        ];
+        assert_eq!(choose(&mut t), Some(1));
+        let why = t[1].preferred_over.as_deref().unwrap();
+        assert!(
+            why.contains("`noise`") && why.contains("locked to the shaft"),
+            "{why}"
+        );
+        let mut t = vec![
+            trial(Effect::Noise, 3.0, 3.0),
+            trial(Effect::LoosenessImpacts, 2.0, 2.5),
+        ];
+        assert_eq!(choose(&mut t), Some(0));
+        let mut t = vec![
+            trial(Effect::Unbalance, 3.0, 1.0),
+            trial(Effect::LoosenessImpacts, 2.0, 2.5),
+        ];
+        assert_eq!(choose(&mut t), Some(0));
+        let mut t = vec![
+            trial(Effect::Noise, 3.0, 1.0),
+            trial(Effect::Slip, 2.0, 2.5),
+        ];
+        assert_eq!(choose(&mut t), Some(0));
+        t.iter_mut().for_each(|x| x.accepted = false);
+        assert_eq!(choose(&mut t), None);
     }
 }

@@ -1,6 +1,8 @@
 //! Calibration PNGs: measured vs simulated before and after calibration (envelope order
 //! spectrum, band energies, shaft-order lines) and the residual (measured minus calibrated
-//! simulation) of the envelope and raw-line views, for one recording.
+//! simulation) of the envelope and raw-line views, for one recording; and where looseness
+//! shows (fractional orders, the impacts' energy envelope, the band energies a ringing mode
+//! lifts) for the recording whose looseness views differ most.
 
 use super::views::{env_order, Views, BAND_HZ, LINES_MIN_HZ};
 use crate::plots::ensure_font;
@@ -172,4 +174,97 @@ pub fn residual(path: &Path, name: &str, m: &Views, a: &Views) -> Result<()> {
     root.present()
         .map_err(|x| anyhow!("writing {}: {x}", path.display()))?;
     Ok(())
+}
+
+/// `looseness.png`: where looseness shows, measured / before / after: the sub-synchronous
+/// and fractional orders of the raw signal (half orders 0.5x, 1.5x, ... of a housing rocking
+/// every other revolution), the envelope spectrum of the broadband energy in Hz (an impact
+/// train at half the shaft rate: a comb at rpm / 120 Hz) and the band energies (the mode
+/// the landings ring).
+pub fn looseness(path: &Path, name: &str, m: &Views, b: &Views, a: &Views) -> Result<()> {
+    ensure_font()?;
+    let root = BitMapBackend::new(path, (1400, 1300)).into_drawing_area();
+    root.fill(&WHITE)
+        .map_err(|x| anyhow!("drawing {}: {x}", path.display()))?;
+    let (top, rest) = root.split_vertically(450);
+    let (middle, bottom) = rest.split_vertically(430);
+    let three = |view: &dyn Fn(&Views) -> Vec<(f64, f64)>| {
+        [
+            ("measured", MEAS, view(m)),
+            ("simulated before", BEFORE, view(b)),
+            ("simulated after", AFTER, view(a)),
+        ]
+    };
+    let grid = super::fractional_orders::orders();
+    let fractional = |v: &Views| {
+        grid.iter()
+            .copied()
+            .zip(v.fractional.iter().copied())
+            .collect()
+    };
+    chart(
+        &top,
+        &format!("{name}: fractional orders of the raw signal (half orders: looseness, rub)"),
+        "order",
+        "dB (thresholded)",
+        &three(&fractional),
+    )?;
+    let hz = super::impacts::frequencies();
+    let impacts = |v: &Views| hz.iter().copied().zip(v.impacts.iter().copied()).collect();
+    let title = format!(
+        "impacts: envelope of the broadband energy (landings every other revolution: {:.1} Hz)",
+        m.rpm / 120.0
+    );
+    chart(&middle, &title, "Hz", "dB (thresholded)", &three(&impacts))?;
+    let bands = |v: &Views| {
+        v.bands
+            .iter()
+            .zip(&v.band_lo_hz)
+            .map(|(d, lo)| (lo + BAND_HZ / 2.0, *d))
+            .collect()
+    };
+    chart(
+        &bottom,
+        "band energy (100 Hz bands: the mode the landings ring)",
+        "Hz",
+        "dB re mean band",
+        &three(&bands),
+    )?;
+    root.present()
+        .map_err(|x| anyhow!("writing {}: {x}", path.display()))?;
+    Ok(())
+}
+
+/// The three report figures: `spectra.png` and `residual.png` for the recording `names`
+/// indexes by `worst` (largest error before calibration), `looseness.png` for the one whose
+/// looseness views (`impacts`, `half_orders`, `fractional`) differ most before calibration.
+pub fn all(
+    dir: &Path,
+    names: &[&str],
+    worst: usize,
+    (m, b, a): (&[Views], &[Views], &[Views]),
+) -> Result<()> {
+    use crate::vocabulary::ErrorComponent as C;
+    spectra(
+        &dir.join("spectra.png"),
+        names[worst],
+        &m[worst],
+        &b[worst],
+        &a[worst],
+    )?;
+    residual(
+        &dir.join("residual.png"),
+        names[worst],
+        &m[worst],
+        &a[worst],
+    )?;
+    let loose =
+        |i: usize| {
+            super::error::pair_only(&m[i], &b[i], &[C::Impacts, C::HalfOrders, C::Fractional])
+                .of(&[C::Impacts, C::HalfOrders, C::Fractional])
+        };
+    let l = (0..m.len())
+        .max_by(|x, y| loose(*x).total_cmp(&loose(*y)))
+        .unwrap_or(worst);
+    looseness(&dir.join("looseness.png"), names[l], &m[l], &b[l], &a[l])
 }

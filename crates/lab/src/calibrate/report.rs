@@ -156,6 +156,9 @@ pub fn markdown(rig: &RigConfig, o: &Outcome, ops: &[Measured], id: &str) -> Str
             t.held_before,
             t.held_after
         );
+        if let Some(why) = &t.preferred_over {
+            let _ = writeln!(s, "  - preferred over {why}");
+        }
         if !t.at_bound.is_empty() {
             let _ = writeln!(
                 s,
@@ -189,7 +192,8 @@ pub fn markdown(rig: &RigConfig, o: &Outcome, ops: &[Measured], id: &str) -> Str
     }
     let _ = writeln!(
         s,
-        "\n![measured vs simulated](spectra.png)\n\n![residual](residual.png)"
+        "\n![measured vs simulated](spectra.png)\n\n![residual](residual.png)\n\n\
+         ![where looseness shows](looseness.png)"
     );
     s.push_str(&time_tables(o));
     s

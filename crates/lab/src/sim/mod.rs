@@ -8,9 +8,10 @@
 //! Hertz contact), [`defects`] (slot geometry), [`structure`] (resonances; [`split`] runs it
 //! apart from the mechanics, so calibration re-runs only it), [`profile`]
 //! (speed), [`integrate`] (the stepper), [`decimate`] (anti-aliasing), [`sensor`] (noise,
-//! electrical and shaft-order lines, units, tacho: the stage after the mechanics, see
-//! [`run_engine`]), [`scenario`], [`plan`] and [`dataset`] (datasets; [`dataset_pair`] simulates adapt's two
-//! datasets sharing their mechanics) and [`output`] (MCAP/WAV); its
+//! electrical and shaft-order lines, a loose housing's [`landings`], units, tacho: the stage
+//! after the mechanics, see [`run_engine`]), [`scenario`], [`plan`] and [`dataset`] (datasets;
+//! [`dataset_pair`] simulates adapt's two datasets sharing their mechanics) and [`output`]
+//! (MCAP/WAV); its
 //! `[simulation]` rig-file section is [`crate::config::simulation`].
 
 pub(crate) mod bearing_contact;
@@ -19,6 +20,7 @@ pub mod dataset_pair;
 pub(crate) mod decimate;
 pub mod defects;
 pub(crate) mod integrate;
+pub(crate) mod landings;
 pub(crate) mod linalg;
 pub mod output;
 pub mod plan;
@@ -30,6 +32,7 @@ pub mod signature;
 pub mod split;
 pub mod structure;
 
+pub use landings::peak as landing_peak;
 pub use profile::SpeedProfile;
 pub use scenario::{label_of, Overrides, Scenario};
 

@@ -110,7 +110,9 @@ pub enum Recentre {
 
 /// The plan keys a calibrated effect sets, with the value the fitted effect gives each
 /// (from its `[calibration] effects` entry) and how a range moves onto it. Effects that no
-/// plan key draws (line interference, looseness, subharmonics, speed fluctuation) have none.
+/// plan key draws (line interference, looseness, subharmonics, looseness_impacts, speed
+/// fluctuation) have none: they stay in the calibrated `[simulation]` section, which every
+/// planned recording is simulated with.
 pub fn calibrated_keys(effect: &toml::Table) -> Vec<(&'static str, f64, Recentre)> {
     let num = |k: &str| effect.get(k).and_then(|v| v.as_float());
     let name = effect.get("name").and_then(|n| n.as_str()).unwrap_or("");

@@ -1,6 +1,7 @@
 //! The sensor stage of a simulation: from the engine's housing signals and shaft angles
 //! ([`super::EngineRun`]) to a [`Recording`]: white sensor noise, electrical line
-//! interference, shaft-order and half-order lines, units and quantisation per channel, the
+//! interference, shaft-order and half-order lines, a loose housing's landings, units and
+//! quantisation per channel, the
 //! analog tacho and the metadata (labels, the simulation section used).
 
 use super::{channel_signals, high_fraction, model_fault_orders, EngineRun, Scenario};
@@ -12,6 +13,23 @@ use anyhow::Result;
 use rand::Rng;
 use rand_distr::StandardNormal;
 use std::collections::BTreeMap;
+
+/// Electrical line interference: harmonics of the line frequency with random phases, as
+/// (amplitude, radians per sample, phase).
+fn line_interference(sim: &SimulationConfig, fs: f64, rng: &mut impl Rng) -> Vec<(f64, f64, f64)> {
+    sim.structure
+        .line_amplitudes_m_s2
+        .iter()
+        .enumerate()
+        .map(|(h, &a)| {
+            (
+                a,
+                std::f64::consts::TAU * sim.structure.line_hz * (h + 1) as f64 / fs,
+                rng.random_range(0.0..std::f64::consts::TAU),
+            )
+        })
+        .collect()
+}
 
 /// Finish an engine run with the full simulation section `sim` (the scenario's overrides
 /// applied); its engine part must be the one the run was made with.
@@ -27,20 +45,7 @@ pub fn finish(
     // Sensor noise, units.
     let mut channels = Vec::with_capacity(chans.len());
     let adc = sim.structure.adc_resolution_m_s2;
-    // electrical line interference: harmonics of the line frequency, random phases
-    let lines: Vec<(f64, f64, f64)> = sim
-        .structure
-        .line_amplitudes_m_s2
-        .iter()
-        .enumerate()
-        .map(|(h, &a)| {
-            (
-                a,
-                std::f64::consts::TAU * sim.structure.line_hz * (h + 1) as f64 / fs,
-                rng.random_range(0.0..std::f64::consts::TAU),
-            )
-        })
-        .collect();
+    let lines = line_interference(sim, fs, &mut rng);
     // shaft-order lines: per sample, the shaft angle and speed from the sample's boundaries;
     // the speed law (rpm / ref)^exponent is one gain per sample for every order, and orders
     // without amplitude or above Nyquist at that sample's speed are skipped (no aliases)
@@ -101,6 +106,7 @@ pub fn finish(
             })
             .sum()
     };
+    let landings = super::landings::Radial::new(sim, &out.boundary_angles, fs);
     for ((c, signal, scale), sig) in chans.iter().zip(&out.signals) {
         // shaft and half-order lines act on the radial housing signals: cos on vertical, sin
         // on horizontal
@@ -128,6 +134,7 @@ pub fn finish(
                     + hum
                     + radial.map_or(0.0, |v| shaft_line(v, i))
                     + radial.map_or(0.0, |v| half_line(v, i))
+                    + radial.map_or(0.0, |v| landings.at(v, i))
                     + sim.structure.noise_rms_m_s2 * z)
                     * scale;
                 (if lsb > 0.0 {
