@@ -15,7 +15,7 @@
 //! | narrowband, frequency-locked, no mains multiple | a source not locked to this shaft (another machine, a fan, a pump, the foundation) |
 //! | order at the cage rate (FTF +-3 %) | cage defect or cage-rate modulation |
 //! | order 0.38-0.48 | fluid-film (oil) whirl or another sub-synchronous instability |
-//! | order near k + 1/2 (+-0.03), below 10x, in an envelope view (`env`, `impacts`) | impacting once every two revolutions (a loose part lifting and landing, a rub) that the catalog's `looseness_impacts` did not explain (a landing that rings more than one mode, an irregular one, or not confirmed on the held-out part) |
+//! | order near k + 1/2 (+-0.03), below 10x, in an envelope view (`env`, `impacts`) | impacting once every two revolutions (a loose part lifting and landing, a rub), which `subharmonics` (half-order lines of the raw signal) does not model |
 //! | order near k + 1/2 (+-0.03), below 4x | mechanical looseness or rub (half-order sub-harmonics) that the catalog's `subharmonics` did not explain: a line off the exact half order, levels unlike its power law, or not confirmed on the held-out part |
 //! | order near k + 1/2 (+-0.03), 4x-10x | mechanical looseness or rub (half-order sub-harmonics above 3.5x, which `subharmonics` does not compare) |
 //! | order near k + 1/3 or k + 2/3 (+-0.03), below 5x | looseness or rub (third-order sub-harmonics) |
@@ -129,9 +129,8 @@ fn order_candidates(o: f64, envelope: bool, f: &FaultOrders, out: &mut Vec<&str>
     if half && envelope {
         out.push(
             "impacting once every two revolutions (a loose part lifting and landing, a rub): \
-             a half-order comb of the envelope that the catalog's `looseness_impacts` did not \
-             explain (a landing that rings more than one mode, an irregular one, or not \
-             confirmed on the held-out part: see its trial)",
+             a half-order comb of the envelope, which `subharmonics` (half-order lines of the \
+             raw signal) does not model",
         );
     } else if half {
         out.push(if o < FITTED_HALF_ORDERS_BELOW {
