@@ -12,7 +12,9 @@
 //! seed rig's cases built here from simple physics (a weak 1x at 588 rpm, a clean 1x at
 //! 1188 rpm, a fluctuating speed, an outer race whose BPFO comb outshines the shaft), read
 //! jointly and as before issue 34 in the same run: the p95 speed error of each and the CPU
-//! ratio of the two.
+//! ratio of the two; beside them the shipped reading with the harmonic sum's grid scanned
+//! point by point (the search before issue 37 item 4: the same speeds, the CPU ratio), and
+//! with the phase reading ([`crate::dsp::speed_tracker::JointParts::phase`]) switched.
 
 use super::{abs, machine_line, thread_cpu_s, BenchOptions};
 use crate::analysis::{extract_recording, extract_with_speed};
@@ -20,7 +22,7 @@ use crate::bearing::BearingGeometry;
 use crate::config::RigConfig;
 use crate::dsp::fault_family::FamilySettings;
 use crate::dsp::speed_config::SpeedConfig;
-use crate::dsp::speed_tracker::{SpeedTracker, TrackerSettings};
+use crate::dsp::speed_tracker::{JointParts, SpeedTracker, TrackerSettings};
 use crate::dsp::SpeedTrack;
 use crate::recording::{Channel, Provenance, Recording};
 use anyhow::{bail, Result};
@@ -307,9 +309,17 @@ fn joint_signal(c: &JointCase, fs: f64, seconds: f64, bpfo: f64) -> Vec<f32> {
         .collect()
 }
 
+/// How a joint case is read: the parts of the reading, and whether the harmonic sum's grid
+/// is searched point by point (the search before issue 37 item 4) or bounded (the default).
+#[derive(Clone, Copy)]
+struct Reading {
+    parts: JointParts,
+    exhaustive: bool,
+}
+
 /// p95 error (windows after the history, each window's mean over its last second against
-/// the truth's) and tracker CPU seconds, read jointly or as before.
-fn joint_run(c: &JointCase, x: &[f32], fs: f64, joint: bool) -> Result<(f64, f64)> {
+/// the truth's) and tracker CPU seconds, read as `how` says.
+fn joint_run(c: &JointCase, x: &[f32], fs: f64, how: Reading) -> Result<(f64, f64)> {
     let orders = BearingGeometry {
         balls: 11,
         ball_diameter_mm: 7.94,
@@ -327,7 +337,8 @@ fn joint_run(c: &JointCase, x: &[f32], fs: f64, joint: bool) -> Result<(f64, f64
         }),
     };
     let mut tr = SpeedTracker::new(settings, fs)?;
-    tr.set_joint(joint);
+    tr.set_joint_parts(how.parts);
+    tr.set_exhaustive(how.exhaustive);
     let hop = (fs / 2.0) as usize;
     let mut errs = Vec::new();
     let cpu = thread_cpu_s();
@@ -359,14 +370,27 @@ fn joint_cases(seconds: f64) -> Result<Vec<serde_json::Value>> {
         .iter()
         .map(|c| {
             let x = joint_signal(c, fs, seconds, bpfo);
-            let (p95, cpu) = joint_run(c, &x, fs, true)?;
-            let (p95_before, cpu_before) = joint_run(c, &x, fs, false)?;
+            let read = |parts, exhaustive| joint_run(c, &x, fs, Reading { parts, exhaustive });
+            let (p95, cpu) = read(JointParts::default_on(), false)?;
+            let (p95_scan, cpu_scan) = read(JointParts::default_on(), true)?;
+            let (p95_before, cpu_before) = read(JointParts::all(false), false)?;
+            let phase = JointParts {
+                phase: !JointParts::default_on().phase,
+                ..JointParts::default_on()
+            };
+            let (p95_phase, cpu_phase) = read(phase, false)?;
             Ok(serde_json::json!({
                 "case": c.0,
                 "p95_error_pct": 100.0 * p95,
+                "p95_error_scan_pct": 100.0 * p95_scan,
                 "p95_error_before_pct": 100.0 * p95_before,
+                "p95_error_phase_switched_pct": 100.0 * p95_phase,
+                "phase_on_by_default": JointParts::default_on().phase,
                 "tracker_cpu_s": cpu,
+                "tracker_cpu_scan_s": cpu_scan,
                 "tracker_cpu_before_s": cpu_before,
+                "tracker_cpu_phase_switched_s": cpu_phase,
+                "cpu_ratio_scan": cpu / cpu_scan,
                 "cpu_ratio": cpu / cpu_before,
             }))
         })
@@ -374,16 +398,27 @@ fn joint_cases(seconds: f64) -> Result<Vec<serde_json::Value>> {
 }
 
 fn print_joint(rows: &[serde_json::Value]) {
-    println!("joint reading (issue 34), the tracker alone, 1 ch x 10 kHz, 300-3600 rpm, each case read jointly and as before in this run:");
+    println!("joint reading (issue 34), the tracker alone, 1 ch x 10 kHz, 300-3600 rpm, each case read in this run: as shipped, with the harmonic sum scanned point by point (before issue 37), as before issue 34, and with the phase reading switched:");
+    let f = |r: &serde_json::Value, k: &str| r[k].as_f64().unwrap_or(0.0);
     for r in rows {
+        let phase = if r["phase_on_by_default"].as_bool().unwrap_or(false) {
+            "off"
+        } else {
+            "on"
+        };
         println!(
-            "  {}: p95 error {:.3} % (before {:.3} %); tracker CPU {:.2} s (before {:.2} s, x{:.2})",
+            "  {}: p95 error {:.3} % (scanned {:.3} %, before {:.3} %, phase {phase} {:.3} %); tracker CPU {:.2} s (scanned {:.2} s: x{:.2}; before {:.2} s: x{:.2}; phase {phase} {:.2} s)",
             r["case"].as_str().unwrap_or(""),
-            r["p95_error_pct"].as_f64().unwrap_or(0.0),
-            r["p95_error_before_pct"].as_f64().unwrap_or(0.0),
-            r["tracker_cpu_s"].as_f64().unwrap_or(0.0),
-            r["tracker_cpu_before_s"].as_f64().unwrap_or(0.0),
-            r["cpu_ratio"].as_f64().unwrap_or(0.0),
+            f(r, "p95_error_pct"),
+            f(r, "p95_error_scan_pct"),
+            f(r, "p95_error_before_pct"),
+            f(r, "p95_error_phase_switched_pct"),
+            f(r, "tracker_cpu_s"),
+            f(r, "tracker_cpu_scan_s"),
+            f(r, "cpu_ratio_scan"),
+            f(r, "tracker_cpu_before_s"),
+            f(r, "cpu_ratio"),
+            f(r, "tracker_cpu_phase_switched_s"),
         );
     }
 }

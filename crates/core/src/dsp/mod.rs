@@ -18,6 +18,7 @@ pub mod fault_family;
 pub(crate) mod feature_settings;
 pub mod features;
 pub(crate) mod fft_len;
+pub(crate) mod harmonic_bound;
 pub(crate) mod harmonic_sum;
 pub mod kurtogram;
 pub mod order_spectrum;

@@ -199,6 +199,9 @@ pub struct SpeedTracker {
     newest: u64,
     whitener: Whitener,
     spec: Whitened,
+    /// Spectra of the span's halves ([`SpeedTracker::residual_trend`]), apart from `spec`
+    /// so the span's own spectrum outlives the trend check.
+    half_spec: Whitened,
     warped: Vec<f32>,
     lock: Option<Lock>,
     /// A rival line that won the last window (Hz).
@@ -307,6 +310,12 @@ impl SpeedTracker {
                 lone: true,
                 ..Whitened::default()
             },
+            half_spec: Whitened {
+                skip_mains: true,
+                interpolate: true,
+                lone: true,
+                ..Whitened::default()
+            },
             warped: Vec::with_capacity(cap),
             lock: None,
             pending: None,
@@ -336,10 +345,22 @@ impl SpeedTracker {
         });
     }
 
+    /// Search as before issue 37 item 4 (`true`): every grid point of the harmonic sum
+    /// evaluated, and a followed line searched a second time along the trend it already had,
+    /// instead of the bounded search ([`super::harmonic_bound`]) done once (the default). The
+    /// speeds are the same either way; for measuring the cost of one against the other.
+    pub fn set_exhaustive(&mut self, on: bool) {
+        self.spec.scan = on;
+        self.half_spec.scan = on;
+        self.env_spec.scan = on;
+        self.recent_spec.scan = on;
+    }
+
     /// Switch the joint reading's parts one by one.
     pub fn set_joint_parts(&mut self, parts: JointParts) {
         self.joint = parts;
         self.spec.lone = parts.lone;
+        self.half_spec.lone = parts.lone;
     }
 
     /// Seconds of signal the history holds when full ([`HISTORY_REVS`] at the lowest speed).
@@ -500,9 +521,14 @@ impl SpeedTracker {
             // a trend that moves the line by less than a bin over the span is no trend
             let span = m as f64 / self.fs_d;
             let resolvable = r1.abs() * best.hz * span * span >= 1.0;
-            let c = self.search(last - m, last, if resolvable { r1 } else { 0.0 });
-            if (c.followed || !best.followed) && c.score >= KEEP_SHARE * best.score {
-                best = c;
+            let r = if resolvable { r1 } else { 0.0 };
+            // the same trend is the same search (a steady line: every window), done once
+            // (twice only when measuring against the search before issue 37 item 4)
+            if self.spec.scan || r.to_bits() != r0.to_bits() {
+                let c = self.search(last - m, last, r);
+                if (c.followed || !best.followed) && c.score >= KEEP_SHARE * best.score {
+                    best = c;
+                }
             }
         }
         best
@@ -528,13 +554,13 @@ impl SpeedTracker {
         let mut f = [0.0; 2];
         for (k, (a, b)) in [(0, h), (n - h, n)].into_iter().enumerate() {
             self.whitener
-                .whiten_into(&self.warped[a..b], fs_u, (4, 1), top, &mut self.spec);
-            self.spec.mains_spread = r.abs() * (last - first) as f64 / self.fs_d;
-            let (line, score) = self.spec.best_in(hz * 0.95, hz * 1.05);
+                .whiten_into(&self.warped[a..b], fs_u, (4, 1), top, &mut self.half_spec);
+            self.half_spec.mains_spread = r.abs() * (last - first) as f64 / self.fs_d;
+            let (line, score) = self.half_spec.best_in(hz * 0.95, hz * 1.05);
             if score < SCORE_NOISE {
                 return None;
             }
-            f[k] = self.refine(line);
+            f[k] = self.refine_in(&self.half_spec, line);
         }
         // half centres sit at -3/4 and -1/4 of the span (in warped time)
         let span = (n - 1) as f64 / fs_u;
@@ -730,12 +756,17 @@ impl SpeedTracker {
     /// The speed near `hz` read from its harmonics' own peaks (joint reading:
     /// [`Whitened::line_speed`]), else the harmonic sum's maximum between grid points.
     fn refine(&self, hz: f64) -> f64 {
+        self.refine_in(&self.spec, hz)
+    }
+
+    /// As [`Self::refine`], in spectrum `w`.
+    fn refine_in(&self, w: &Whitened, hz: f64) -> f64 {
         if self.joint.line_speed {
-            if let Some(f) = self.spec.line_speed(hz) {
+            if let Some(f) = w.line_speed(hz) {
                 return f;
             }
         }
-        refine(&self.spec, hz)
+        refine(w, hz)
     }
 
     /// The harmonic prominence behind speed `hz`: its own series, or that of `other` when hz
