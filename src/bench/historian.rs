@@ -230,6 +230,10 @@ struct Report {
     sustained: bool,
     /// Where the historian's time went (whole run, wall seconds of each step).
     profile: crate::historian::status::Profile,
+    /// The historian's COPY streams (`[batch] streams`) ...
+    streams: usize,
+    /// ... and the transactions it committed (batches; each one per stream).
+    batches: u64,
 }
 
 fn status_mb(pid: u32, key: &str) -> f64 {
@@ -248,11 +252,16 @@ fn status_mb(pid: u32, key: &str) -> f64 {
 const TAIL_TICKS: u64 = 4;
 
 /// Start `rigmon historian` (this binary) as a Zenoh client of `endpoint`, its spill in `dir`.
-fn start_historian(dir: &std::path::Path, tag: &str, endpoint: &str) -> Result<ChildGuard> {
+fn start_historian(
+    dir: &std::path::Path,
+    tag: &str,
+    endpoint: &str,
+    streams: usize,
+) -> Result<ChildGuard> {
     let cfg = dir.join("historian.toml");
     std::fs::write(
         &cfg,
-        format!("name = \"{tag}\"\ndefault_site = \"{tag}\"\nstatus_every_s = 0.5\n[zenoh]\nmode = \"client\"\nconnect = [\"{endpoint}\"]\nhistory_windows = 0\n[buffer]\nspill_dir = \"spill\"\n"),
+        format!("name = \"{tag}\"\ndefault_site = \"{tag}\"\nstatus_every_s = 0.5\n[zenoh]\nmode = \"client\"\nconnect = [\"{endpoint}\"]\nhistory_windows = 0\n[buffer]\nspill_dir = \"spill\"\n[batch]\nstreams = {streams}\n"),
     )?;
     let child = Command::new(std::env::current_exe()?)
         .args(["historian", "--summary-json", "--config"])
@@ -296,10 +305,11 @@ struct Measured {
     historian_cpu_s: f64,
     bench_cpu_s: f64,
     rss: (f64, f64),
+    streams: usize,
 }
 
 /// Run the benchmark.
-pub fn run(points: usize, seconds: f64, json: bool) -> Result<()> {
+pub fn run(points: usize, streams: usize, seconds: f64, json: bool) -> Result<()> {
     if points == 0 || !(seconds >= 1.0) {
         bail!("--points must be at least 1 and --seconds at least 1");
     }
@@ -323,7 +333,7 @@ pub fn run(points: usize, seconds: f64, json: bool) -> Result<()> {
         ..Default::default()
     }
     .open()?;
-    let mut guard = start_historian(dir.path(), &tag, &endpoint)?;
+    let mut guard = start_historian(dir.path(), &tag, &endpoint, streams)?;
     let pid = guard.0.as_ref().map_or(0, Child::id);
     let publisher = client_of(&endpoint)?;
     let status_sub = publisher
@@ -370,6 +380,7 @@ pub fn run(points: usize, seconds: f64, json: bool) -> Result<()> {
         historian_cpu_s: cpu1 - cpu0,
         bench_cpu_s: bench_cpu1 - bench_cpu0,
         rss,
+        streams,
     };
     let report = report(points, seconds, base_rate, &m, in_db, miss, &last, &fleet);
     drop(fleet);
@@ -408,6 +419,8 @@ fn report(
         gaps: last.recovery.gaps,
         requested: last.recovery.requested,
         profile: last.profile,
+        streams: m.streams,
+        batches: last.rows.batches,
         recovered: last.recovery.recovered,
         answered_from_history: fleet.answered.load(std::sync::atomic::Ordering::Relaxed),
         no_route_slices: fleet.no_route_slices,
@@ -515,7 +528,7 @@ fn print(r: &Report, json: bool) -> Result<()> {
         );
         println!("missed live (congestion policy Drop): the historian saw {} gaps, asked for {} windows and recovered {} from the points' recent history ({} answered); the bench had no router in {} publishing slices", r.gaps, r.requested, r.recovered, r.answered_from_history, r.no_route_slices);
         let p = &r.profile;
-        println!("historian's time (whole run, wall s): zenoh callbacks {:.1}, buffer take (spill reads) {:.1}, decode {:.1}, write (COPY + insert + commit, database included) {:.1}", p.intake_s, p.take_s, p.decode_s, p.write_s);
+        println!("historian's time (whole run, wall s): zenoh callbacks {:.1}, buffer take (spill reads) {:.1}, decode {:.1}, write (COPY + insert + commit, database included) {:.1}; {} batches (mean {:.0} rows) over {} COPY streams", p.intake_s, p.take_s, p.decode_s, p.write_s, r.batches, r.rows_in_db as f64 / r.batches.max(1) as f64, r.streams);
         println!(
             "not in the database {}: counted lost by the historian with point and seq range {} ({} ranges in its status), put by the bench into a closed transport {}, not accounted for {}{}",
             r.lost,

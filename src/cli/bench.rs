@@ -46,6 +46,9 @@ pub struct Args {
     /// `historian` only: simulated points.
     #[arg(long, default_value_t = 1000)]
     pub points: usize,
+    /// `historian` only: the historian's COPY streams (`[batch] streams`).
+    #[arg(long, default_value_t = 2)]
+    pub streams: usize,
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
@@ -65,6 +68,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         What::Load => bench::load::run(&opts),
         What::Calibrate => bench::calibrate::run(&opts, args.measured, args.seconds),
         What::Speed => bench::speed::run(&opts),
-        What::Historian => bench::historian::run(args.points, opts.seconds, opts.json),
+        What::Historian => {
+            bench::historian::run(args.points, args.streams, opts.seconds, opts.json)
+        }
     }
 }

@@ -93,6 +93,10 @@ pub struct BatchSettings {
     /// last ~0.6 s of commits, which the gap tracker asks again of the daemons).
     #[serde(default)]
     pub synchronous_commit: bool,
+    /// COPY streams (connections) written at once, each point always on the same one
+    /// ([`crate::streams`]): PostgreSQL then works on a batch in several backends.
+    #[serde(default = "default_streams")]
+    pub streams: usize,
 }
 
 /// `[retention]`: partitions older than these are dropped (hourly and at start).
@@ -196,6 +200,9 @@ fn default_max_rows() -> usize {
 fn default_max_batch_mb() -> f64 {
     32.0
 }
+fn default_streams() -> usize {
+    2
+}
 fn default_max_delay_ms() -> u64 {
     250
 }
@@ -252,6 +259,7 @@ impl Default for BatchSettings {
             max_delay_ms: default_max_delay_ms(),
             max_mb: default_max_batch_mb(),
             synchronous_commit: false,
+            streams: default_streams(),
         }
     }
 }
@@ -386,6 +394,12 @@ impl HistorianConfig {
         }
         if self.batch.max_rows == 0 || self.batch.max_delay_ms == 0 {
             bail!("batch.max_rows and batch.max_delay_ms must be at least 1");
+        }
+        if !(1..=16).contains(&self.batch.streams) {
+            bail!(
+                "batch.streams = {}: between 1 and 16 COPY streams (connections)",
+                self.batch.streams
+            );
         }
         if !positive(self.batch.max_mb) {
             bail!(

@@ -35,4 +35,5 @@ pub mod row;
 pub mod service;
 pub mod spill;
 pub mod status;
+pub mod streams;
 pub mod writer;

@@ -12,6 +12,7 @@ use super::latency::LatencyHistogram;
 use super::recovery::{Missing, Tracker};
 use super::row::WindowRow;
 use super::status::{self, Counters, HistorianStatus, Phase};
+use super::streams::Streams;
 use super::writer::{is_connection_error, StatusRow, Writer};
 use super::{admit, history, holes, intake, point_config, recovery};
 use anyhow::{anyhow, Context, Result};
@@ -412,7 +413,7 @@ async fn gather(sh: &Shared) -> bool {
 /// The write loop; returns the messages it could not write when told to stop.
 async fn write_loop(sh: Arc<Shared>, session: zenoh::Session) -> Vec<Incoming> {
     let (limits_tx, mut limits_rx) = unbounded_channel::<(i32, [f64; 3])>();
-    let mut writer: Option<Writer> = None;
+    let mut writer: Option<Streams> = None;
     let mut tracker: Option<Tracker> = None;
     let mut pending: Option<Pending> = None;
     let mut backoff = Duration::from_millis(250);
@@ -454,6 +455,7 @@ async fn write_loop(sh: Arc<Shared>, session: zenoh::Session) -> Vec<Incoming> {
         let Some(w) = writer.as_mut() else { continue };
         if last_retention.is_none_or(|t| t.elapsed() > Duration::from_secs(3600)) {
             if let Err(e) = w
+                .first()
                 .retention(sh.cfg.retention.windows_days, sh.cfg.retention.minutes_days)
                 .await
             {
@@ -462,7 +464,7 @@ async fn write_loop(sh: Arc<Shared>, session: zenoh::Session) -> Vec<Incoming> {
             last_retention = Some(Instant::now());
         }
         while let Ok((id, limits)) = limits_rx.try_recv() {
-            let _ = w.set_iso_limits(id, limits).await;
+            let _ = w.first().set_iso_limits(id, limits).await;
         }
         if let Some(t) = tracker.as_mut() {
             ask_silent_tails(&sh, t, &mut last_tail_scan);
@@ -500,7 +502,7 @@ async fn write_loop(sh: Arc<Shared>, session: zenoh::Session) -> Vec<Incoming> {
                     "a batch of {} rows was refused ({e:#}); writing its rows one by one",
                     p.rows.len()
                 );
-                write_each(&sh, w, p).await;
+                write_each(&sh, w.first(), p).await;
                 sh.buffer.commit(&p.batch);
                 pending = None;
             }
@@ -557,12 +559,11 @@ fn ask_limits(
 /// Open a writer and read where each point stands in the database.
 async fn connect(
     sh: &Arc<Shared>,
-) -> Result<(Writer, std::collections::HashMap<String, (u64, u64)>)> {
-    let (mut w, version) = Writer::open(&sh.target).await?;
-    w.set_synchronous_commit(sh.cfg.batch.synchronous_commit)
-        .await?;
+) -> Result<(Streams, std::collections::HashMap<String, (u64, u64)>)> {
+    let b = &sh.cfg.batch;
+    let (mut w, version) = Streams::open(&sh.target, b.streams, b.synchronous_commit).await?;
     w.load_points().await?;
-    let seed = w.last_positions().await?;
+    let seed = w.first().last_positions().await?;
     if !sh.holes_scanned.swap(true, Ordering::SeqCst) {
         tokio::spawn(ask_recent_holes(Arc::clone(sh)));
     }

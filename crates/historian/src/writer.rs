@@ -372,14 +372,37 @@ impl Writer {
         rows: &mut [WindowRow],
         statuses: &[StatusRow],
     ) -> Result<Outcome> {
-        let mut out = Outcome::default();
-        self.point_ids(rows, &mut out.new_points).await?;
+        let mut new_points = Vec::new();
+        self.prepare(rows, &mut new_points).await?;
+        let mut out = self.write_prepared(rows, statuses).await?;
+        out.new_points = new_points;
+        Ok(out)
+    }
+
+    /// What a batch needs before its transaction, each its own statement: its new points
+    /// registered (pushed to `new_points`), its models, its partitions; every row's ids set.
+    pub async fn prepare(
+        &mut self,
+        rows: &mut [WindowRow],
+        new_points: &mut Vec<(i32, String)>,
+    ) -> Result<()> {
+        self.point_ids(rows, new_points).await?;
         for r in rows.iter_mut() {
             r.model_id = self.model_id(&r.model).await?;
         }
         self.partitions
             .ensure(&self.client, rows.iter().map(|r| r.time))
-            .await?;
+            .await
+    }
+
+    /// The batch's transaction (rows [`Writer::prepare`]d by this writer): COPY, insert with
+    /// aggregates and latest, events, statuses, commit.
+    pub async fn write_prepared(
+        &mut self,
+        rows: &[WindowRow],
+        statuses: &[StatusRow],
+    ) -> Result<Outcome> {
+        let mut out = Outcome::default();
         let statuses = self.latest_statuses(statuses);
         let times: Vec<_> = rows.iter().map(|r| r.times()).collect();
         let tx = self.client.transaction().await?;
