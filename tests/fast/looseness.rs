@@ -28,7 +28,6 @@ fn impacts_at(rec: &Recording, hz: f64) -> f64 {
 /// `--calibrated` modes, with a plan that draws unbalance, noise and the resonance.
 #[test]
 fn landings_ring_every_other_revolution_and_reach_the_dataset() {
-    use rigmon::sim::dataset::{generate, CalibratedDraws};
     let plain = rig("lut-rig.toml");
     let mut loose = plain.clone();
     loose.simulation.as_mut().unwrap().loose_impacts = Some(LooseImpactsConfig {
@@ -65,15 +64,7 @@ fn landings_ring_every_other_revolution_and_reach_the_dataset() {
          faults = \"healthy\"\nrpm = 1200\nrecordings = 1\n",
     )
     .unwrap();
-    for mode in [CalibratedDraws::Fixed, CalibratedDraws::Spread] {
-        let dir = tempfile::tempdir().unwrap();
-        generate(&loose, &plan, dir.path(), "mcap", Some(1), false, mode).unwrap();
-        let path = std::fs::read_dir(dir.path())
-            .unwrap()
-            .map(|e| e.unwrap().path())
-            .find(|p| p.extension().is_some_and(|x| x == "mcap"))
-            .unwrap();
-        let rec = rigmon::recording::mcap::read_recording(&path).unwrap();
+    for (mode, rec) in crate::sim::planned_recordings(&loose, &plan) {
         check(&loose, &rec, &format!("dataset {mode:?}"));
     }
 }

@@ -17,6 +17,31 @@ fn rig(name: &str) -> RigConfig {
     .unwrap()
 }
 
+/// The one recording `plan` makes for `rig`, written as MCAP and read back, with the
+/// calibrated effects' draws fixed and spread.
+pub fn planned_recordings(
+    rig: &RigConfig,
+    plan: &sim::plan::Plan,
+) -> Vec<(sim::dataset::CalibratedDraws, Recording)> {
+    use sim::dataset::{generate, CalibratedDraws};
+    [CalibratedDraws::Fixed, CalibratedDraws::Spread]
+        .into_iter()
+        .map(|mode| {
+            let dir = tempfile::tempdir().unwrap();
+            generate(rig, plan, dir.path(), "mcap", Some(1), false, mode).unwrap();
+            let path = std::fs::read_dir(dir.path())
+                .unwrap()
+                .map(|e| e.unwrap().path())
+                .find(|p| p.extension().is_some_and(|x| x == "mcap"))
+                .unwrap();
+            (
+                mode,
+                rigmon::recording::mcap::read_recording(&path).unwrap(),
+            )
+        })
+        .collect()
+}
+
 fn vertical(rec: &Recording) -> &[f32] {
     &rec.channel("vertical").expect("vertical channel").samples
 }
@@ -504,7 +529,6 @@ fn shaft_lines_have_their_configured_amplitudes() {
 fn subharmonics_have_their_configured_amplitudes_and_reach_the_dataset() {
     use rigmon::calibrate::{fractional_orders, half_orders};
     use rigmon::config::simulation::SubharmonicsConfig;
-    use rigmon::sim::dataset::{generate, CalibratedDraws};
     let mut rig = rig("lut-rig.toml");
     rig.simulation.as_mut().unwrap().subharmonics = Some(SubharmonicsConfig {
         ref_rpm: 1200.0,
@@ -554,15 +578,7 @@ fn subharmonics_have_their_configured_amplitudes_and_reach_the_dataset() {
          noise_rms_m_s2 = [0.1, 0.3]\n[[case]]\nfaults = \"healthy\"\nrpm = 600\nrecordings = 1\n",
     )
     .unwrap();
-    for mode in [CalibratedDraws::Fixed, CalibratedDraws::Spread] {
-        let dir = tempfile::tempdir().unwrap();
-        generate(&rig, &plan, dir.path(), "mcap", Some(1), false, mode).unwrap();
-        let path = std::fs::read_dir(dir.path())
-            .unwrap()
-            .map(|e| e.unwrap().path())
-            .find(|p| p.extension().is_some_and(|x| x == "mcap"))
-            .unwrap();
-        let rec = rigmon::recording::mcap::read_recording(&path).unwrap();
+    for (mode, rec) in crate::sim::planned_recordings(&rig, &plan) {
         check(&rig, &rec, &format!("dataset {mode:?}"));
     }
 }

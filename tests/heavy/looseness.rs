@@ -25,14 +25,25 @@ fn num(v: &Value, what: &str) -> f64 {
         .unwrap_or_else(|| panic!("{what} is not a number: {v}"))
 }
 
-/// Generate with `args`, calibrate; (report, truth params).
-fn calibrate(case: &str, args: &[&str]) -> (Value, Value) {
-    let dir = tempfile::tempdir().unwrap();
-    let data = dir.path().join("data");
+/// `loose_housing.py`'s strong case: 30 m/s^2 landings ringing a 2.5 kHz mode (damping 3 %)
+/// over a clipped rocking.
+const STRONG: &[&str] = &[
+    "--impact",
+    "30",
+    "--mode-hz",
+    "2500",
+    "--damping",
+    "0.03",
+    "--seed",
+    "3",
+];
+
+/// Write `loose_housing.py`'s recordings for `args` into `out`.
+fn generate(out: &std::path::Path, args: &[&str]) {
     let gen = Command::new("python3")
         .arg(repo().join("tests/python/loose_housing.py"))
         .arg("--out")
-        .arg(&data)
+        .arg(out)
         .args(args)
         .output()
         .expect("python3 with numpy is needed (tests/python/requirements.txt)");
@@ -41,6 +52,13 @@ fn calibrate(case: &str, args: &[&str]) -> (Value, Value) {
         "loose_housing.py {args:?}: {}",
         String::from_utf8_lossy(&gen.stderr)
     );
+}
+
+/// Generate with `args`, calibrate; (report, truth params).
+fn calibrate(case: &str, args: &[&str]) -> (Value, Value) {
+    let dir = tempfile::tempdir().unwrap();
+    let data = dir.path().join("data");
+    generate(&data, args);
     let truth: Value =
         serde_json::from_str(&std::fs::read_to_string(data.join("truth.json")).unwrap()).unwrap();
     let t0 = std::time::Instant::now();
@@ -143,16 +161,7 @@ fn found(case: &Case) {
 fn strong_landings_at_a_high_mode_are_looseness() {
     found(&Case {
         name: "strong, 2.5 kHz, clipped rocking",
-        args: &[
-            "--impact",
-            "30",
-            "--mode-hz",
-            "2500",
-            "--damping",
-            "0.03",
-            "--seed",
-            "3",
-        ],
+        args: STRONG,
     });
 }
 
@@ -294,27 +303,7 @@ fn the_absolute_floor_tells_the_landing_strength() {
     use rigmon::calibrate::{catalog, error::min_cut, fit, measured};
     use rigmon::vocabulary::ErrorComponent as C;
     let dir = tempfile::tempdir().unwrap();
-    let gen = Command::new("python3")
-        .arg(repo().join("tests/python/loose_housing.py"))
-        .arg("--out")
-        .arg(dir.path())
-        .args([
-            "--impact",
-            "30",
-            "--mode-hz",
-            "2500",
-            "--damping",
-            "0.03",
-            "--seed",
-            "3",
-        ])
-        .output()
-        .expect("python3 with numpy is needed (tests/python/requirements.txt)");
-    assert!(
-        gen.status.success(),
-        "{}",
-        String::from_utf8_lossy(&gen.stderr)
-    );
+    generate(dir.path(), STRONG);
     let rig = rigmon::config::RigConfig::load(&repo().join("config/lut-rig.toml")).unwrap();
     let base = rigmon::sim::rig_simulation(&rig).unwrap().clone();
     let ops = measured::load(&rig, &[dir.path().join("labels.csv")], f64::INFINITY).unwrap();

@@ -42,7 +42,7 @@ pub enum Effect {
 /// The effects a calibration searches. `looseness_impacts` is not among them yet (issue 39,
 /// docs/calibration.md): on independent cases its landing strength fits 2-3x the truth, and on
 /// measured_like.py's `looseness_impacts` case it rings the wrong mode and pulls
-/// `subharmonics` off its 0.5x line; [`WITH_LOOSENESS_IMPACTS`] is the catalog with it.
+/// `subharmonics` off its 0.5x line.
 pub const ALL: [Effect; 9] = [
     Effect::Slip,
     Effect::ContactAngle,
@@ -52,20 +52,6 @@ pub const ALL: [Effect; 9] = [
     Effect::SpeedFluctuation,
     Effect::Looseness,
     Effect::Subharmonics,
-    Effect::Noise,
-];
-
-/// [`ALL`] with `looseness_impacts` (issue 39's measurements were made with it).
-pub const WITH_LOOSENESS_IMPACTS: [Effect; 10] = [
-    Effect::Slip,
-    Effect::ContactAngle,
-    Effect::Resonance,
-    Effect::Unbalance,
-    Effect::LineInterference,
-    Effect::SpeedFluctuation,
-    Effect::Looseness,
-    Effect::Subharmonics,
-    Effect::LoosenessImpacts,
     Effect::Noise,
 ];
 
