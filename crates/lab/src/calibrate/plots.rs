@@ -70,23 +70,42 @@ const MEAS: RGBColor = RGBColor(0, 0, 0);
 const BEFORE: RGBColor = RGBColor(220, 50, 30);
 const AFTER: RGBColor = RGBColor(30, 90, 220);
 
-/// `spectra.png`: envelope order spectra, band energies and shaft-order lines, measured /
-/// before / after.
-pub fn spectra(path: &Path, name: &str, m: &Views, b: &Views, a: &Views) -> Result<()> {
+/// A drawing area of a picture.
+type Panel<'a> = DrawingArea<BitMapBackend<'a>, plotters::coord::Shift>;
+
+/// A 1400 x 1300 picture in three panels (450, 430 and the rest high): the root (to present)
+/// and the panels, top to bottom.
+fn three_panel_canvas(path: &Path) -> Result<(Panel<'_>, [Panel<'_>; 3])> {
     ensure_font()?;
     let root = BitMapBackend::new(path, (1400, 1300)).into_drawing_area();
     root.fill(&WHITE)
         .map_err(|x| anyhow!("drawing {}: {x}", path.display()))?;
     let (top, rest) = root.split_vertically(450);
-    let (bottom, orders_area) = rest.split_vertically(430);
+    let (middle, bottom) = rest.split_vertically(430);
+    Ok((root, [top, middle, bottom]))
+}
+
+/// One view of the measured recording and of the simulation before and after, with their
+/// names and colours.
+fn measured_before_after(
+    m: &Views,
+    b: &Views,
+    a: &Views,
+    view: &dyn Fn(&Views) -> Vec<(f64, f64)>,
+) -> [Series<'static>; 3] {
+    [
+        ("measured", MEAS, view(m)),
+        ("simulated before", BEFORE, view(b)),
+        ("simulated after", AFTER, view(a)),
+    ]
+}
+
+/// `spectra.png`: envelope order spectra, band energies and shaft-order lines, measured /
+/// before / after.
+pub fn spectra(path: &Path, name: &str, m: &Views, b: &Views, a: &Views) -> Result<()> {
+    let (root, [top, bottom, orders_area]) = three_panel_canvas(path)?;
     // one view of the measured recording and of the simulation before and after
-    let three = |view: &dyn Fn(&Views) -> Vec<(f64, f64)>| {
-        [
-            ("measured", MEAS, view(m)),
-            ("simulated before", BEFORE, view(b)),
-            ("simulated after", AFTER, view(a)),
-        ]
-    };
+    let three = |view: &dyn Fn(&Views) -> Vec<(f64, f64)>| measured_before_after(m, b, a, view);
     let env = |v: &Views| {
         v.env_db
             .iter()
@@ -182,19 +201,8 @@ pub fn residual(path: &Path, name: &str, m: &Views, a: &Views) -> Result<()> {
 /// train at half the shaft rate: a comb at rpm / 120 Hz) and the band energies (the mode
 /// the landings ring).
 pub fn looseness(path: &Path, name: &str, m: &Views, b: &Views, a: &Views) -> Result<()> {
-    ensure_font()?;
-    let root = BitMapBackend::new(path, (1400, 1300)).into_drawing_area();
-    root.fill(&WHITE)
-        .map_err(|x| anyhow!("drawing {}: {x}", path.display()))?;
-    let (top, rest) = root.split_vertically(450);
-    let (middle, bottom) = rest.split_vertically(430);
-    let three = |view: &dyn Fn(&Views) -> Vec<(f64, f64)>| {
-        [
-            ("measured", MEAS, view(m)),
-            ("simulated before", BEFORE, view(b)),
-            ("simulated after", AFTER, view(a)),
-        ]
-    };
+    let (root, [top, middle, bottom]) = three_panel_canvas(path)?;
+    let three = |view: &dyn Fn(&Views) -> Vec<(f64, f64)>| measured_before_after(m, b, a, view);
     let grid = super::fractional_orders::orders();
     let fractional = |v: &Views| {
         grid.iter()
