@@ -100,6 +100,15 @@ fn measured_before_after(
     ]
 }
 
+/// The band energies of a view at their bands' centres, Hz.
+fn band_energies(v: &Views) -> Vec<(f64, f64)> {
+    v.bands
+        .iter()
+        .zip(&v.band_lo_hz)
+        .map(|(d, lo)| (lo + BAND_HZ / 2.0, *d))
+        .collect()
+}
+
 /// `spectra.png`: envelope order spectra, band energies and shaft-order lines, measured /
 /// before / after.
 pub fn spectra(path: &Path, name: &str, m: &Views, b: &Views, a: &Views) -> Result<()> {
@@ -120,19 +129,12 @@ pub fn spectra(path: &Path, name: &str, m: &Views, b: &Views, a: &Views) -> Resu
         "dB above median",
         &three(&env),
     )?;
-    let bands = |v: &Views| {
-        v.bands
-            .iter()
-            .zip(&v.band_lo_hz)
-            .map(|(d, lo)| (lo + BAND_HZ / 2.0, *d))
-            .collect()
-    };
     chart(
         &bottom,
         "band energy (100 Hz bands)",
         "Hz",
         "dB re mean band",
-        &three(&bands),
+        &three(&band_energies),
     )?;
     let orders = |v: &Views| {
         v.shaft
@@ -224,19 +226,12 @@ pub fn looseness(path: &Path, name: &str, m: &Views, b: &Views, a: &Views) -> Re
         m.rpm / 120.0
     );
     chart(&middle, &title, "Hz", "dB (thresholded)", &three(&impacts))?;
-    let bands = |v: &Views| {
-        v.bands
-            .iter()
-            .zip(&v.band_lo_hz)
-            .map(|(d, lo)| (lo + BAND_HZ / 2.0, *d))
-            .collect()
-    };
     chart(
         &bottom,
         "band energy (100 Hz bands: the mode the landings ring)",
         "Hz",
         "dB re mean band",
-        &three(&bands),
+        &three(&band_energies),
     )?;
     root.present()
         .map_err(|x| anyhow!("writing {}: {x}", path.display()))?;
