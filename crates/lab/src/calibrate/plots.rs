@@ -133,7 +133,7 @@ pub fn spectra(path: &Path, name: &str, m: &Views, b: &Views, a: &Views) -> Resu
         &bottom,
         "band energy (100 Hz bands)",
         "Hz",
-        "dB re mean band",
+        "dB (0 = 20 dB below the strongest band)",
         &three(&band_energies),
     )?;
     let orders = |v: &Views| {
@@ -230,7 +230,7 @@ pub fn looseness(path: &Path, name: &str, m: &Views, b: &Views, a: &Views) -> Re
         &bottom,
         "band energy (100 Hz bands: the mode the landings ring)",
         "Hz",
-        "dB re mean band",
+        "dB (0 = 20 dB below the strongest band)",
         &three(&band_energies),
     )?;
     root.present()
