@@ -9,7 +9,7 @@
 use crate::health::iso20816::Zone;
 use crate::health::Basis;
 use crate::model::evidence::FamilyEvidence;
-use crate::publish::recent::{same_run, RecentQuery, SUFFIX};
+use crate::publish::recent::{same_run, Held, RecentQuery, SUFFIX};
 use crate::publish::time_range::now_ns;
 use crate::publish::zenoh::FLEET_CONGESTION;
 use crate::vocabulary::Condition;
@@ -237,23 +237,33 @@ fn answer(
     let Some(high) = published.get(i).map(|p| p.load(Ordering::Relaxed)) else {
         return;
     };
-    if rq.run_start_ns.is_some_and(|r| !same_run(r, run_ns)) {
-        return;
-    }
-    let ranges = if rq.seq.is_empty() {
-        vec![(1, high)]
-    } else {
-        rq.seq
-    };
-    for seq in ranges.into_iter().flat_map(|(a, b)| a.max(1)..=b.min(high)) {
-        let mut m = window(tag, i, seq, run_ns);
-        m.publish_time_ns = now_ns();
-        let Ok(json) = serde_json::to_vec(&m) else {
-            return;
+    // the daemon's word on what it holds, after the windows (a query by run and seq)
+    let held = rq
+        .run_start_ns
+        .filter(|_| !rq.seq.is_empty())
+        .map(|r| Held {
+            run_start_ns: r,
+            seqs: (same_run(r, run_ns) && high > 0).then_some((1, high)),
+        });
+    if rq.run_start_ns.is_none_or(|r| same_run(r, run_ns)) {
+        let ranges = if rq.seq.is_empty() {
+            vec![(1, high)]
+        } else {
+            rq.seq
         };
-        if q.reply(key.clone(), json).wait().is_err() {
-            return;
+        for seq in ranges.into_iter().flat_map(|(a, b)| a.max(1)..=b.min(high)) {
+            let mut m = window(tag, i, seq, run_ns);
+            m.publish_time_ns = now_ns();
+            let Ok(json) = serde_json::to_vec(&m) else {
+                return;
+            };
+            if q.reply(key.clone(), json).wait().is_err() {
+                return;
+            }
+            answered.fetch_add(1, Ordering::Relaxed);
         }
-        answered.fetch_add(1, Ordering::Relaxed);
+    }
+    if let Some(h) = held {
+        h.reply(q);
     }
 }

@@ -31,6 +31,7 @@ mod model;
 mod novel_faults;
 mod opendaq;
 mod real_files;
+mod recent_history;
 mod rule_agreement;
 mod service_binary;
 mod sim;

@@ -16,7 +16,7 @@ use super::config::RecoverySettings;
 use super::losses::LossLedger;
 use super::recovery_plan::{Pacing, Plan, Request, Target};
 use super::status::Counters;
-use rigmon_runtime::publish::recent::{same_run, RecentQuery, SUFFIX};
+use rigmon_runtime::publish::recent::{same_run, Held, RecentQuery, SUFFIX};
 use rigmon_runtime::publish::zenoh::FLEET_CONGESTION;
 use std::collections::{HashMap, HashSet};
 use std::sync::{Arc, Mutex};
@@ -223,7 +223,11 @@ impl Missing {
 /// What one request's answer brought.
 struct Answer {
     got: HashSet<u64>,
-    /// The query ended by its timeout (a reply or its end was dropped on the way).
+    /// The daemon's word on what it holds of the run (`None`: not heard: an older daemon,
+    /// no daemon, or the word was dropped on the way).
+    held: Option<Held>,
+    /// The query ended by its timeout (replies or their end were dropped on the way, or the
+    /// daemon is slow to answer): a congested link, not a daemon with nothing to say.
     timed_out: bool,
 }
 
@@ -246,6 +250,7 @@ async fn ask(
     let selector = format!("{prefix}/{}/{SUFFIX}?{}", target.key, query.to_parameters());
     let mut answer = Answer {
         got: HashSet::new(),
+        held: None,
         timed_out: false,
     };
     let t0 = Instant::now();
@@ -271,7 +276,14 @@ async fn ask(
             answer.timed_out = t0.elapsed() >= timeout.mul_f64(0.9);
             break;
         };
-        let Ok(sample) = reply.result() else { continue };
+        let sample = match reply.result() {
+            Ok(sample) => sample,
+            Err(e) => {
+                let word = Held::parse(&e.payload().to_bytes());
+                answer.held = word.filter(|h| same_run(h.run_start_ns, target.run_start_ns));
+                continue;
+            }
+        };
         let payload = sample.payload().to_bytes().into_owned();
         let Some(seq) =
             seq_of(&payload).filter(|s| ranges.iter().any(|&(a, b)| (a..=b).contains(s)))
@@ -303,11 +315,26 @@ fn seq_of(payload: &[u8]) -> Option<u64> {
     serde_json::from_slice::<Seq>(payload).ok().map(|s| s.seq)
 }
 
-/// Asks after a timeout for what is still missing, before it is counted lost.
-const ATTEMPTS: u32 = 3;
+/// Answers that end without the daemon's word on what it holds ([`Held`]) before the windows
+/// still missing are counted lost (no daemon answers, or an older one that says nothing).
+const SILENT_ATTEMPTS: u32 = 3;
 
-/// Send one request (asking again, up to [`ATTEMPTS`] times, for what a timed-out answer
-/// lacked); what came is recovered, what arrived live meanwhile is late, the rest is lost.
+/// Asks at most, in all: a window the daemon says it holds, or whose query times out, and
+/// whose reply is dropped every time (a congested link) is counted lost after the last, some
+/// 4-6 minutes after the first: inside the daemons' default recent history (10 minutes), so
+/// a window is asked for as long as its daemon can be expected to hold it.
+const MAX_ATTEMPTS: u32 = 12;
+
+/// The wait before asking again: 1 s after the first answer, doubling up to 32 s, so a
+/// congested link gets room and a daemon that still holds the windows is asked while it does.
+fn backoff(attempt: u32) -> Duration {
+    Duration::from_secs(1 << attempt.saturating_sub(1).min(5))
+}
+
+/// Send one request, asking again (after [`backoff`]) for what did not come as long as the
+/// daemon says it still holds it or the query timed out (up to [`MAX_ATTEMPTS`]), or the
+/// answer ended without its word (up to [`SILENT_ATTEMPTS`]); what came is recovered, what arrived live meanwhile is late, the
+/// rest is lost (the daemon no longer has it, or never answered).
 async fn recover(ctx: Arc<Ctx>, request: Request) {
     let Ctx {
         session,
@@ -322,16 +349,16 @@ async fn recover(ctx: Arc<Ctx>, request: Request) {
     Counters::add(&counters.requested, request.len());
     let mut ranges = request.ranges.clone();
     let mut got: HashSet<u64> = HashSet::new();
-    for attempt in (1..=ATTEMPTS).filter(|_| *enabled) {
+    let mut silent = 0;
+    for attempt in (1..=MAX_ATTEMPTS).filter(|_| *enabled) {
         let a = ask(session, prefix, target, &ranges, buffer, *timeout).await;
         got.extend(a.got);
-        if !a.timed_out || attempt == ATTEMPTS {
+        silent += u32::from(a.held.is_none() && !a.timed_out);
+        ranges = still_held(&uncovered(&ranges, &got), a.held);
+        if ranges.is_empty() || silent >= SILENT_ATTEMPTS || attempt == MAX_ATTEMPTS {
             break;
         }
-        ranges = uncovered(&request.ranges, &got);
-        if ranges.is_empty() {
-            break;
-        }
+        tokio::time::sleep(backoff(attempt)).await;
     }
     let late: HashSet<u64> = missing
         .plan()
@@ -381,6 +408,22 @@ fn uncovered(ranges: &[(u64, u64)], got: &HashSet<u64>) -> Vec<(u64, u64)> {
         }
     }
     out
+}
+
+/// The part of `ranges` worth asking again: all of it when the daemon said nothing, else
+/// what it said it holds (the rest is gone).
+fn still_held(ranges: &[(u64, u64)], held: Option<Held>) -> Vec<(u64, u64)> {
+    let Some(h) = held else {
+        return ranges.to_vec();
+    };
+    let Some((lo, hi)) = h.seqs else {
+        return Vec::new();
+    };
+    ranges
+        .iter()
+        .map(|&(a, b)| (a.max(lo), b.min(hi)))
+        .filter(|(a, b)| a <= b)
+        .collect()
 }
 
 /// Enter a counted request in the loss ledger: what was found (or arrived live) comes out
@@ -515,6 +558,30 @@ mod tests {
         assert_eq!(
             uncovered(&request.ranges, &[10, 11, 15, 31].into()),
             [(12, 14), (16, 19), (30, 30)]
+        );
+    }
+
+    /// Asked again: what the daemon said it holds, all of it when it said nothing, nothing
+    /// when it holds none of the run; the waits double from 1 s to 32 s.
+    #[test]
+    fn what_is_asked_again_is_what_the_daemon_still_holds() {
+        let ranges = [(3, 5), (9, 12), (40, 41)];
+        let held = |seqs| Held {
+            run_start_ns: 7,
+            seqs,
+        };
+        assert_eq!(still_held(&ranges, None), ranges);
+        assert_eq!(
+            still_held(&ranges, Some(held(Some((4, 10))))),
+            [(4, 5), (9, 10)]
+        );
+        assert!(still_held(&ranges, Some(held(None))).is_empty());
+        let waits: Vec<u64> = (1..MAX_ATTEMPTS).map(|a| backoff(a).as_secs()).collect();
+        assert_eq!(waits, [1, 2, 4, 8, 16, 32, 32, 32, 32, 32, 32]);
+        let total: u64 = waits.iter().sum();
+        assert!(
+            total < 600,
+            "asked again within the daemons' default recent history"
         );
     }
 

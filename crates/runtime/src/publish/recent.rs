@@ -8,7 +8,7 @@
 
 use super::time_range::{TimeRange, PARAMETER as TIME};
 use anyhow::{anyhow, bail, Context, Result};
-use serde::Deserialize;
+use serde::{Deserialize, Serialize};
 use std::collections::VecDeque;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Arc, Mutex};
@@ -102,11 +102,79 @@ impl RecentQuery {
         p.join(";")
     }
 
+    /// What the ring holds of the asked run, for a query by run and seq (the historian's);
+    /// `None` for any other query.
+    fn held(&self, ring: &VecDeque<Entry>) -> Option<Held> {
+        let run = self.run_start_ns.filter(|_| !self.seq.is_empty())?;
+        let seqs = ring.iter().filter(|e| same_run(run, e.run_start_ns)).fold(
+            None,
+            |r: Option<(u64, u64)>, e| {
+                Some(r.map_or((e.seq, e.seq), |(a, b)| (a.min(e.seq), b.max(e.seq))))
+            },
+        );
+        Some(Held {
+            run_start_ns: run,
+            seqs,
+        })
+    }
+
     fn matches(&self, e: &Entry) -> bool {
         self.run_start_ns
             .is_none_or(|r| same_run(r, e.run_start_ns))
             && (self.seq.is_empty() || self.seq.iter().any(|&(a, b)| (a..=b).contains(&e.seq)))
             && self.time.is_none_or(|t| t.contains(e.end_ns))
+    }
+}
+
+/// The daemon's last word on a query for a run's seq ranges: the seqs of that run its ring
+/// holds (`None`: none). Sent after the windows as an *error* reply, so that no consumer
+/// takes it for a window; [`Held::parse`] reads it back. A window asked and not received that
+/// the daemon holds was dropped on the way (ask again); one it does not hold is gone.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub struct Held {
+    pub run_start_ns: u64,
+    /// Lowest and highest seq of the run in the ring (inclusive).
+    pub seqs: Option<(u64, u64)>,
+}
+
+/// The `schema` of a [`Held`] statement.
+pub const HELD_SCHEMA: &str = "rigmon.recent.held";
+
+#[derive(Serialize, Deserialize)]
+struct HeldMessage {
+    schema: String,
+    #[serde(flatten)]
+    held: Held,
+}
+
+impl Held {
+    /// The statement's bytes (JSON with `schema` = [`HELD_SCHEMA`]).
+    pub fn to_json(&self) -> Vec<u8> {
+        let m = HeldMessage {
+            schema: HELD_SCHEMA.to_string(),
+            held: *self,
+        };
+        serde_json::to_vec(&m).unwrap_or_default()
+    }
+
+    /// A statement read back; `None` for any other error reply.
+    pub fn parse(bytes: &[u8]) -> Option<Held> {
+        serde_json::from_slice::<HeldMessage>(bytes)
+            .ok()
+            .filter(|m| m.schema == HELD_SCHEMA)
+            .map(|m| m.held)
+    }
+
+    /// True when the daemon said it holds `seq` of the asked run.
+    pub fn holds(&self, seq: u64) -> bool {
+        self.seqs.is_some_and(|(a, b)| (a..=b).contains(&seq))
+    }
+
+    /// Send the statement as the query's last reply (an error reply).
+    pub fn reply(&self, query: &zenoh::query::Query) {
+        if let Err(e) = query.reply_err(self.to_json()).wait() {
+            tracing::debug!("zenoh reply on {} failed: {e}", query.key_expr());
+        }
     }
 }
 
@@ -165,12 +233,14 @@ impl RecentHistory {
                         return;
                     }
                 };
-                let hits: Vec<Arc<[u8]>> = match store.lock() {
-                    Ok(g) => g
-                        .iter()
-                        .filter(|e| q.matches(e))
-                        .map(|e| e.json.clone())
-                        .collect(),
+                let (hits, held): (Vec<Arc<[u8]>>, Option<Held>) = match store.lock() {
+                    Ok(g) => (
+                        g.iter()
+                            .filter(|e| q.matches(e))
+                            .map(|e| e.json.clone())
+                            .collect(),
+                        q.held(&g),
+                    ),
                     Err(_) => return,
                 };
                 if !hits.is_empty() {
@@ -181,6 +251,9 @@ impl RecentHistory {
                         tracing::debug!("zenoh reply on {reply_key} failed: {e}");
                         break;
                     }
+                }
+                if let Some(h) = held {
+                    h.reply(&query);
                 }
             })
             .wait()
@@ -250,5 +323,44 @@ mod tests {
         assert!(two.matches(&e(9, 42)) && !two.matches(&e(7, 42)));
         assert!(parse_seq("[9..2]").is_err());
         assert_eq!(run_start_ns(5_500_000_123, 1.5), 4_000_000_123);
+    }
+
+    #[test]
+    fn a_seq_query_gets_the_rings_word_on_what_it_holds() {
+        let e = |seq, run| Entry {
+            seq,
+            end_ns: 100,
+            run_start_ns: run,
+            json: Arc::from(&b"{}"[..]),
+        };
+        let ring: VecDeque<Entry> = [e(7, 9_000_000), e(8, 42), e(9, 42), e(12, 42)].into();
+        let q = RecentQuery {
+            run_start_ns: Some(42),
+            seq: vec![(1, 20)],
+            time: None,
+        };
+        let held = q.held(&ring).unwrap();
+        assert_eq!(held.seqs, Some((8, 12)));
+        assert!(held.holds(8) && held.holds(12) && !held.holds(7) && !held.holds(13));
+        assert_eq!(Held::parse(&held.to_json()), Some(held));
+        assert_eq!(
+            Held::parse(br#"{"schema":"other","run_start_ns":42}"#),
+            None
+        );
+        let other_run = RecentQuery {
+            run_start_ns: Some(5_000_000),
+            ..q
+        };
+        assert_eq!(other_run.held(&ring).unwrap().seqs, None);
+        let by_time = RecentQuery {
+            run_start_ns: Some(42),
+            seq: Vec::new(),
+            time: None,
+        };
+        assert_eq!(
+            by_time.held(&ring),
+            None,
+            "only a query by run and seq gets the word"
+        );
     }
 }
