@@ -236,6 +236,8 @@ struct Report {
     requested: u64,
     /// ... windows it recovered from the points' recent history,
     recovered: u64,
+    /// ... windows it asked again (their replies dropped on the way),
+    asked_again: u64,
     /// ... and windows the simulated points answered from their recent history.
     answered_from_history: u64,
     /// Publishing slices (10 per tick) in which the bench's session had no router.
@@ -467,6 +469,7 @@ fn report(
         streams: m.streams,
         batches: last.rows.batches,
         recovered: last.recovery.recovered,
+        asked_again: last.recovery.asked_again,
         answered_from_history: fleet.answered.load(std::sync::atomic::Ordering::Relaxed),
         no_route_slices: fleet.no_route_slices,
         rows_per_s_offered: m.published as f64 / wall,
@@ -622,7 +625,7 @@ fn print(r: &Report, json: bool) -> Result<()> {
             "rows in the database {} of {} published; spilled to disk {}, dropped by the historian's buffer {}",
             r.rows_in_db, r.published, r.spilled, r.dropped
         );
-        println!("missed live (congestion policy Drop): the historian saw {} gaps, asked for {} windows and recovered {} from the points' recent history ({} answered); the bench had no router in {} publishing slices", r.gaps, r.requested, r.recovered, r.answered_from_history, r.no_route_slices);
+        println!("missed live (congestion policy Drop): the historian saw {} gaps, asked for {} windows (again {}: replies dropped on the way) and recovered {} from the points' recent history ({} answered); the bench had no router in {} publishing slices", r.gaps, r.requested, r.asked_again, r.recovered, r.answered_from_history, r.no_route_slices);
         let p = &r.profile;
         println!("historian's time (whole run, wall s): zenoh callbacks {:.1}, buffer take (spill reads) {:.1}, decode {:.1}, write (COPY + insert + commit, database included) {:.1}; {} batches (mean {:.0} rows) over {} COPY streams", p.intake_s, p.take_s, p.decode_s, p.write_s, r.batches, r.rows_in_db as f64 / r.batches.max(1) as f64, r.streams);
         println!(

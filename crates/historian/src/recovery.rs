@@ -358,6 +358,10 @@ async fn recover(ctx: Arc<Ctx>, request: Request) {
         if ranges.is_empty() || silent >= SILENT_ATTEMPTS || attempt == MAX_ATTEMPTS {
             break;
         }
+        Counters::add(
+            &counters.asked_again,
+            ranges.iter().map(|(a, b)| b - a + 1).sum(),
+        );
         tokio::time::sleep(backoff(attempt)).await;
     }
     let late: HashSet<u64> = missing

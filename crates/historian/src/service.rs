@@ -267,6 +267,7 @@ fn snapshot(sh: &Shared, phase: Phase) -> HistorianStatus {
             backfilled: g(&c.backfilled),
             not_backfilled: g(&c.not_backfilled),
             late: g(&c.late),
+            asked_again: g(&c.asked_again),
             waiting: sh.missing.level().0,
             in_flight: sh.missing.level().1,
         },

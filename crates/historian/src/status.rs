@@ -51,6 +51,9 @@ pub struct Counters {
     pub not_backfilled: AtomicU64,
     /// Asked for, then arrived live while the request was out.
     pub late: AtomicU64,
+    /// Windows asked again: the daemon still held them (or the query timed out) and their
+    /// replies were dropped on the way.
+    pub asked_again: AtomicU64,
     /// Nanoseconds spent in each step ([`Profile`]).
     pub intake_ns: AtomicU64,
     pub take_ns: AtomicU64,
@@ -224,6 +227,9 @@ pub struct Recovery {
     /// Asked for, then arrived live after all (out of order) while the request was out.
     #[serde(default)]
     pub late: u64,
+    /// Windows asked again (the daemon still held them, or the query timed out).
+    #[serde(default)]
+    pub asked_again: u64,
     /// Windows in the recovery plan not yet asked for, and requests out now.
     #[serde(default)]
     pub waiting: u64,
