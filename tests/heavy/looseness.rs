@@ -299,8 +299,9 @@ fn simulated_landings_are_fitted_back() {
 /// rpm ringing 2.5 kHz at 3 %, seed 3): at the true mode and damping, the relative components
 /// of `looseness_impacts` barely tell the strength (`impacts` to the local median, `bands` to
 /// the strongest band, `half_orders` to the floors; `bands` keeps falling past the truth,
-/// the model's own resonances sitting lower beside the landings than the generator's), while the absolute broadband floor of the healthy recordings (`floor`, the
-/// ring-down's skirts) is lowest at the true strength and rises by more than its smallest
+/// the model's own resonances sitting lower beside the landings than the generator's), while
+/// the absolute broadband floor of the healthy recordings (`floor`, the ring-down's skirts)
+/// is lowest at the true strength and rises by more than its smallest
 /// meaningful cut at half and at twice it. Prints every component of the scan.
 #[test]
 fn the_absolute_floor_tells_the_landing_strength() {
