@@ -106,8 +106,8 @@ struct Case {
 
 /// The checks every case shares: `looseness_impacts` accepted first (after `subharmonics` at
 /// most), no `noise` or `resonance` before it; its mode, its landing peak and its damping
-/// within 20 % of the truth (the peak at the speed it is stated at); nothing left unexplained where looseness shows (half orders of
-/// any view, the impacts' envelope).
+/// within 20 % of the truth (the peak at the speed it is stated at); nothing left
+/// unexplained where looseness shows (half orders of any view, the impacts' envelope).
 fn found(case: &Case) {
     let (r, truth) = calibrate(case.name, case.args);
     let effects = r["effects"].as_array().unwrap();
