@@ -29,6 +29,10 @@ pub struct Args {
     /// Print the report as one JSON object on stdout.
     #[arg(long)]
     pub json: bool,
+    /// Search `looseness_impacts` too (a loose housing's landings; not in the default
+    /// catalog yet, issue 39 and docs/calibration.md).
+    #[arg(long)]
+    pub looseness_impacts: bool,
 }
 
 /// Refuse an output path that names one of the inputs (the same file, hard links included),
@@ -71,7 +75,11 @@ pub fn run(a: Args) -> Result<()> {
     let part = measured::checkerboard(&ops);
     print_split(&ops, &part, t_load.elapsed().as_secs_f64());
     let t0 = std::time::Instant::now();
-    let outcome = fit::calibrate(&rig, &ops, part)?;
+    let options = fit::Options {
+        looseness_impacts: a.looseness_impacts,
+        ..fit::Options::default()
+    };
+    let outcome = fit::calibrate_with(&rig, &ops, part, options)?;
     eprintln!(
         "calibrated in {:.1} s; time per stage (summed over threads): {}",
         t0.elapsed().as_secs_f64(),

@@ -8,7 +8,8 @@
 //! Each: `looseness_impacts` accepted (or `subharmonics` first, then it), its mode and its
 //! landing peak within 20 % of the truth, no `noise` or `resonance` taken before it, and no
 //! unexplained residual where looseness shows (half orders, the impacts' envelope). Not met
-//! yet, so ignored, and `looseness_impacts` is out of `catalog::ALL` (docs/calibration.md).
+//! yet, so ignored, and `looseness_impacts` is out of `catalog::ALL` (docs/calibration.md);
+//! the cases calibrate with `--looseness-impacts`.
 //! Two checks run (not ignored): the simulator's own landings are fitted back, and the
 //! absolute `floor` is what tells the landing strength on the strong independent case.
 
@@ -73,6 +74,7 @@ fn calibrate(case: &str, args: &[&str]) -> (Value, Value) {
         .arg("--report")
         .arg(dir.path().join("report"))
         .arg("--json")
+        .arg("--looseness-impacts")
         .output()
         .unwrap();
     assert!(
@@ -104,8 +106,8 @@ struct Case {
 
 /// The checks every case shares: `looseness_impacts` accepted first (after `subharmonics` at
 /// most), no `noise` or `resonance` before it; its mode, its landing peak and its damping
-/// within 20 % of the truth; nothing left unexplained where looseness shows (half orders of
-/// any view, the impacts' envelope).
+/// within 20 % of the truth (the peak at the speed it is stated at); nothing left
+/// unexplained where looseness shows (half orders of any view, the impacts' envelope).
 fn found(case: &Case) {
     let (r, truth) = calibrate(case.name, case.args);
     let effects = r["effects"].as_array().unwrap();
@@ -125,12 +127,15 @@ fn found(case: &Case) {
         case.name
     );
     let p = &effects[at]["params"];
+    // the landing peak is stated at the fit part's healthy speed (`at_rpm`): the truth there
+    let rpm = format!("{}", num(&p["at_rpm"], "at_rpm").round());
+    let peak = &truth["peak_at_rpm_m_s2"][&rpm];
     for (fitted, want) in [
-        ("mode_hz", "mode_hz"),
-        ("peak_m_s2", "impact_m_s2"),
-        ("damping", "damping"),
+        ("mode_hz", &truth["mode_hz"]),
+        ("peak_m_s2", peak),
+        ("damping", &truth["damping"]),
     ] {
-        let (f, w) = (num(&p[fitted], fitted), num(&truth[want], want));
+        let (f, w) = (num(&p[fitted], fitted), num(want, fitted));
         assert!(
             (f - w).abs() <= 0.2 * w,
             "{}: {fitted} fitted {f}, truth {w} (more than 20 % off); params {p}",
@@ -157,7 +162,7 @@ fn found(case: &Case) {
 /// Strong landings (30 m/s^2 at 1200 rpm) ringing a 2.5 kHz mode, over a rocking clipped at
 /// 60 % of its stroke: the strength at which `noise` used to be named first.
 #[test]
-#[ignore = "issue 39 not done: 470 s in a debug build at load 9, and the landing peak fits 3.1x the truth (mode and damping within 20 %); run with --ignored"]
+#[ignore = "too long for the heavy tier (339 s in a release build at load 7); its checks held there: named first, mode -0.4 %, damping +5 %, peak at 600 rpm +11 % (docs/calibration.md); run with --ignored"]
 fn strong_landings_at_a_high_mode_are_looseness() {
     found(&Case {
         name: "strong, 2.5 kHz, clipped rocking",
@@ -291,12 +296,12 @@ fn simulated_landings_are_fitted_back() {
 }
 
 /// Why the landing strength fits 2-3x on `loose_housing.py`'s strong case (30 m/s^2 at 1200
-/// rpm ringing 2.5 kHz at 3 %, seed 3): at the true mode and damping, the own components of
-/// `looseness_impacts` barely tell the strength (all relative views: `impacts` to the local
-/// median, `bands` to the strongest band, `half_orders` to the floors; `bands` keeps falling
-/// past the truth, the model's own resonances sitting lower beside the landings than the
-/// generator's), while the absolute broadband floor of the healthy recordings (`floor`, the
-/// ring-down's skirts) is lowest at the true strength and rises by more than its smallest
+/// rpm ringing 2.5 kHz at 3 %, seed 3): at the true mode and damping, the relative components
+/// of `looseness_impacts` barely tell the strength (`impacts` to the local median, `bands` to
+/// the strongest band, `half_orders` to the floors; `bands` keeps falling past the truth,
+/// the model's own resonances sitting lower beside the landings than the generator's), while
+/// the absolute broadband floor of the healthy recordings (`floor`, the ring-down's skirts)
+/// is lowest at the true strength and rises by more than its smallest
 /// meaningful cut at half and at twice it. Prints every component of the scan.
 #[test]
 fn the_absolute_floor_tells_the_landing_strength() {

@@ -11,7 +11,7 @@
 //! | `speed_fluctuation` | `period_s` 0.2-5 (log), `fraction` 0.002-0.1 (log); around a measured speed line ([`Context::speed_line`]): `period_s` over its frequency +- one resolution step (1 / the shortest length), `fraction` over its depth / 2-x2 (log), within those bounds, starting there | `speed_fluctuation.period_s`, `.fraction` |
 //! | `looseness` | `harmonics_m_s2` 0.0005-3 (log), `slope` -2-3, `highest_order` {5, 10, 20, 30} | `shaft_lines` orders 3..highest: `harmonics_m_s2` (k / k_mid)^`slope`, k_mid the geometric mean order |
 //! | `subharmonics` | `half_order_m_s2` 0.0005-3 (log), `exponent` 0-6 (two speeds or more; else 2), `slope` -1-4 (searched from 4, so the 0.5x line is fitted first): the half-order lines of looseness or a rub, 0.5x at `half_order_m_s2`, order o at (2 o)^-`slope` of it, up to 3.5x (the highest half order the fractional view compares) | `subharmonics` at the highest measured speed, `highest_order` 3.5 |
-//! | `looseness_impacts` | `impact_m_s2` 0.01-300 (log, at the highest measured speed), `mode_hz` 300-0.4 fs (log, starting where the healthy recordings exceed the uncalibrated model most), `damping` 0.005-0.3 (log), `exponent` 0-6 (two speeds or more; else 2); searched twice over (the impact's size and its mode's frequency pull on each other): a loose housing landing once every two revolutions, each landing ringing one mode | `loose_impacts` at the highest measured speed |
+//! | `looseness_impacts` | `impact_m_s2` 0.01-300 (log, at the highest speed of the fit part's healthy recordings, where `floor` and `impacts` see it absolutely; else the highest measured speed), `mode_hz` 300-0.4 fs (log, starting where the healthy recordings exceed the uncalibrated model most), `damping` 0.005-0.3 (log), `exponent` 0-6 (two speeds or more; else 2); searched twice over (the impact's size and its mode's frequency pull on each other): a loose housing landing once every two revolutions, each landing ringing one mode | `loose_impacts` at that speed |
 //! | `noise` | `noise_rms_m_s2` 0.003-3 (log) | `structure.noise_rms_m_s2` |
 
 use super::half_orders;
@@ -55,6 +55,21 @@ pub const ALL: [Effect; 9] = [
     Effect::Noise,
 ];
 
+/// [`ALL`] with `looseness_impacts` (before `noise`): what a calibration searches with
+/// `rigmon calibrate --looseness-impacts` ([`super::fit::Options::looseness_impacts`]).
+pub const WITH_LOOSENESS_IMPACTS: [Effect; 10] = [
+    Effect::Slip,
+    Effect::ContactAngle,
+    Effect::Resonance,
+    Effect::Unbalance,
+    Effect::LineInterference,
+    Effect::SpeedFluctuation,
+    Effect::Looseness,
+    Effect::Subharmonics,
+    Effect::LoosenessImpacts,
+    Effect::Noise,
+];
+
 /// How a parameter is searched.
 #[derive(Debug, Clone, PartialEq)]
 pub enum Range {
@@ -87,6 +102,19 @@ pub struct Context {
     /// (where a loose joint's landings would ring), Hz: `looseness_impacts` starts its mode
     /// there.
     pub ringing_hz: Option<f64>,
+    /// The highest speed of the fit part's healthy recordings, rpm: the views that tell a
+    /// landing's absolute size (`floor`, `impacts`) are compared on healthy recordings only,
+    /// so `looseness_impacts` states its strength there (at another speed it is the speed
+    /// law's extrapolation); `None` when the fit part has no healthy recording.
+    pub healthy_fit_rpm: Option<f64>,
+}
+
+impl Context {
+    /// The speed `looseness_impacts` states its landing strength at ([`Self::healthy_fit_rpm`],
+    /// else the highest measured speed).
+    pub fn landing_rpm(&self) -> f64 {
+        self.healthy_fit_rpm.unwrap_or(self.max_rpm)
+    }
 }
 
 /// Bounds of `speed_fluctuation`'s `period_s`, s...
@@ -124,8 +152,8 @@ pub fn fluctuation_ranges(cx: &Context) -> ((f64, f64), (f64, f64)) {
     }
 }
 
-/// Bounds of `looseness_impacts`' `impact_m_s2` (the peak of one landing at the highest
-/// measured speed): two decades either side of the 1-10 m/s^2 a loose housing gives.
+/// Bounds of `looseness_impacts`' `impact_m_s2` (the peak of one landing at
+/// [`Context::landing_rpm`]): two decades either side of the 1-10 m/s^2 a loose housing gives.
 pub const IMPACT_M_S2: (f64, f64) = (0.01, 300.0);
 
 /// Bounds of `looseness_impacts`' `damping`: a bolted joint's mode rings with 0.5-30 %.
@@ -170,7 +198,7 @@ impl Effect {
             Effect::SpeedFluctuation => &[C::Speed, C::Lines],
             Effect::Looseness => &[C::Harmonics],
             Effect::Subharmonics => &[C::HalfOrders],
-            Effect::LoosenessImpacts => &[C::Impacts, C::HalfOrders, C::Bands, C::Modes],
+            Effect::LoosenessImpacts => &[C::Impacts, C::HalfOrders, C::Bands, C::Modes, C::Floor],
             Effect::Noise => &[C::Floor],
         }
     }
@@ -365,7 +393,7 @@ impl Effect {
             }
             Effect::LoosenessImpacts => {
                 s.loose_impacts = Some(LooseImpactsConfig {
-                    ref_rpm: cx.max_rpm,
+                    ref_rpm: cx.landing_rpm(),
                     exponent: values.get(3).copied().unwrap_or(DEFAULT_EXPONENT),
                     impact_m_s2: values[0],
                     mode_hz: values[1],

@@ -169,6 +169,9 @@ pub struct Options {
     /// [`ENGINE_CACHE_PER_OP`]; else that many), so a later round's search that revisits a
     /// section does not simulate it again.
     pub engine_cache_by_memory: bool,
+    /// Search `looseness_impacts` too ([`catalog::WITH_LOOSENESS_IMPACTS`]; else [`ALL`],
+    /// which leaves it out until issue 39 is done).
+    pub looseness_impacts: bool,
 }
 
 impl Default for Options {
@@ -181,6 +184,7 @@ impl Default for Options {
             skip_ruled_out: true,
             structure_apart: true,
             engine_cache_by_memory: true,
+            looseness_impacts: false,
         }
     }
 }
@@ -215,6 +219,7 @@ impl Options {
             skip_ruled_out: false,
             structure_apart: false,
             engine_cache_by_memory: false,
+            looseness_impacts: false,
         }
     }
 }
@@ -895,6 +900,11 @@ pub fn calibrate_with(
     let cx = catalog::Context {
         speed_line: speed_line::find(&fit_views),
         ringing_hz: ringing_hz(&fit_views, &base_views),
+        healthy_fit_rpm: fit
+            .iter()
+            .filter(|&&i| twin.measured[i].healthy)
+            .map(|&i| ops[i].rpm)
+            .reduce(f64::max),
         ..context(ops)
     };
     if let Some(l) = cx.speed_line {
@@ -915,6 +925,11 @@ pub fn calibrate_with(
         );
     }
     let before = twin.error(&base, &all)?;
+    let catalog: &[Effect] = if options.looseness_impacts {
+        &catalog::WITH_LOOSENESS_IMPACTS
+    } else {
+        &ALL
+    };
     let mut current = base.clone();
     let mut accepted: Vec<Trial> = Vec::new();
     let mut rounds = Vec::new();
@@ -924,7 +939,7 @@ pub fn calibrate_with(
         let cur_fit_parts = twin.error(&current, &fit)?;
         let cur_held_parts = twin.error(&current, &held)?;
         let cur_all = twin.error(&current, &all)?.total;
-        let (open, skipped): (Vec<Effect>, Vec<Effect>) = ALL
+        let (open, skipped): (Vec<Effect>, Vec<Effect>) = catalog
             .iter()
             .copied()
             .filter(|e| !accepted.iter().any(|t| t.effect == Some(*e)))
@@ -979,7 +994,7 @@ pub fn calibrate_with(
             }
             None => break,
         }
-        if accepted.len() == ALL.len() {
+        if accepted.len() == catalog.len() {
             break;
         }
     }
@@ -1030,6 +1045,7 @@ pub fn context(ops: &[Measured]) -> catalog::Context {
         several_speeds: several_speeds(&rpm),
         speed_line: None,
         ringing_hz: None,
+        healthy_fit_rpm: None,
     }
 }
 
