@@ -17,9 +17,6 @@
 //! with the phase reading ([`crate::dsp::speed_tracker::JointParts::phase`]) switched.
 
 use super::{abs, machine_line, BenchOptions};
-// the process's CPU time, not the calling thread's: the tracker searches its acquisition grid
-// on a second thread (issue 37), whose time counts too
-use crate::usage::process_cpu_s as cpu_s;
 use crate::analysis::{extract_recording, extract_with_speed};
 use crate::bearing::BearingGeometry;
 use crate::config::RigConfig;
@@ -28,6 +25,9 @@ use crate::dsp::speed_config::SpeedConfig;
 use crate::dsp::speed_tracker::{JointParts, SpeedTracker, TrackerSettings};
 use crate::dsp::SpeedTrack;
 use crate::recording::{Channel, Provenance, Recording};
+// the process's CPU time, not the calling thread's: the tracker searches its acquisition grid
+// on a second thread (issue 37), whose time counts too
+use crate::usage::process_cpu_s as cpu_s;
 use anyhow::{bail, Result};
 use std::path::Path;
 use std::time::Instant;
@@ -229,7 +229,7 @@ pub fn run(opts: &BenchOptions) -> Result<()> {
         return Ok(());
     }
     print_joint(&joint);
-    println!("bench speed: reading the shaft speed from the vibration (one thread per machine)");
+    println!("bench speed: reading the shaft speed from the vibration (one thread per machine; the tracker searches its acquisition grid on a second)");
     println!("{}", machine_line());
     for r in &rows {
         println!(

@@ -632,7 +632,8 @@ impl SpeedTracker {
             },
         };
         helper.mirror(self);
-        let (theirs, mine): (Vec<_>, Vec<_>) = grid.iter().enumerate().partition(|(i, _)| i % 2 == 0);
+        let (theirs, mine): (Vec<_>, Vec<_>) =
+            grid.iter().enumerate().partition(|(i, _)| i % 2 == 0);
         let (a, b) = std::thread::scope(|s| {
             let h = s.spawn(|| {
                 theirs
@@ -1311,7 +1312,10 @@ mod tests {
             out
         };
         let (one, two) = (read(false), read(true));
-        assert!(one.iter().flatten().any(|e| e.status == SpeedStatus::Tracking));
+        assert!(one
+            .iter()
+            .flatten()
+            .any(|e| e.status == SpeedStatus::Tracking));
         assert!(one.iter().flatten().any(|e| e.uncertain()));
         assert_eq!(one, two);
     }
