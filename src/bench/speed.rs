@@ -16,7 +16,7 @@
 //! point by point (the search before issue 37 item 4: the same speeds, the CPU ratio), and
 //! with the phase reading ([`crate::dsp::speed_tracker::JointParts::phase`]) switched.
 
-use super::{abs, machine_line, BenchOptions};
+use super::{abs, machine_line, thread_cpu_s, BenchOptions};
 use crate::analysis::{extract_recording, extract_with_speed};
 use crate::bearing::BearingGeometry;
 use crate::config::RigConfig;
@@ -25,9 +25,6 @@ use crate::dsp::speed_config::SpeedConfig;
 use crate::dsp::speed_tracker::{JointParts, SpeedTracker, TrackerSettings};
 use crate::dsp::SpeedTrack;
 use crate::recording::{Channel, Provenance, Recording};
-// the process's CPU time, not the calling thread's: the tracker searches its acquisition grid
-// on a second thread (issue 37), whose time counts too
-use crate::usage::process_cpu_s as cpu_s;
 use anyhow::{bail, Result};
 use std::path::Path;
 use std::time::Instant;
@@ -154,14 +151,14 @@ fn measure(m: &Machine, seconds: f64) -> Result<Measured> {
         max_rpm: m.max_rpm,
         check_within_percent: 10.0,
     };
-    let cpu = cpu_s();
+    let cpu = thread_cpu_s();
     let t0 = Instant::now();
     let tracked = extract_recording(&rec, &rig)?;
-    let estimate_cpu_s = cpu_s() - cpu;
+    let estimate_cpu_s = thread_cpu_s() - cpu;
     let wall_estimate = t0.elapsed().as_secs_f64();
-    let cpu = cpu_s();
+    let cpu = thread_cpu_s();
     let given = extract_with_speed(&rec, &rig, &truth)?;
-    let given_cpu_s = cpu_s() - cpu;
+    let given_cpu_s = thread_cpu_s() - cpu;
     if tracked.len() != given.len() || tracked.is_empty() {
         bail!(
             "{}: {} windows with the tracker, {} with the true speed",
@@ -198,8 +195,7 @@ fn measure(m: &Machine, seconds: f64) -> Result<Measured> {
 
 pub fn run(opts: &BenchOptions) -> Result<()> {
     let seconds = opts.seconds.max(10.0);
-    // the analysis runs on the calling thread (the tracker's acquisition grid half on a
-    // second), timed by the process's CPU clock
+    // one thread: the analysis runs on the calling thread, timed by its own CPU clock
     let mut rows = Vec::new();
     for m in &MACHINES {
         let r = measure(m, seconds)?;
@@ -229,7 +225,7 @@ pub fn run(opts: &BenchOptions) -> Result<()> {
         return Ok(());
     }
     print_joint(&joint);
-    println!("bench speed: reading the shaft speed from the vibration (one thread per machine; the tracker searches its acquisition grid on a second)");
+    println!("bench speed: reading the shaft speed from the vibration (one thread per machine)");
     println!("{}", machine_line());
     for r in &rows {
         println!(
@@ -345,7 +341,7 @@ fn joint_run(c: &JointCase, x: &[f32], fs: f64, how: Reading) -> Result<(f64, f6
     tr.set_exhaustive(how.exhaustive);
     let hop = (fs / 2.0) as usize;
     let mut errs = Vec::new();
-    let cpu = cpu_s();
+    let cpu = thread_cpu_s();
     for (k, chunk) in x.chunks(hop).enumerate() {
         tr.push((k * hop) as u64, chunk);
         let t = ((k + 1) * hop) as f64 / fs;
@@ -357,7 +353,7 @@ fn joint_run(c: &JointCase, x: &[f32], fs: f64, how: Reading) -> Result<(f64, f6
             errs.push((e.track.mean_rpm(t - 1.0, t) / truth - 1.0).abs());
         }
     }
-    let cpu = cpu_s() - cpu;
+    let cpu = thread_cpu_s() - cpu;
     if errs.is_empty() {
         bail!("{}: no window after the tracker's history", c.0);
     }

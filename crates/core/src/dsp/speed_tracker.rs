@@ -221,13 +221,6 @@ pub struct SpeedTracker {
     /// The joint reading's parts (a lone 1x line counts, speeds read from the harmonics' own
     /// peaks, a comb may be a bearing's train: [`super::speed_comb`]).
     joint: JointParts,
-    /// What the tracker was made with (for its [`Self::helper`]).
-    settings: TrackerSettings,
-    /// Search half of the acquisition's trend grid on a second thread ([`Self::search_grid`]).
-    parallel: bool,
-    /// The tracker that searches that half: a copy of this one's history and line, its own
-    /// buffers (made at the first grid search).
-    helper: Option<Box<SpeedTracker>>,
 }
 
 /// The parts of the joint reading (issue 34), each switchable for measuring one against the
@@ -338,19 +331,7 @@ impl SpeedTracker {
             env_span: None,
             recent_spec: Whitened::default(),
             joint: JointParts::default_on(),
-            settings,
-            parallel: std::thread::available_parallelism().is_ok_and(|n| n.get() > 1),
-            helper: None,
         })
-    }
-
-    /// Search the acquisition's trend grid on two threads (`true`, the default on a machine
-    /// with more than one core) or on the calling thread alone. The speeds are the same
-    /// either way (the grid's candidates are compared in the same order); two threads halve
-    /// the latency of a window that acquires (issue 37: such windows were the daemon's
-    /// slowest), not its CPU time.
-    pub fn set_parallel(&mut self, on: bool) {
-        self.parallel = on;
     }
 
     /// Switch the joint reading on (the default) or off (the reading before issue 34: the
@@ -594,77 +575,19 @@ impl SpeedTracker {
         if best.confidence() >= MIN_CONFIDENCE {
             return best;
         }
-        let fs_d = self.fs_d;
-        let fmax = self.fmax;
-        let grid: Vec<(usize, f64)> = [1, 2, 4]
-            .into_iter()
-            .map(|part| n / part)
-            .take_while(|&m| (m as f64 / fs_d) * fmax >= MIN_REVS)
-            .flat_map(|m| ACQUIRE_TRENDS.map(|r| (m, r)))
-            .collect();
-        for c in self.search_grid(last, &grid) {
-            if (c.confidence(), c.score) > (best.confidence(), best.score) {
-                best = c;
+        for part in [1, 2, 4] {
+            let m = n / part;
+            if (m as f64 / self.fs_d) * self.fmax < MIN_REVS {
+                break;
+            }
+            for r in ACQUIRE_TRENDS {
+                let c = self.search(last - m, last, r);
+                if (c.confidence(), c.score) > (best.confidence(), best.score) {
+                    best = c;
+                }
             }
         }
         best
-    }
-
-    /// The candidates of the spans `hist[last - m..last]` warped along `r`, for each `(m, r)`
-    /// of `grid`, in its order: every other one searched by the [`Self::helper`] on a second
-    /// thread when [`Self::set_parallel`] is on (each search reads only the history, the line
-    /// followed and the settings, which the helper copies).
-    fn search_grid(&mut self, last: usize, grid: &[(usize, f64)]) -> Vec<Candidate> {
-        if !self.parallel || grid.len() < 2 {
-            return grid
-                .iter()
-                .map(|&(m, r)| self.search(last - m, last, r))
-                .collect();
-        }
-        let mut helper = match self.helper.take() {
-            Some(h) => h,
-            None => match SpeedTracker::new(self.settings, self.fs) {
-                Ok(h) => Box::new(h),
-                Err(_) => {
-                    self.parallel = false;
-                    return self.search_grid(last, grid);
-                }
-            },
-        };
-        helper.mirror(self);
-        let (theirs, mine): (Vec<_>, Vec<_>) =
-            grid.iter().enumerate().partition(|(i, _)| i % 2 == 0);
-        let (a, b) = std::thread::scope(|s| {
-            let h = s.spawn(|| {
-                theirs
-                    .iter()
-                    .map(|&(_, &(m, r))| helper.search(last - m, last, r))
-                    .collect::<Vec<_>>()
-            });
-            let b: Vec<Candidate> = mine
-                .iter()
-                .map(|&(_, &(m, r))| self.search(last - m, last, r))
-                .collect();
-            (h.join().expect("the speed search thread panicked"), b)
-        });
-        self.helper = Some(helper);
-        // back into the grid's order: even indices from the helper, odd ones from here
-        let (mut a, mut b) = (a.into_iter(), b.into_iter());
-        (0..grid.len())
-            .filter_map(|i| if i % 2 == 0 { a.next() } else { b.next() })
-            .collect()
-    }
-
-    /// Take `from`'s history, clock, line and reading switches (what a search reads), and
-    /// its envelope spectrum where it has one for the current history.
-    fn mirror(&mut self, from: &SpeedTracker) {
-        self.hist.clone_from(&from.hist);
-        self.env_hist.clone_from(&from.env_hist);
-        (self.origin, self.next, self.newest) = (from.origin, from.next, from.newest);
-        (self.lock, self.joint) = (from.lock, from.joint);
-        (self.spec.scan, self.spec.lone) = (from.spec.scan, from.spec.lone);
-        self.env_spec.clone_from(&from.env_spec);
-        self.env_span = from.env_span;
     }
 
     /// The best line of the history `hist[first..last]`, warped along relative trend `r`:
@@ -1271,53 +1194,6 @@ mod tests {
             b.push((k * 97) as u64, c);
         }
         assert_eq!(a.estimate().unwrap(), b.estimate().unwrap());
-    }
-
-    /// The acquisition's trend grid searched on two threads reads what one thread reads,
-    /// window by window (a run-up acquired from the start, and noise, which acquires in
-    /// every window), with the bearing's families on.
-    #[test]
-    fn two_threads_read_what_one_reads() {
-        let fs = 5_000.0;
-        let law = |t: f64| (300.0 + 75.0 * t) / 60.0;
-        let mut x = shaft(fs, 6.0, law, 5);
-        let mut s = 3u64;
-        x.extend((0..(fs * 3.0) as usize).map(|_| {
-            s = s
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            ((s >> 11) as f64 / (1u64 << 53) as f64 - 0.5) as f32
-        }));
-        let settings = TrackerSettings {
-            families: Some(FamilySettings {
-                orders: crate::bearing::BearingGeometry {
-                    balls: 9,
-                    ball_diameter_mm: 7.94,
-                    pitch_diameter_mm: 39.04,
-                    contact_angle_deg: 0.0,
-                }
-                .fault_orders(),
-                band_top_hz: 2_000.0,
-            }),
-            ..range(250.0, 2000.0)
-        };
-        let read = |parallel: bool| {
-            let mut tr = SpeedTracker::new(settings, fs).unwrap();
-            tr.set_parallel(parallel);
-            let mut out = Vec::new();
-            for (k, c) in x.chunks(2_500).enumerate() {
-                tr.push((k * 2_500) as u64, c);
-                out.push(tr.estimate().ok());
-            }
-            out
-        };
-        let (one, two) = (read(false), read(true));
-        assert!(one
-            .iter()
-            .flatten()
-            .any(|e| e.status == SpeedStatus::Tracking));
-        assert!(one.iter().flatten().any(|e| e.uncertain()));
-        assert_eq!(one, two);
     }
 
     #[test]
