@@ -430,6 +430,20 @@ pub fn run(points: usize, streams: usize, seconds: f64, json: bool) -> Result<()
         streams,
     };
     let report = report(points, seconds, base_rate, &m, in_db, miss, &last, &fleet);
+    if report.lost_unaccounted > 0 {
+        // the failure: keep the historian's log and last status for whoever looks into it
+        let keep = std::env::current_dir()?.join(format!("{tag}-historian.log"));
+        std::fs::copy(dir.path().join("historian.log"), &keep)
+            .with_context(|| format!("keeping the historian's log as {}", keep.display()))?;
+        std::fs::write(
+            keep.with_extension("status.json"),
+            serde_json::to_vec_pretty(&last)?,
+        )?;
+        eprintln!(
+            "windows went missing unaccounted: the historian's log is kept as {} (and its last status beside it)",
+            keep.display()
+        );
+    }
     drop(fleet);
     let _ = publisher.close().wait();
     let _ = router.close().wait();
