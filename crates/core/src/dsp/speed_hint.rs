@@ -27,7 +27,10 @@
 
 use super::fault_family::{FamilyEvidence, FamilySettings};
 use super::harmonic_sum::{Whitened, LONE_ALLOW};
-use super::speed_tracker::SCORE_CLEAR;
+
+/// Harmonic prominence of a clear line: the tracker's confidence scale reads 1 from here (the
+/// stored-speed check's threshold: 2.6-5.2 on every CWRU record).
+pub const SCORE_CLEAR: f64 = 2.0;
 
 /// The octave of the hint band's line that the vibration shows instead.
 #[derive(Debug, Clone, Copy, PartialEq)]

@@ -49,7 +49,7 @@ use super::fault_family::{EnvelopeFeed, FamilyEvidence, FamilySettings};
 use super::harmonic_sum::{fundamental, on_mains_harmonic, Whitened, Whitener, HARMONICS};
 use super::speed::SpeedTrack;
 use super::speed_comb::{best_own, comb_spans, train_present, unexplained};
-use super::speed_hint::{octave_off_hint, OffHint};
+use super::speed_hint::{octave_off_hint, OffHint, SCORE_CLEAR};
 use super::speed_phase::{self, PhaseFit};
 use crate::vocabulary::SpeedSourceKind;
 use anyhow::{bail, Result};
@@ -60,10 +60,9 @@ pub const HISTORY_REVS: f64 = 20.0;
 const MIN_REVS: f64 = 8.0;
 /// Revolutions at which a clear line counts as fully resolved.
 const FULL_REVS: f64 = 16.0;
-/// Harmonic prominence of noise (about 0.5, the best of many candidates) and of a clear line
-/// (the stored-speed check's threshold: 2.6-5.2 on every CWRU record).
+/// Harmonic prominence of noise (about 0.5, the best of many candidates); a clear line's is
+/// [`SCORE_CLEAR`].
 const SCORE_NOISE: f64 = 1.0;
-pub(super) const SCORE_CLEAR: f64 = 2.0;
 /// Mean prominence of the lines only one of two octave-related speeds predicts above which
 /// that speed stays a rival (noise, searched as the octave guard searches, reads 0.3-0.5).
 const RIVAL_SUPPORT: f64 = 0.7;
