@@ -39,4 +39,5 @@ mod snapshots;
 mod speed_cues;
 mod speed_cwru;
 mod speed_free;
+mod speed_hint;
 mod speed_joint;

@@ -14,6 +14,6 @@ pub mod velocity;
 pub mod windows;
 
 pub use recording::{analyze_recording, extract_recording, extract_with_speed};
-pub use speed_source::{whole_recording, SpeedSource};
+pub use speed_source::{whole_recording, whole_recording_checked, HintContradiction, SpeedSource};
 pub use stage::{AnalysisStage, WindowAnalysis, WindowError};
 pub use windows::{WindowSpec, WindowView, Windower};

@@ -14,7 +14,9 @@
 //! state goes `unknown` instead of raising a false alarm). The rig's bearing goes to the
 //! tracker too ([`SpeedSource::with_fault_families`], applied by the analysis stage and by
 //! [`whole_recording`]): its fault families in the envelope settle the octave where the shaft
-//! lines leave it open.
+//! lines leave it open. A stated speed is a prior, not the truth: where the vibration clearly
+//! turns at the octave above or below it, the vibration's speed is used, and a whole
+//! recording says so once ([`HintContradiction`], [`whole_recording_checked`]).
 
 use super::windows::WindowView;
 use crate::config::RigConfig;
@@ -56,6 +58,51 @@ enum Mode {
         pulses_per_rev: u32,
         settings: TrackerSettings,
     },
+}
+
+/// A recording whose windows contradict the speed stated for it (a manifest's `rpm`, a
+/// `[speed] fixed` rpm): in those windows the vibration clearly turns at another octave, and
+/// its speed is used ([`SpeedStatus::OffHint`]).
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct HintContradiction {
+    /// The stated speed, rpm.
+    pub stated_rpm: f64,
+    /// The vibration's speed in the windows that contradict it (their median), rpm.
+    pub vibration_rpm: f64,
+    /// Windows whose vibration contradicts the stated speed.
+    pub windows: usize,
+    /// Windows with a speed.
+    pub of: usize,
+}
+
+impl HintContradiction {
+    /// Tally the windows' speeds against `stated_rpm`: None when no window contradicts it.
+    pub fn tally(stated_rpm: f64, windows: &[TrackedSpeed]) -> Option<HintContradiction> {
+        let mut off: Vec<f64> = windows
+            .iter()
+            .filter(|w| w.status == SpeedStatus::OffHint)
+            .map(|w| w.rpm)
+            .collect();
+        if off.is_empty() {
+            return None;
+        }
+        off.sort_by(f64::total_cmp);
+        Some(HintContradiction {
+            stated_rpm,
+            vibration_rpm: off[off.len() / 2],
+            windows: off.len(),
+            of: windows.len(),
+        })
+    }
+
+    /// What the user reads after the recording's name: "rpm 600, the vibration turns at
+    /// 1184 rpm in 9 of 9 windows: the vibration is used; check the label".
+    pub fn message(&self) -> String {
+        format!(
+            "rpm {:.0}, the vibration turns at {:.0} rpm in {} of {} windows: the vibration is used; check the label",
+            self.stated_rpm, self.vibration_rpm, self.windows, self.of
+        )
+    }
 }
 
 /// The tracker settings for a range and an optional hint (`within` in per cent; 0 = no check).
@@ -460,9 +507,18 @@ fn check_tacho(mode: &Mode, rec: &Recording) -> Result<()> {
 /// are the ones the windows get ([`SpeedSource::track`], every hop), joined into one track.
 /// For whole-recording analyses; features use [`SpeedSource::track`] window by window.
 pub fn whole_recording(rec: &Recording, rig: &RigConfig) -> Result<SpeedTrack> {
+    whole_recording_checked(rec, rig).map(|(track, _)| track)
+}
+
+/// As [`whole_recording`], with the windows that contradict the recording's stated speed
+/// (None: none do, or the speed is not read from the vibration with a hint).
+pub fn whole_recording_checked(
+    rec: &Recording,
+    rig: &RigConfig,
+) -> Result<(SpeedTrack, Option<HintContradiction>)> {
     let mode = Mode::new(&rig.speed, rec.rpm, nominal_rpm(rec))?;
     if let Some(track) = simulator_speed(&mode, rec) {
-        return track;
+        return Ok((track?, None));
     }
     let from_tacho = |tacho: &Tacho, ppr: u32| -> Result<SpeedTrack> {
         match tacho {
@@ -479,9 +535,9 @@ pub fn whole_recording(rec: &Recording, rig: &RigConfig) -> Result<SpeedTrack> {
         Mode::Edges { pulses_per_rev, .. } => {
             check_tacho(&mode, rec)?;
             let t = rec.tacho.as_ref().context("no tacho")?;
-            from_tacho(t, *pulses_per_rev)
+            Ok((from_tacho(t, *pulses_per_rev)?, None))
         }
-        Mode::Constant(t) => Ok(t.clone()),
+        Mode::Constant(t) => Ok((t.clone(), None)),
         Mode::Tracked {
             settings,
             hint_source,
@@ -490,7 +546,7 @@ pub fn whole_recording(rec: &Recording, rig: &RigConfig) -> Result<SpeedTrack> {
             pulses_per_rev,
             settings,
         } => match &rec.tacho {
-            Some(t) => from_tacho(t, *pulses_per_rev),
+            Some(t) => Ok((from_tacho(t, *pulses_per_rev)?, None)),
             None => tracked_whole(rec, rig, *settings, SpeedSourceKind::Recording),
         },
     }
@@ -498,13 +554,14 @@ pub fn whole_recording(rec: &Recording, rig: &RigConfig) -> Result<SpeedTrack> {
 
 /// The vibration tracker run over a whole recording as the windows would run it (fed up to
 /// every window end), its confident speeds joined into one track: constant when they all lie
-/// within 1 % of their median, else a profile through them.
+/// within 1 % of their median, else a profile through them; with the windows that contradict
+/// the hint.
 fn tracked_whole(
     rec: &Recording,
     rig: &RigConfig,
     settings: TrackerSettings,
     hint_source: SpeedSourceKind,
-) -> Result<SpeedTrack> {
+) -> Result<(SpeedTrack, Option<HintContradiction>)> {
     check_length(
         &Mode::Tracked {
             settings,
@@ -526,7 +583,7 @@ fn tracked_whole(
     let window = (rig.features.window_s * fs).round() as usize;
     let hop = ((rig.features.hop_s * fs).round() as usize).max(1);
     let x = &ch.samples;
-    let (mut ts, mut hz) = (Vec::new(), Vec::new());
+    let (mut ts, mut hz, mut all) = (Vec::new(), Vec::new(), Vec::new());
     let mut fed = 0;
     let mut end = window.min(x.len());
     let mut hinted = 0usize;
@@ -541,6 +598,7 @@ fn tracked_whole(
                 ts.push(end as f64 / fs);
                 hz.push(t.rpm / 60.0);
             }
+            all.push(t);
         }
         end += hop;
     }
@@ -559,13 +617,16 @@ fn tracked_whole(
     } else {
         SpeedSourceKind::Estimate
     };
+    let against = settings
+        .hint
+        .and_then(|h| HintContradiction::tally(h.rpm, &all));
     let mut sorted = hz.clone();
     sorted.sort_by(f64::total_cmp);
     let med = sorted[sorted.len() / 2];
     if hz.iter().all(|f| (f / med - 1.0).abs() < 0.01) {
-        return SpeedTrack::constant(med * 60.0, source);
+        return Ok((SpeedTrack::constant(med * 60.0, source)?, against));
     }
-    SpeedTrack::from_profile(&ts, &hz, source)
+    Ok((SpeedTrack::from_profile(&ts, &hz, source)?, against))
 }
 
 /// The switching levels of an analog tacho: the rig file's threshold and hysteresis, else

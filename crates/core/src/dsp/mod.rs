@@ -30,6 +30,7 @@ pub mod speed;
 pub(crate) mod speed_comb;
 pub mod speed_config;
 pub mod speed_estimate;
+pub(crate) mod speed_hint;
 pub(crate) mod speed_phase;
 pub mod speed_tracker;
 pub(crate) mod stored_speed;

@@ -35,7 +35,10 @@
 //!   measured but off by default (`JointParts::default_on`; docs/speed.md says why).
 //!
 //! A hint (a fixed or nominal speed) narrows the search to a band around it and is used
-//! itself when the vibration shows no clear line there.
+//! itself when the vibration shows no clear line there; it is a prior, not the truth: where
+//! the spectrum clearly shows the shaft at the octave below the band's line, inside
+//! the rig's range, the vibration's speed is used and the window says so
+//! ([`SpeedStatus::OffHint`], [`super::speed_hint`]).
 //!
 //! The input is the stream's samples in order; a discontinuity (a gap or restart of the
 //! sample clock) restarts the history. Given the same samples, the result does not depend on
@@ -46,6 +49,7 @@ use super::fault_family::{EnvelopeFeed, FamilyEvidence, FamilySettings};
 use super::harmonic_sum::{fundamental, on_mains_harmonic, Whitened, Whitener, HARMONICS};
 use super::speed::SpeedTrack;
 use super::speed_comb::{best_own, comb_spans, train_present, unexplained};
+use super::speed_hint::{octave_off_hint, OffHint, SCORE_CLEAR};
 use super::speed_phase::{self, PhaseFit};
 use crate::vocabulary::SpeedSourceKind;
 use anyhow::{bail, Result};
@@ -56,10 +60,9 @@ pub const HISTORY_REVS: f64 = 20.0;
 const MIN_REVS: f64 = 8.0;
 /// Revolutions at which a clear line counts as fully resolved.
 const FULL_REVS: f64 = 16.0;
-/// Harmonic prominence of noise (about 0.5, the best of many candidates) and of a clear line
-/// (the stored-speed check's threshold: 2.6-5.2 on every CWRU record).
+/// Harmonic prominence of noise (about 0.5, the best of many candidates); a clear line's is
+/// [`SCORE_CLEAR`].
 const SCORE_NOISE: f64 = 1.0;
-const SCORE_CLEAR: f64 = 2.0;
 /// Mean prominence of the lines only one of two octave-related speeds predicts above which
 /// that speed stays a rival (noise, searched as the octave guard searches, reads 0.3-0.5).
 const RIVAL_SUPPORT: f64 = 0.7;
@@ -144,6 +147,9 @@ pub enum SpeedStatus {
     Jumped,
     /// The hint's own speed is used (no clear line near it).
     Hint,
+    /// The vibration clearly turns at the octave above or below the hint's band: its speed
+    /// is used, and the hint (a name, a label) is contradicted.
+    OffHint,
 }
 
 /// The speed of one window.
@@ -187,6 +193,10 @@ pub struct SpeedTracker {
     fmin: f64,
     fmax: f64,
     hint: Option<SpeedHint>,
+    /// The rig's whole range (Hz), where a hint's octave may lie.
+    range: (f64, f64),
+    /// The last window saw the hint's octave ([`super::speed_hint`]).
+    off_seen: bool,
     decimator: Decimator,
     fs_d: f64,
     /// Decimated history, oldest first; `cap` samples are kept.
@@ -296,6 +306,8 @@ impl SpeedTracker {
             fmin,
             fmax,
             hint: settings.hint,
+            range: (settings.min_rpm / 60.0, settings.max_rpm / 60.0),
+            off_seen: false,
             decimator: Decimator::new(factor, KEEP),
             fs_d,
             hist: Vec::with_capacity(2 * cap),
@@ -385,6 +397,7 @@ impl SpeedTracker {
         self.lock = None;
         self.pending = None;
         self.misses = 0;
+        self.off_seen = false;
     }
 
     /// Add the samples `x` that start at stream-clock sample `first`; a jump in the clock
@@ -447,6 +460,21 @@ impl SpeedTracker {
             best.followed = best.followed || self.near_lock(best.hz);
         }
         let mut e = self.decide(best, t_end);
+        // the octave is taken once it is seen in two windows in a row, as any jump is
+        let off = best.off_hint.filter(|_| best.recent);
+        let seen_before = std::mem::replace(&mut self.off_seen, off.is_some());
+        if let Some(alt) = off.filter(|_| seen_before) {
+            // the lock stays on the band's line; the window gets the vibration's speed
+            (e.rpm, e.status, e.rival_rpm) = (alt.hz * 60.0, SpeedStatus::OffHint, None);
+            e.confidence = Candidate {
+                hz: alt.hz,
+                score: alt.score,
+                ..best
+            }
+            .confidence();
+            e.track = track_along(alt.hz, best.trend, t_end, best.span);
+            return Ok(e);
+        }
         if let Some(p) = phase.filter(|_| e.status == SpeedStatus::Tracking) {
             self.apply_phase(&mut e, &p, t_end);
         }
@@ -624,6 +652,7 @@ impl SpeedTracker {
             held: None,
             recent: true,
             phase: false,
+            off_hint: None,
         };
         if let Some(lock) = self.lock {
             let t = self.t_newest();
@@ -647,6 +676,7 @@ impl SpeedTracker {
         c.hz = self.refine(c.hz);
         c.rival = self.rival(c.hz);
         self.settle_by_family(&mut c, (first, last), lo);
+        c.off_hint = self.off_hint(c.hz, c.score);
         // half this speed is in the rig's range but not yet resolvable in this span
         c.unresolved = lo > self.fmin && c.hz / 2.0 >= self.fmin && c.hz / 2.0 < lo;
         c
@@ -841,7 +871,7 @@ impl SpeedTracker {
                     },
                 });
             }
-            SpeedStatus::Jumped => {}
+            SpeedStatus::Jumped | SpeedStatus::OffHint => {}
             // not yet sure: follow the best guess, without a trend
             SpeedStatus::Acquiring | SpeedStatus::Unclear => {
                 if !following {
@@ -945,6 +975,30 @@ impl SpeedTracker {
         (held, true)
     }
 
+    /// With a hint, the octave of the band's line `hz` that the spectrum clearly shows
+    /// instead, inside the rig's range ([`octave_off_hint`]; the fault families, where the
+    /// envelope of this span was taken, may keep `hz`).
+    fn off_hint(&self, hz: f64, score: f64) -> Option<OffHint> {
+        self.hint?;
+        let top = KEEP * self.fs_d / 2.0;
+        let families = self
+            .families
+            .as_ref()
+            .filter(|_| self.env_span.is_some())
+            .map(|f| (f, &self.env_spec, top));
+        let alt = octave_off_hint(&self.spec, hz, score, self.range, families)?;
+        // read from the octave's own peaks, as every speed is (its 1x line first: the band's
+        // line may sit a per cent or two from half or twice it)
+        let near = self.spec.peak_near(alt.hz, 0.025 * alt.hz);
+        let f = self.refine(near.map_or(alt.hz, |(f, _)| f));
+        let hz = if (f / alt.hz - 1.0).abs() < 0.025 {
+            f
+        } else {
+            alt.hz
+        };
+        Some(OffHint { hz, ..alt })
+    }
+
     /// Half or twice `hz` when the spectrum supports it nearly as well: for half, the odd
     /// harmonics of hz / 2 (the lines it would add) stand out; for twice, the odd harmonics
     /// of `hz` (the lines that rule out 2 hz) do not.
@@ -987,6 +1041,8 @@ struct Candidate {
     /// The harmonics' phase follows the line through the history and the newest second
     /// ([`super::speed_phase`]): a line, however low its prominence.
     phase: bool,
+    /// With a hint: the octave the vibration clearly shows instead ([`super::speed_hint`]).
+    off_hint: Option<OffHint>,
 }
 
 impl Candidate {
@@ -1226,6 +1282,7 @@ mod tests {
             held: Some((20.0, 3.0)),
             recent: true,
             phase: false,
+            off_hint: None,
         }
     }
 

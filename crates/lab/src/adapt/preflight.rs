@@ -12,6 +12,11 @@
 //! are unknown), its windows' kurtosis joins the machine's speed-free healthy baseline, the
 //! plan takes its speeds from the other recordings, and a warning says so. A faulty
 //! recording, or a machine none of whose recordings gives a speed, is still refused.
+//!
+//! A row's `rpm` is a prior, not the truth (issue 34 item 3): where the vibration clearly
+//! turns at the octave above or below it, the vibration's speed is used, and a warning names
+//! the row ("labels.csv line 4, column rpm: rpm 600, the vibration turns at 1184 rpm in 9 of
+//! 9 windows: the vibration is used; check the label"), kept in the report's warnings.
 
 use super::plan::{self, MeasuredRange};
 use super::AdaptOptions;
@@ -90,7 +95,8 @@ fn labelled_set(manifest: &Path, rig: &RigConfig, what: &str) -> Result<Labelled
 }
 
 /// Load a measured row over its span and read its mean speed as the analysis stage does
-/// ([`measured::mean_rpm`], the rig's speed source over the whole piece) from the first
+/// (the rig's speed source over the whole piece, as [`measured::mean_rpm`] reads it, with the
+/// windows that contradict the row's `rpm`: a warning in `warnings`) from the first
 /// `seconds` of it, as calibration reads it. When the speed source reads no speed from so
 /// little signal (an estimate needs a few revolutions at the rig's lowest speed), the piece
 /// is doubled, up to the whole span, until it does. Returns the speed, the seconds it
@@ -100,6 +106,7 @@ fn measured_speed(
     e: &ManifestEntry,
     rig: &RigConfig,
     seconds: f64,
+    warnings: &mut Vec<String>,
 ) -> Result<(f64, f64, Recording)> {
     let mut rec = crate::importers::load(&e.path, rig, &e.import_options())
         .with_context(|| format!("loading {}", e.path.display()))?;
@@ -110,12 +117,24 @@ fn measured_speed(
     loop {
         let mut piece = rec.clone();
         measured::cut(&mut piece, 0.0, s);
-        let read = measured::mean_rpm(&piece, rig).and_then(|rpm| {
+        let read = crate::analysis::whole_recording_checked(&piece, rig).and_then(|(t, c)| {
+            let rpm = t.mean_rpm(0.0, piece.duration_s());
             anyhow::ensure!(rpm.is_finite() && rpm > 0.0, "its speed reads {rpm} rpm");
-            Ok(rpm)
+            Ok((rpm, c))
         });
         match read {
-            Ok(rpm) => return Ok((rpm, s, rec)),
+            Ok((rpm, against)) => {
+                if let Some(c) = against {
+                    let w = match &e.nominal_rpm {
+                        Some((_, at)) => format!("{at}: {}", c.message()),
+                        None => format!("{}: {}", e.display_name(), c.message()),
+                    };
+                    tracing::warn!("{w}");
+                    eprintln!("warning: {w}");
+                    warnings.push(w);
+                }
+                return Ok((rpm, s, rec));
+            }
             Err(err) if s >= whole => {
                 return Err(err).with_context(|| {
                     format!(
@@ -229,7 +248,7 @@ fn speeds<'a>(
     let (mut loaded, mut speed_free, mut warnings) = (Vec::new(), Vec::new(), Vec::new());
     let mut first_error = None;
     for (e, scored) in measured.entries.iter().zip(&measured.scored) {
-        match measured_speed(e, rig, seconds) {
+        match measured_speed(e, rig, seconds, &mut warnings) {
             Ok(x) => loaded.push((e, x)),
             Err(err) if Condition::is_healthy(&e.label) => {
                 let kurtosis: Vec<f32> = scored
