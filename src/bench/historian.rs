@@ -391,25 +391,13 @@ pub fn run(points: usize, streams: usize, seconds: f64, json: bool) -> Result<()
     let at_end =
         database::block_on(async { count_rows(&target.connect().await?, &tag, ticks).await })??;
     let published = ticks * points as u64;
-    // late is allowed, lost is not: wait while the historian still moves (the wait ends 3 s
-    // past the tail silence after it stops), however long its backlog and its asks take
-    // (up to an hour, or sixty times the publishing time), so that every window ends in the
-    // database or in its loss ledger; the tail is published meanwhile, so the first count
-    // comes 0.2 s after the end, not after it
     let limit = Duration::from_secs_f64((seconds * 60.0).max(3600.0));
-    let (tail, catch_up) = std::thread::scope(|sc| {
-        let tail = sc.spawn(|| fleet.publish(t0, ticks + 1, ticks + TAIL_TICKS));
-        let catch_up = database::block_on(wait_caught_up(
-            &target,
-            &tag,
-            (ticks, published, t0_s),
-            &status_sub,
-            (end, limit),
-        ));
-        (tail.join(), catch_up)
-    });
-    tail.map_err(|_| anyhow!("the bench's tail publisher panicked"))??;
-    let catch_up = catch_up??;
+    let catch_up = tail_and_wait(
+        &mut fleet,
+        (&target, &tag, &status_sub),
+        (ticks, published),
+        (t0, t0_s, end, limit),
+    )?;
     let last = stop_historian(guard)?;
     let (in_db, miss) = database::block_on(async {
         let c = target.connect().await?;
@@ -431,23 +419,55 @@ pub fn run(points: usize, streams: usize, seconds: f64, json: bool) -> Result<()
     };
     let report = report(points, seconds, base_rate, &m, in_db, miss, &last, &fleet);
     if report.lost_unaccounted > 0 {
-        // the failure: keep the historian's log and last status for whoever looks into it
-        let keep = std::env::current_dir()?.join(format!("{tag}-historian.log"));
-        std::fs::copy(dir.path().join("historian.log"), &keep)
-            .with_context(|| format!("keeping the historian's log as {}", keep.display()))?;
-        std::fs::write(
-            keep.with_extension("status.json"),
-            serde_json::to_vec_pretty(&last)?,
-        )?;
-        eprintln!(
-            "windows went missing unaccounted: the historian's log is kept as {} (and its last status beside it)",
-            keep.display()
-        );
+        keep_evidence(dir.path(), &tag, &last)?;
     }
     drop(fleet);
     let _ = publisher.close().wait();
     let _ = router.close().wait();
     print(&report, json)
+}
+
+/// Publish the tail ticks while waiting for the historian to catch up. Late is allowed, lost
+/// is not: the wait goes on while the historian still moves (it ends 3 s past the tail
+/// silence after it stops), however long its backlog and its asks take (up to `limit`), so
+/// that every window ends in the database or in its loss ledger; the tail is published
+/// meanwhile, so the first count comes 0.2 s after the end, not after it.
+fn tail_and_wait(
+    fleet: &mut Fleet,
+    (target, tag, status_sub): (&Target, &str, &StatusSub),
+    (ticks, published): (u64, u64),
+    (t0, t0_s, end, limit): (Instant, f64, Instant, Duration),
+) -> Result<CatchUp> {
+    let (tail, catch_up) = std::thread::scope(|sc| {
+        let tail = sc.spawn(|| fleet.publish(t0, ticks + 1, ticks + TAIL_TICKS));
+        let catch_up = database::block_on(wait_caught_up(
+            target,
+            tag,
+            (ticks, published, t0_s),
+            status_sub,
+            (end, limit),
+        ));
+        (tail.join(), catch_up)
+    });
+    tail.map_err(|_| anyhow!("the bench's tail publisher panicked"))??;
+    catch_up?
+}
+
+/// Windows went missing unaccounted (the failure): keep the historian's log and last status
+/// in the current folder for whoever looks into it.
+fn keep_evidence(dir: &std::path::Path, tag: &str, last: &HistorianStatus) -> Result<()> {
+    let keep = std::env::current_dir()?.join(format!("{tag}-historian.log"));
+    std::fs::copy(dir.join("historian.log"), &keep)
+        .with_context(|| format!("keeping the historian's log as {}", keep.display()))?;
+    std::fs::write(
+        keep.with_extension("status.json"),
+        serde_json::to_vec_pretty(last)?,
+    )?;
+    eprintln!(
+        "windows went missing unaccounted: the historian's log is kept as {} (and its last status beside it)",
+        keep.display()
+    );
+    Ok(())
 }
 
 #[allow(clippy::too_many_arguments)]
