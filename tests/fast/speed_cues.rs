@@ -23,7 +23,7 @@ struct Machine<'a> {
 }
 
 /// The LUT rig's NDE bearing (SKF 6007: BPFO 4.59 orders).
-fn lut_bearing() -> BearingGeometry {
+pub(crate) fn lut_bearing() -> BearingGeometry {
     BearingGeometry {
         balls: 11,
         ball_diameter_mm: 7.94,

@@ -13,7 +13,7 @@
 //!   becomes the shaft;
 //! - no lines at all: the hint's own speed, no contradiction.
 
-use rigmon::bearing::BearingGeometry;
+use crate::speed_cues::lut_bearing;
 use rigmon::dsp::fault_family::FamilySettings;
 use rigmon::dsp::speed_tracker::{
     SpeedHint, SpeedStatus, SpeedTracker, TrackedSpeed, TrackerSettings,
@@ -23,16 +23,6 @@ use std::f64::consts::TAU;
 const FS: f64 = 10_000.0;
 const HOP: usize = 5_000;
 const SECONDS: f64 = 12.0;
-
-/// The LUT rig's NDE bearing (SKF 6007: BPFO 4.59 orders).
-fn lut_bearing() -> BearingGeometry {
-    BearingGeometry {
-        balls: 11,
-        ball_diameter_mm: 7.94,
-        pitch_diameter_mm: 48.0,
-        contact_angle_deg: 0.0,
-    }
-}
 
 /// What the machine shows: shaft lines (order, amplitude) at `rpm`, and optionally an outer
 /// race: a comb at BPFO's harmonics (amplitude) and a 3 kHz resonance struck at BPFO.
