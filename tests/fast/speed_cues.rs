@@ -32,8 +32,8 @@ pub(crate) fn lut_bearing() -> BearingGeometry {
     }
 }
 
-/// Unit-variance Gaussian noise plus the machine's lines along the speed law `hz(t)`.
-fn signal(m: Machine, seconds: f64, hz: impl Fn(f64) -> f64, seed: u64) -> Vec<f32> {
+/// Unit-variance Gaussian samples (Box-Muller over a xorshift stream from `seed`).
+pub(crate) fn gaussian(seed: u64) -> impl FnMut() -> f64 {
     let mut s = seed;
     let mut uniform = move || {
         s ^= s << 13;
@@ -41,12 +41,18 @@ fn signal(m: Machine, seconds: f64, hz: impl Fn(f64) -> f64, seed: u64) -> Vec<f
         s ^= s << 17;
         ((s >> 11) as f64 + 0.5) / (1u64 << 53) as f64
     };
+    move || (-2.0 * uniform().ln()).sqrt() * (TAU * uniform()).cos()
+}
+
+/// Unit-variance Gaussian noise plus the machine's lines along the speed law `hz(t)`.
+fn signal(m: Machine, seconds: f64, hz: impl Fn(f64) -> f64, seed: u64) -> Vec<f32> {
+    let mut noise = gaussian(seed);
     let mut theta = 0.0;
     (0..(FS * seconds) as usize)
         .map(|i| {
             let t = i as f64 / FS;
             theta += hz(t) / FS;
-            let mut v = (-2.0 * uniform().ln()).sqrt() * (TAU * uniform()).cos();
+            let mut v = noise();
             for &(order, a) in m.shaft {
                 v += a * (TAU * order * theta + order).sin();
             }

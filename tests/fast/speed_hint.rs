@@ -13,7 +13,7 @@
 //!   becomes the shaft;
 //! - no lines at all: the hint's own speed, no contradiction.
 
-use crate::speed_cues::lut_bearing;
+use crate::speed_cues::{gaussian, lut_bearing};
 use rigmon::dsp::fault_family::FamilySettings;
 use rigmon::dsp::speed_tracker::{
     SpeedHint, SpeedStatus, SpeedTracker, TrackedSpeed, TrackerSettings,
@@ -35,19 +35,13 @@ struct Machine<'a> {
 
 /// Unit-variance Gaussian noise plus the machine.
 fn signal(m: Machine, seed: u64) -> Vec<f32> {
-    let mut s = seed;
-    let mut uniform = move || {
-        s ^= s << 13;
-        s ^= s >> 7;
-        s ^= s << 17;
-        ((s >> 11) as f64 + 0.5) / (1u64 << 53) as f64
-    };
+    let mut noise = gaussian(seed);
     let f = m.rpm / 60.0;
     let bpfo = lut_bearing().fault_orders().bpfo;
     (0..(FS * SECONDS) as usize)
         .map(|i| {
             let t = i as f64 / FS;
-            let mut v = (-2.0 * uniform().ln()).sqrt() * (TAU * uniform()).cos();
+            let mut v = noise();
             for &(order, a) in m.lines {
                 v += a * (TAU * order * f * t + order).sin();
             }
