@@ -290,6 +290,11 @@ fn status_mb(pid: u32, key: &str) -> f64 {
 /// publishing, so a measured window dropped at the end shows as a gap like any other.
 const TAIL_TICKS: u64 = 4;
 
+/// The bench's historian searches its database for holes this often once it has caught up
+/// (`[recovery] audit_every_s`; 300 s by default), so that the wait sees a search after the
+/// last window came: every window is then stored or counted, whatever the gap tracker saw.
+const AUDIT_EVERY_S: f64 = 4.0;
+
 /// Start `rigmon historian` (this binary) as a Zenoh client of `endpoint`, its spill in `dir`.
 fn start_historian(
     dir: &std::path::Path,
@@ -300,7 +305,7 @@ fn start_historian(
     let cfg = dir.join("historian.toml");
     std::fs::write(
         &cfg,
-        format!("name = \"{tag}\"\ndefault_site = \"{tag}\"\nstatus_every_s = 0.5\n[zenoh]\nmode = \"client\"\nconnect = [\"{endpoint}\"]\nhistory_windows = 0\n[buffer]\nspill_dir = \"spill\"\n[batch]\nstreams = {streams}\n"),
+        format!("name = \"{tag}\"\ndefault_site = \"{tag}\"\nstatus_every_s = 0.5\n[zenoh]\nmode = \"client\"\nconnect = [\"{endpoint}\"]\nhistory_windows = 0\n[buffer]\nspill_dir = \"spill\"\n[batch]\nstreams = {streams}\n[recovery]\naudit_every_s = {AUDIT_EVERY_S}\n"),
     )?;
     let child = Command::new(std::env::current_exe()?)
         .args(["historian", "--summary-json", "--config"])
@@ -578,6 +583,7 @@ async fn wait_caught_up(
 ) -> Result<CatchUp> {
     let c = target.connect().await?;
     let (mut n, mut last, mut still_since) = (0, [0u64; 4], Instant::now());
+    let mut audits_then = u64::MAX;
     let mut counts: Vec<(f64, i64, i64)> = Vec::new();
     let bar = indicatif::ProgressBar::new(published).with_style(
         indicatif::ProgressStyle::with_template(
@@ -610,9 +616,14 @@ async fn wait_caught_up(
             ));
             if progress != last || busy {
                 (last, still_since) = (progress, Instant::now());
-            } else if still_since.elapsed() > TAIL_SILENCE + Duration::from_secs(3) {
+                audits_then = r.audits + u64::from(r.auditing);
+            } else if still_since.elapsed() > TAIL_SILENCE + Duration::from_secs(3)
+                && r.audits > audits_then
+                && !r.auditing
+            {
                 // still for longer than the historian waits before it asks a silent
-                // point's tail, so the tails it asks are in
+                // point's tail, so the tails it asks are in, and its database searched for
+                // holes since (an audit every AUDIT_EVERY_S once it has caught up)
                 break;
             }
         }

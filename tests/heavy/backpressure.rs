@@ -31,7 +31,7 @@ const TAIL: u64 = 5;
 /// Windows each point's recent history keeps (a daemon's `[zenoh] history_windows`).
 const KEPT: usize = 15;
 
-fn now_ns() -> u64 {
+pub(crate) fn now_ns() -> u64 {
     std::time::SystemTime::now()
         .duration_since(std::time::UNIX_EPOCH)
         .unwrap()
@@ -69,7 +69,7 @@ fn slow_historian(dir: &Path, pg: &Postgres, router: &str) -> Guard {
 }
 
 /// SIGTERM, then the historian's last status (every loss range listed).
-fn stop(mut g: Guard) -> HistorianStatus {
+pub(crate) fn stop(mut g: Guard) -> HistorianStatus {
     // SAFETY: plain kill(2) on our own child.
     unsafe { libc::kill(g.0.id() as i32, libc::SIGTERM) };
     let mut out = String::new();

@@ -13,6 +13,7 @@ mod femto_life;
 
 mod adapt;
 mod adapt_captures;
+mod audit;
 mod backpressure;
 mod calibrate;
 mod estimate_mode;

@@ -40,6 +40,11 @@ struct Inner {
 /// Counters of the buffer, for the status.
 #[derive(Debug, Default)]
 pub struct BufferCounters {
+    /// Messages kept (in memory or spilled) ...
+    pub kept_total: AtomicU64,
+    /// ... and handed on for good ([`Buffer::commit`]): when this reaches what `kept_total`
+    /// was, everything kept by then is written ([`super::audit`]).
+    pub committed_total: AtomicU64,
     pub spilled_total: AtomicU64,
     pub dropped: AtomicU64,
     pub spill_errors: AtomicU64,
@@ -158,6 +163,9 @@ impl Buffer {
         }
         drop(g);
         let kept = dropped.is_none();
+        if kept {
+            self.counters.kept_total.fetch_add(1, Ordering::Relaxed);
+        }
         if let Some(m) = dropped {
             self.enter_dropped(&m);
         }
@@ -240,6 +248,9 @@ impl Buffer {
     pub fn commit(&self, batch: &Batch) {
         let mut g = self.inner.lock().expect("buffer lock");
         g.in_flight = false;
+        self.counters
+            .committed_total
+            .fetch_add(batch.messages.len() as u64, Ordering::Relaxed);
         if let Origin::Spill(c) = batch.origin {
             if let Some(s) = g.spill.as_mut() {
                 if let Err(e) = s.commit(c, batch.messages.len() as u64) {

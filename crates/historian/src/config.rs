@@ -136,6 +136,11 @@ pub struct RecoverySettings {
     /// recent history (1,200 windows at a 0.5 s hop).
     #[serde(default = "default_hole_scan_s")]
     pub hole_scan_s: f64,
+    /// Search the database for holes again after this long (s), when the historian has
+    /// caught up (nothing spilled, nothing to ask): a window missing that no gap named is
+    /// asked for and counted like any other ([`super::audit`]). 0: only at start.
+    #[serde(default = "default_audit_every_s")]
+    pub audit_every_s: f64,
 }
 
 impl RecoverySettings {
@@ -230,6 +235,9 @@ fn default_grace_ms() -> u64 {
 fn default_hole_scan_s() -> f64 {
     600.0
 }
+fn default_audit_every_s() -> f64 {
+    300.0
+}
 fn default_max_replies() -> u64 {
     200_000
 }
@@ -280,6 +288,7 @@ impl Default for RecoverySettings {
             max_request_windows: default_request_windows(),
             grace_ms: default_grace_ms(),
             hole_scan_s: default_hole_scan_s(),
+            audit_every_s: default_audit_every_s(),
         }
     }
 }
@@ -421,6 +430,10 @@ impl HistorianConfig {
         let scan = self.recovery.hole_scan_s;
         if !(scan.is_finite() && scan >= 0.0) {
             bail!("recovery.hole_scan_s = {scan}: must be 0 (no scan) or a positive number of seconds");
+        }
+        let every = self.recovery.audit_every_s;
+        if !(every.is_finite() && every >= 0.0) {
+            bail!("recovery.audit_every_s = {every}: must be 0 (only at start) or a positive number of seconds");
         }
         if self.history.max_replies == 0 {
             bail!("history.max_replies must be at least 1");

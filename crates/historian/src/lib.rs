@@ -15,6 +15,7 @@
 
 pub mod admit;
 pub mod alarms;
+pub mod audit;
 pub mod buffer;
 pub mod columns;
 pub mod config;

@@ -7,7 +7,7 @@
 //! first [`STATUS_RANGES`] while running) and each new range into the log, so no window is
 //! lost without its point and seq range being said.
 
-use rigmon_runtime::publish::recent::run_start_ns;
+use rigmon_runtime::publish::recent::{run_start_ns, same_run};
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 use std::sync::Mutex;
@@ -70,6 +70,31 @@ impl Ranges {
             self.0.insert(seq + 1, l);
         }
         true
+    }
+
+    /// The ranges, ascending.
+    pub(crate) fn iter(&self) -> impl Iterator<Item = (u64, u64)> + '_ {
+        self.0.iter().map(|(&f, &l)| (f, l))
+    }
+
+    /// Take `first..=last` out.
+    pub(crate) fn subtract(&mut self, first: u64, last: u64) {
+        let hit: Vec<(u64, u64)> = self
+            .0
+            .range(..=last)
+            .rev()
+            .take_while(|(_, &l)| l >= first)
+            .map(|(&f, &l)| (f, l))
+            .collect();
+        for (f, l) in hit {
+            self.0.remove(&f);
+            if f < first {
+                self.0.insert(f, first - 1);
+            }
+            if l > last {
+                self.0.insert(last + 1, l);
+            }
+        }
     }
 
     pub(crate) fn len(&self) -> u64 {
@@ -140,6 +165,36 @@ impl LossLedger {
             g.total += new;
             g.fresh.entry(k).or_default().insert(first, last);
         }
+    }
+
+    /// The parts of `first..=last` of `point`'s run not in the ledger (a run told apart as
+    /// the daemons do, [`same_run`]: a run start read back from the database is rounded to
+    /// the microsecond).
+    pub fn unlisted(
+        &self,
+        point: &str,
+        run_start_ns: u64,
+        first: u64,
+        last: u64,
+    ) -> Vec<(u64, u64)> {
+        let mut left = Ranges::default();
+        if first > last {
+            return Vec::new();
+        }
+        left.insert(first, last);
+        let Ok(g) = self.inner.lock() else {
+            return vec![(first, last)];
+        };
+        for ((p, run), r) in &g.lost {
+            if p == point && same_run(*run, run_start_ns) {
+                for (&f, &l) in r.0.range(..=last) {
+                    if l >= first {
+                        left.subtract(f.max(first), l.min(last));
+                    }
+                }
+            }
+        }
+        left.iter().collect()
     }
 
     /// Window `seq` was recovered after all.
@@ -292,6 +347,23 @@ mod tests {
         let s = l.summary(1);
         assert_eq!((s.ranges.len(), s.ranges_left_off), (1, 3));
         l.log_new();
+    }
+
+    #[test]
+    fn what_the_ledger_does_not_list_is_left_of_a_range() {
+        let l = LossLedger::default();
+        l.add("m/a/p", 7_000_000, 5, 9);
+        l.add("m/a/p", 7_000_000, 20, 20);
+        l.add("m/a/q", 7_000_000, 1, 100);
+        // The same run read back rounded to the microsecond.
+        assert_eq!(
+            l.unlisted("m/a/p", 7_000_400, 1, 30),
+            [(1, 4), (10, 19), (21, 30)]
+        );
+        assert_eq!(l.unlisted("m/a/p", 7_000_400, 6, 8), []);
+        // Another run of the point has lost nothing.
+        assert_eq!(l.unlisted("m/a/p", 9_000_000, 6, 8), [(6, 8)]);
+        assert_eq!(l.unlisted("m/a/p", 7_000_000, 9, 5), []);
     }
 
     #[test]

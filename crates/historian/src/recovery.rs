@@ -208,6 +208,17 @@ impl Missing {
         self.wake.notify_one();
     }
 
+    /// The parts of `first..=last` of `key`'s run the plan is not asking for already.
+    pub fn unplanned(
+        &self,
+        key: &str,
+        run_start_ns: u64,
+        first: u64,
+        last: u64,
+    ) -> Vec<(u64, u64)> {
+        self.plan().unplanned(key, run_start_ns, first, last)
+    }
+
     /// A live window that arrived after a later one of its point (out of order).
     pub fn arrived(&self, key: &str, run_start_ns: u64, seq: u64) {
         self.plan().arrived(key, run_start_ns, seq);

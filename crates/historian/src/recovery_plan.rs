@@ -8,6 +8,7 @@
 //! recovery task ([`super::recovery::run`]) sends the requests.
 
 use super::losses::Ranges;
+use rigmon_runtime::publish::recent::same_run;
 use std::collections::{HashMap, VecDeque};
 use std::time::{Duration, Instant};
 
@@ -186,6 +187,34 @@ impl Plan {
             return Some(request);
         }
         None
+    }
+
+    /// The parts of `first..=last` of `key`'s run neither waiting nor asked for now (a run
+    /// told apart as the daemons do, [`same_run`]).
+    pub fn unplanned(
+        &self,
+        key: &str,
+        run_start_ns: u64,
+        first: u64,
+        last: u64,
+    ) -> Vec<(u64, u64)> {
+        let mut left = Ranges::default();
+        if first > last {
+            return Vec::new();
+        }
+        left.insert(first, last);
+        let ours = |t: &Target| t.key == key && same_run(t.run_start_ns, run_start_ns);
+        for (_, w) in self.waiting.iter().filter(|(t, _)| ours(t)) {
+            for (f, l) in w.missing.iter() {
+                left.subtract(f, l);
+            }
+        }
+        for f in self.flying.values().filter(|f| ours(&f.request.target)) {
+            for &(a, b) in &f.request.ranges {
+                left.subtract(a, b);
+            }
+        }
+        left.iter().collect()
     }
 
     /// Request `id` has ended; returns the seqs of it that arrived live while it was out.

@@ -5,6 +5,7 @@
 //! watchdog petted only while the write loop turns. SIGTERM: stop taking messages, write what
 //! is buffered while the database answers (up to 15 s), spill the rest to disk, exit.
 
+use super::audit::Auditor;
 use super::buffer::{Batch, Buffer, Incoming, Kind};
 use super::config::HistorianConfig;
 use super::database::Target;
@@ -14,7 +15,7 @@ use super::row::WindowRow;
 use super::status::{self, Counters, HistorianStatus, Phase};
 use super::streams::Streams;
 use super::writer::{is_connection_error, StatusRow, Writer};
-use super::{admit, history, holes, intake, point_config, recovery};
+use super::{admit, history, intake, point_config, recovery};
 use anyhow::{anyhow, Context, Result};
 use rigmon_runtime::daemon::notify::Notifier;
 use rigmon_runtime::daemon::signals;
@@ -51,8 +52,6 @@ struct Shared {
     started: Instant,
     /// `started` as ns since the Unix epoch (the recovery's [`Tracker::listening_since`]).
     started_unix_ns: u64,
-    /// The database's recent windows were searched for holes (once per process).
-    holes_scanned: AtomicBool,
 }
 
 /// Run until stopped; returns the last status.
@@ -91,7 +90,6 @@ pub fn run(cfg: HistorianConfig, opts: RunOptions) -> Result<HistorianStatus> {
         started_unix_ns: std::time::SystemTime::now()
             .duration_since(std::time::UNIX_EPOCH)
             .map_or(0, |d| d.as_nanos() as u64),
-        holes_scanned: AtomicBool::new(false),
     });
     if opts.use_signals {
         signals::install();
@@ -113,22 +111,7 @@ async fn serve(sh: Arc<Shared>, opts: RunOptions) -> Result<HistorianStatus> {
         .declare_publisher(cfg.status_key())
         .await
         .map_err(|e| anyhow!("declaring {}: {e}", cfg.status_key()))?;
-    let recovery_task = tokio::spawn(recovery::run(
-        session.clone(),
-        prefix.clone(),
-        sh.missing.clone(),
-        sh.buffer.clone(),
-        sh.counters.clone(),
-        cfg.recovery.clone(),
-    ));
-    let history_task = tokio::spawn(history::serve(
-        session.clone(),
-        prefix.clone(),
-        sh.target.clone(),
-        cfg.history.max_replies,
-        sh.counters.clone(),
-    ));
-    let writer = tokio::spawn(write_loop(sh.clone(), session.clone()));
+    let tasks = Tasks::spawn(&sh, &session, &prefix);
     tracing::info!(
         "historian {}: subscribed to {prefix}/**/{{health,status}} (zenoh {} connect {:?}), writing to {}, status on {}",
         cfg.name, cfg.zenoh.mode, cfg.zenoh.connect, sh.target.describe(), cfg.status_key()
@@ -168,19 +151,64 @@ async fn serve(sh: Arc<Shared>, opts: RunOptions) -> Result<HistorianStatus> {
     let _ = status_pub
         .put(serde_json::to_vec(&snapshot(&sh, Phase::Stopping))?)
         .await;
-    let pending = drain(&sh, writer).await;
+    let pending = drain(&sh, tasks.writer).await;
     let unkept = sh.buffer.persist(pending);
     if unkept > 0 {
         tracing::warn!("{unkept} buffered messages could not be kept (no spill folder): the daemons' recent history has them for the next start");
     }
-    history_task.abort();
-    recovery_task.abort();
+    tasks.history.abort();
+    tasks.recovery.abort();
+    tasks.audit.abort();
     sh.counters.losses.log_new();
     let last = snapshot(&sh, Phase::Finished);
     let _ = status_pub.put(serde_json::to_vec(&last)?).await;
     drop(status_pub);
     let _ = session.close().await;
     Ok(last)
+}
+
+/// The historian's tasks beside the status loop.
+struct Tasks {
+    recovery: tokio::task::JoinHandle<()>,
+    history: tokio::task::JoinHandle<anyhow::Result<()>>,
+    writer: tokio::task::JoinHandle<Vec<Incoming>>,
+    audit: tokio::task::JoinHandle<()>,
+}
+
+impl Tasks {
+    fn spawn(sh: &Arc<Shared>, session: &zenoh::Session, prefix: &str) -> Tasks {
+        let cfg = &sh.cfg;
+        Tasks {
+            recovery: tokio::spawn(recovery::run(
+                session.clone(),
+                prefix.to_string(),
+                sh.missing.clone(),
+                sh.buffer.clone(),
+                sh.counters.clone(),
+                cfg.recovery.clone(),
+            )),
+            history: tokio::spawn(history::serve(
+                session.clone(),
+                prefix.to_string(),
+                sh.target.clone(),
+                cfg.history.max_replies,
+                sh.counters.clone(),
+            )),
+            writer: tokio::spawn(write_loop(sh.clone(), session.clone())),
+            audit: tokio::spawn(
+                Auditor {
+                    target: sh.target.clone(),
+                    buffer: sh.buffer.clone(),
+                    counters: sh.counters.clone(),
+                    missing: sh.missing.clone(),
+                    settings: cfg.recovery.clone(),
+                    batch_rows: cfg.batch.max_rows as u64,
+                    listening_since_ns: sh.started_unix_ns,
+                }
+                .run(),
+            ),
+        }
+    }
 }
 
 /// Wait for the write loop to write what is buffered (up to 15 s); if it is still writing
@@ -270,6 +298,9 @@ fn snapshot(sh: &Shared, phase: Phase) -> HistorianStatus {
             asked_again: g(&c.asked_again),
             waiting: sh.missing.level().0,
             in_flight: sh.missing.level().1,
+            audits: g(&c.audits),
+            audit_found: g(&c.audit_found),
+            auditing: c.auditing.load(Ordering::Relaxed),
         },
         latency: sh.latency.lock().map(|h| h.summary()).unwrap_or_default(),
         history: status::HistoryAnswers {
@@ -565,9 +596,6 @@ async fn connect(
     let (mut w, version) = Streams::open(&sh.target, b.streams, b.synchronous_commit).await?;
     w.load_points().await?;
     let seed = w.first().last_positions().await?;
-    if !sh.holes_scanned.swap(true, Ordering::SeqCst) {
-        tokio::spawn(ask_recent_holes(Arc::clone(sh)));
-    }
     sh.counters
         .schema_version
         .store(i64::from(version), Ordering::Relaxed);
@@ -578,35 +606,6 @@ async fn connect(
         sh.target.describe()
     );
     Ok((w, seed))
-}
-
-/// Once per process, after the first connection, beside the write loop: the holes inside
-/// each point's recent windows ([`holes`]) are asked of the daemons, counted.
-async fn ask_recent_holes(sh: Arc<Shared>) {
-    let span = sh.cfg.recovery.hole_scan_s;
-    if span <= 0.0 || !sh.cfg.recovery.enabled {
-        return;
-    }
-    let found = match sh.target.connect().await {
-        Ok(client) => holes::recent(&client, span).await,
-        Err(e) => Err(e),
-    };
-    match found {
-        Ok(holes) => {
-            let windows: u64 = holes.iter().map(|g| g.len()).sum();
-            if !holes.is_empty() {
-                tracing::info!(
-                    "{windows} windows missing in {} holes within the last {span} s of the database: asked of their daemons",
-                    holes.len()
-                );
-            }
-            for g in holes {
-                Counters::add(&sh.counters.gaps, 1);
-                sh.missing.gap(g);
-            }
-        }
-        Err(e) => tracing::warn!("{e:#}; holes left before this start are not asked for"),
-    }
 }
 
 fn note_down(sh: &Shared, e: &anyhow::Error) {

@@ -54,6 +54,12 @@ pub struct Counters {
     /// Windows asked again: the daemon still held them (or the query timed out) and their
     /// replies were dropped on the way.
     pub asked_again: AtomicU64,
+    /// Searches of the database for holes ([`super::audit`]) ...
+    pub audits: AtomicU64,
+    /// ... the windows they found missing that no gap had named (asked of the daemons),
+    pub audit_found: AtomicU64,
+    /// ... and one is running now.
+    pub auditing: AtomicBool,
     /// Nanoseconds spent in each step ([`Profile`]).
     pub intake_ns: AtomicU64,
     pub take_ns: AtomicU64,
@@ -235,6 +241,15 @@ pub struct Recovery {
     pub waiting: u64,
     #[serde(default)]
     pub in_flight: u64,
+    /// Searches of the database for holes ([`super::audit`]), the windows they found missing
+    /// that no gap had named (the start-up search's are those a stopped historian left), and
+    /// whether one is running now.
+    #[serde(default)]
+    pub audits: u64,
+    #[serde(default)]
+    pub audit_found: u64,
+    #[serde(default)]
+    pub auditing: bool,
 }
 
 /// Where the historian's time went (seconds, cumulative; wall time of each step, which on a

@@ -213,9 +213,12 @@ mod tests {
         for i in 0..100 {
             sink.send(i);
         }
-        // The worker reports its counters while it runs, idle calls included.
+        // The worker reports its counters while it runs, idle calls included (an idle call
+        // may also come between two messages when this thread is slow to send them).
         let t0 = std::time::Instant::now();
-        while sink.stats().1 == 0 && t0.elapsed() < Duration::from_secs(10) {
+        while (sink.stats().0 < 100 || sink.stats().1 == 0)
+            && t0.elapsed() < Duration::from_secs(10)
+        {
             std::thread::sleep(Duration::from_millis(5));
         }
         assert_eq!(sink.stats().0, 100);
