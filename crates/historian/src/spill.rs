@@ -3,7 +3,8 @@
 //! database keeps up again. A segment is deleted only after everything in it was committed,
 //! so what is spilled survives a historian restart or crash.
 //! Record: the marker `RSP2`, the body's length (`u32` LE) and CRC-32 (`u32` LE), then the
-//! body: kind (1 byte), key length (`u16` LE), key, payload. A damaged record (a torn tail, a
+//! body: kind (1 byte; its high bit set for a recovered message), key length (`u16` LE),
+//! key, payload. A damaged record (a torn tail, a
 //! flipped length, bad bytes) is skipped up to the next marker that starts a record whose
 //! CRC holds, so one bad length loses one message, not the rest of the segment; each damaged
 //! stretch is counted with its bytes ([`Spill::damage`], the historian status). Segments of
@@ -29,6 +30,9 @@ const HEADER: u64 = 12;
 /// Bytes of a segment read at once when reading it back.
 const CHUNK: u64 = 4 * 1024 * 1024;
 const CRC32: Crc<u32> = Crc::<u32>::new(&CRC_32_ISO_HDLC);
+/// The kind byte's flag of a message fetched from a daemon's recent history (not live): kept
+/// through the spill so that the gap tracker and the live latency never take it for live.
+const RECOVERED: u8 = 0x80;
 
 /// Where reading stands: segment number and byte offset.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -146,7 +150,7 @@ impl Spill {
         rec.extend_from_slice(&MARKER);
         rec.extend_from_slice(&(len as u32).to_le_bytes());
         rec.extend_from_slice(&[0; 4]);
-        rec.push(m.kind as u8);
+        rec.push(m.kind as u8 | if m.recovered { RECOVERED } else { 0 });
         rec.extend_from_slice(&(key.len() as u16).to_le_bytes());
         rec.extend_from_slice(key);
         rec.extend_from_slice(&m.payload);
@@ -278,7 +282,8 @@ fn read_at(f: &mut File, offset: u64, n: u64, size: u64) -> Result<Vec<u8>> {
 
 /// A record body as a message.
 fn message(body: &[u8]) -> Option<Incoming> {
-    let kind = Kind::from_u8(*body.first()?);
+    let kind_byte = *body.first()?;
+    let kind = Kind::from_u8(kind_byte & !RECOVERED);
     let klen = u16::from_le_bytes([*body.get(1)?, *body.get(2)?]) as usize;
     let key = std::str::from_utf8(body.get(3..3 + klen)?)
         .ok()?
@@ -287,7 +292,7 @@ fn message(body: &[u8]) -> Option<Incoming> {
         kind,
         key,
         payload: body[3 + klen..].to_vec(),
-        recovered: false,
+        recovered: kind_byte & RECOVERED != 0,
     })
 }
 
@@ -500,6 +505,21 @@ mod tests {
             std::fs::read_dir(d.path()).unwrap().next().is_none(),
             "segments deleted"
         );
+    }
+
+    #[test]
+    fn a_recovered_message_comes_back_recovered() {
+        let d = tempfile::tempdir().unwrap();
+        let mut s = Spill::open(d.path()).unwrap();
+        let mut live = msg(1);
+        live.kind = Kind::Status;
+        let mut recovered = msg(2);
+        recovered.recovered = true;
+        s.append(&live).unwrap();
+        s.append(&recovered).unwrap();
+        let (back, _) = s.peek(10).unwrap();
+        let seen: Vec<(Kind, bool)> = back.iter().map(|m| (m.kind, m.recovered)).collect();
+        assert_eq!(seen, [(Kind::Status, false), (Kind::Health, true)]);
     }
 
     /// Issue 38, F10: one damaged length field lost the rest of its segment (98 of 100
