@@ -240,6 +240,10 @@ struct Report {
     asked_again: u64,
     /// ... and windows the simulated points answered from their recent history.
     answered_from_history: u64,
+    /// Searches of the historian's database for holes, and the windows they found missing
+    /// that no gap had named (a loss its gap tracker did not see).
+    audits: u64,
+    audit_found: u64,
     /// Publishing slices (10 per tick) in which the bench's session had no router.
     no_route_slices: u64,
     rows_per_s_offered: f64,
@@ -510,6 +514,8 @@ fn report(
         recovered: last.recovery.recovered,
         asked_again: last.recovery.asked_again,
         answered_from_history: fleet.answered.load(std::sync::atomic::Ordering::Relaxed),
+        audits: last.recovery.audits,
+        audit_found: last.recovery.audit_found,
         no_route_slices: fleet.no_route_slices,
         rows_per_s_offered: m.published as f64 / wall,
         rows_per_s_committed: m.at_end as f64 / wall,
@@ -671,6 +677,7 @@ fn print(r: &Report, json: bool) -> Result<()> {
             r.rows_in_db, r.published, r.spilled, r.dropped
         );
         println!("missed live (congestion policy Drop): the historian saw {} gaps, asked for {} windows (again {}: replies dropped on the way) and recovered {} from the points' recent history ({} answered); the bench had no router in {} publishing slices", r.gaps, r.requested, r.asked_again, r.recovered, r.answered_from_history, r.no_route_slices);
+        println!("audits of the historian's database: {}, windows found missing that no gap named {} (asked for, or counted lost)", r.audits, r.audit_found);
         let p = &r.profile;
         println!("historian's time (whole run, wall s): zenoh callbacks {:.1}, buffer take (spill reads) {:.1}, decode {:.1}, write (COPY + insert + commit, database included) {:.1}; {} batches (mean {:.0} rows) over {} COPY streams", p.intake_s, p.take_s, p.decode_s, p.write_s, r.batches, r.rows_in_db as f64 / r.batches.max(1) as f64, r.streams);
         println!(
