@@ -29,7 +29,9 @@ use crate::model::classifier::TrainedModel;
 use crate::model::rule::{EnvelopeRule, RuleSettings};
 use crate::model::{export, OnnxClassifier};
 use crate::sim::dataset::{generate, CalibratedDraws, DatasetSummary};
-use crate::sim::dataset_pair::{generate_pair, simulate_ahead, Ahead, DatasetJob};
+use crate::sim::dataset_pair::{
+    generate_pair, simulate_ahead, Ahead, DatasetJob, AHEAD_MECHANICS_BYTES,
+};
 use crate::sim::plan::Plan;
 use crate::train::dataset::RecordingFeatures;
 use crate::train::featurise::featurise_all;
@@ -560,7 +562,7 @@ fn featurise_dataset(
 /// shared their mechanics.
 fn simulate_datasets(
     (zero_job, cal_rig, plan): (DatasetJob, &RigConfig, &Plan),
-    ahead: &Ahead,
+    ahead: Ahead,
     work: &Path,
     o: &AdaptOptions,
 ) -> Result<SimulatedDatasets> {
@@ -618,7 +620,16 @@ fn calibrate_with_zero_shot_ahead(
         let ahead = o
             .baseline_model
             .is_none()
-            .then(|| s.spawn(|| simulate_ahead(zero_job, "mcap", CalibratedDraws::Spread, &stop)));
+            .then(|| {
+                s.spawn(|| {
+                    simulate_ahead(
+                        zero_job,
+                        "mcap",
+                        CalibratedDraws::Spread,
+                        (&stop, AHEAD_MECHANICS_BYTES),
+                    )
+                })
+            });
         let cal = calibrate_step(
             &o.rig,
             &pre.rig,
@@ -683,8 +694,9 @@ pub fn adapt(o: &AdaptOptions) -> Result<AdaptOutcome> {
     };
     let (cal_rig, calibration, ahead) = calibrate_with_zero_shot_ahead(&pre, zero_job, o)?;
     clock.lap(&format!(
-        "calibrate (with {} zero-shot runs simulated alongside)",
-        ahead.len()
+        "calibrate (with {} zero-shot runs simulated alongside, {} keeping their mechanics)",
+        ahead.len(),
+        ahead.mechanics_kept()
     ));
     steps.inc(1);
 
@@ -694,7 +706,7 @@ pub fn adapt(o: &AdaptOptions) -> Result<AdaptOutcome> {
     steps.inc(1);
 
     steps.set_message("simulating the calibrated rig (and the zero-shot dataset)");
-    let sims = simulate_datasets((zero_job, &cal_rig, &the_plan), &ahead, &work, o)?;
+    let sims = simulate_datasets((zero_job, &cal_rig, &the_plan), ahead, &work, o)?;
     let (summary, recs, recs0) = (sims.summary, sims.recs, sims.recs0);
     clock.lap(&if recs0.is_some() {
         format!(
