@@ -617,19 +617,16 @@ fn calibrate_with_zero_shot_ahead(
 ) -> Result<(RigConfig, serde_json::Value, Ahead)> {
     let stop = AtomicBool::new(false);
     let (cal, ahead) = std::thread::scope(|s| {
-        let ahead = o
-            .baseline_model
-            .is_none()
-            .then(|| {
-                s.spawn(|| {
-                    simulate_ahead(
-                        zero_job,
-                        "mcap",
-                        CalibratedDraws::Spread,
-                        (&stop, AHEAD_MECHANICS_BYTES),
-                    )
-                })
-            });
+        let ahead = o.baseline_model.is_none().then(|| {
+            s.spawn(|| {
+                simulate_ahead(
+                    zero_job,
+                    "mcap",
+                    CalibratedDraws::Spread,
+                    (&stop, AHEAD_MECHANICS_BYTES),
+                )
+            })
+        });
         let cal = calibrate_step(
             &o.rig,
             &pre.rig,
@@ -672,6 +669,15 @@ fn shape_step(
     Ok((the_plan, shaped))
 }
 
+/// The calibrate step's line in the report's times.
+fn calibrate_lap(ahead: &Ahead) -> String {
+    format!(
+        "calibrate (with {} zero-shot runs simulated alongside, {} keeping their mechanics)",
+        ahead.len(),
+        ahead.mechanics_kept()
+    )
+}
+
 /// Run the whole adaptation; writes `o.out` and returns what the report holds.
 pub fn adapt(o: &AdaptOptions) -> Result<AdaptOutcome> {
     let mut clock = Stopwatch::start();
@@ -693,11 +699,7 @@ pub fn adapt(o: &AdaptOptions) -> Result<AdaptOutcome> {
         dir: &zero_dir,
     };
     let (cal_rig, calibration, ahead) = calibrate_with_zero_shot_ahead(&pre, zero_job, o)?;
-    clock.lap(&format!(
-        "calibrate (with {} zero-shot runs simulated alongside, {} keeping their mechanics)",
-        ahead.len(),
-        ahead.mechanics_kept()
-    ));
+    clock.lap(&calibrate_lap(&ahead));
     steps.inc(1);
 
     steps.set_message("shaping the plan with the labelled faults");

@@ -297,12 +297,8 @@ pub const ENGINE_CACHE_PER_OP_BASELINE: usize = 4;
 pub const ENGINE_CACHE_BYTES: f64 = 256e6;
 /// Memory the runs of the mechanics with their housing forces may take, bytes (a 2.56 s
 /// twin at 12.8 kHz, 10x oversampled, keeps about 9 MB of forces; at least 4 runs per
-/// recording are kept whatever their size). Sized for a search's sections of the fit part
-/// to outlive the rounds: `speed_fluctuation`'s 30 sections on two recordings are 60 runs
-/// (540 MB of 2.56 s twins), and a round after an accepted `resonance` asks for them again
-/// (its modes are added to the kept mechanics instead of running them a second time); with
-/// 160 MB they were evicted and run again (issue 37).
-pub const MECHANICS_CACHE_BYTES: f64 = 1.2e9;
+/// recording are kept whatever their size).
+pub const MECHANICS_CACHE_BYTES: f64 = 160e6;
 
 /// How many engine runs per measured recording fit in `bytes`: a twin's signals and
 /// shaft angles at the recording's rate (and with `forces`, its housing forces at the

@@ -188,9 +188,9 @@ fn run_task(
             vec![(0, n0, l0), (1, n1, l1)]
         }
         Task::SecondOnto(i, j) => {
-            let mech = kept.take(i).with_context(|| {
-                format!("internal: no mechanics kept for {}", runs[0][i].stem)
-            })?;
+            let mech = kept
+                .take(i)
+                .with_context(|| format!("internal: no mechanics kept for {}", runs[0][i].stem))?;
             let (n, l) = finish_and_write(jobs[1], bases[1], &runs[1][j], &mech, ext)?;
             vec![(1, n, l)]
         }
@@ -313,7 +313,10 @@ pub fn generate_pair(
         .iter()
         .filter(|t| matches!(t, Task::Shared(..) | Task::SecondOnto(..)))
         .count();
-    let Ahead { done: ahead_done, mechanics } = ahead;
+    let Ahead {
+        done: ahead_done,
+        mechanics,
+    } = ahead;
     // the kept mechanics no task finishes are freed now
     let onto: std::collections::HashSet<usize> = tasks
         .iter()
