@@ -28,9 +28,11 @@ use std::time::Instant;
 
 /// Memory the mechanics of the runs simulated ahead may keep for the calibrated dataset,
 /// bytes: a 2 s run at 12.8 kHz, 10x oversampled, keeps about 7 MB of housing forces, so
-/// about 200 such runs; past it a run ahead keeps nothing and its calibrated partner runs
-/// its mechanics again.
-pub const AHEAD_MECHANICS_BYTES: usize = 1_500_000_000;
+/// about 140 such runs (the 100-115 a 25-30 s calibration lets go ahead on 2 cores); past
+/// it a run ahead keeps nothing and its calibrated partner runs its mechanics again. Kept
+/// whether or not the calibration then leaves the mechanics alone (on HIT-SM it does not:
+/// the memory is spent for nothing there until the pair frees it).
+pub const AHEAD_MECHANICS_BYTES: usize = 1_000_000_000;
 
 /// One dataset of the pair: the rig it simulates, its plan and the folder it goes to.
 #[derive(Debug, Clone, Copy)]
