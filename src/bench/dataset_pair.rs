@@ -79,7 +79,7 @@ pub fn time_both(rig: &RigConfig, plan: &Plan, dir: &Path) -> Result<PairTiming>
                 dir: &c,
             },
         ],
-        &Ahead::default(),
+        Ahead::default(),
         "mcap",
         None,
         false,

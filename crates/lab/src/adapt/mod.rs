@@ -29,7 +29,9 @@ use crate::model::classifier::TrainedModel;
 use crate::model::rule::{EnvelopeRule, RuleSettings};
 use crate::model::{export, OnnxClassifier};
 use crate::sim::dataset::{generate, CalibratedDraws, DatasetSummary};
-use crate::sim::dataset_pair::{generate_pair, simulate_ahead, Ahead, DatasetJob};
+use crate::sim::dataset_pair::{
+    generate_pair, simulate_ahead, Ahead, DatasetJob, AHEAD_MECHANICS_BYTES,
+};
 use crate::sim::plan::Plan;
 use crate::train::dataset::RecordingFeatures;
 use crate::train::featurise::featurise_all;
@@ -560,7 +562,7 @@ fn featurise_dataset(
 /// shared their mechanics.
 fn simulate_datasets(
     (zero_job, cal_rig, plan): (DatasetJob, &RigConfig, &Plan),
-    ahead: &Ahead,
+    ahead: Ahead,
     work: &Path,
     o: &AdaptOptions,
 ) -> Result<SimulatedDatasets> {
@@ -615,10 +617,16 @@ fn calibrate_with_zero_shot_ahead(
 ) -> Result<(RigConfig, serde_json::Value, Ahead)> {
     let stop = AtomicBool::new(false);
     let (cal, ahead) = std::thread::scope(|s| {
-        let ahead = o
-            .baseline_model
-            .is_none()
-            .then(|| s.spawn(|| simulate_ahead(zero_job, "mcap", CalibratedDraws::Spread, &stop)));
+        let ahead = o.baseline_model.is_none().then(|| {
+            s.spawn(|| {
+                simulate_ahead(
+                    zero_job,
+                    "mcap",
+                    CalibratedDraws::Spread,
+                    (&stop, AHEAD_MECHANICS_BYTES),
+                )
+            })
+        });
         let cal = calibrate_step(
             &o.rig,
             &pre.rig,
@@ -661,6 +669,15 @@ fn shape_step(
     Ok((the_plan, shaped))
 }
 
+/// The calibrate step's line in the report's times.
+fn calibrate_lap(ahead: &Ahead) -> String {
+    format!(
+        "calibrate (with {} zero-shot runs simulated alongside, {} keeping their mechanics)",
+        ahead.len(),
+        ahead.mechanics_kept()
+    )
+}
+
 /// Run the whole adaptation; writes `o.out` and returns what the report holds.
 pub fn adapt(o: &AdaptOptions) -> Result<AdaptOutcome> {
     let mut clock = Stopwatch::start();
@@ -682,10 +699,7 @@ pub fn adapt(o: &AdaptOptions) -> Result<AdaptOutcome> {
         dir: &zero_dir,
     };
     let (cal_rig, calibration, ahead) = calibrate_with_zero_shot_ahead(&pre, zero_job, o)?;
-    clock.lap(&format!(
-        "calibrate (with {} zero-shot runs simulated alongside)",
-        ahead.len()
-    ));
+    clock.lap(&calibrate_lap(&ahead));
     steps.inc(1);
 
     steps.set_message("shaping the plan with the labelled faults");
@@ -694,7 +708,7 @@ pub fn adapt(o: &AdaptOptions) -> Result<AdaptOutcome> {
     steps.inc(1);
 
     steps.set_message("simulating the calibrated rig (and the zero-shot dataset)");
-    let sims = simulate_datasets((zero_job, &cal_rig, &the_plan), &ahead, &work, o)?;
+    let sims = simulate_datasets((zero_job, &cal_rig, &the_plan), ahead, &work, o)?;
     let (summary, recs, recs0) = (sims.summary, sims.recs, sims.recs0);
     clock.lap(&if recs0.is_some() {
         format!(

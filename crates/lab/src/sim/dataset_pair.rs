@@ -9,7 +9,9 @@
 //!
 //! The first dataset needs nothing from the calibration, so [`simulate_ahead`] may run its
 //! first runs on one thread while the calibration runs (filling the cores the calibration's
-//! serial parts leave idle); [`generate_pair`] then does the rest.
+//! serial parts leave idle); [`generate_pair`] then does the rest. The runs simulated ahead
+//! keep their mechanics (within [`AHEAD_MECHANICS_BYTES`]), so a calibrated run that shares
+//! them only adds its own modes and sensor stage instead of running the mechanics again.
 
 use super::dataset::{self, CalibratedDraws, DatasetSummary};
 use super::plan::{Plan, PlannedRun};
@@ -21,7 +23,16 @@ use rayon::prelude::*;
 use std::collections::HashMap;
 use std::path::Path;
 use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Mutex;
 use std::time::Instant;
+
+/// Memory the mechanics of the runs simulated ahead may keep for the calibrated dataset,
+/// bytes: a 2 s run at 12.8 kHz, 10x oversampled, keeps about 7 MB of housing forces, so
+/// about 140 such runs (the 100-115 a 25-30 s calibration lets go ahead on 2 cores); past
+/// it a run ahead keeps nothing and its calibrated partner runs its mechanics again. Kept
+/// whether or not the calibration then leaves the mechanics alone (on HIT-SM it does not:
+/// the memory is spent for nothing there until the pair frees it).
+pub const AHEAD_MECHANICS_BYTES: usize = 1_000_000_000;
 
 /// One dataset of the pair: the rig it simulates, its plan and the folder it goes to.
 #[derive(Debug, Clone, Copy)]
@@ -38,6 +49,9 @@ enum Task {
     Shared(usize, usize),
     First(usize),
     Second(usize),
+    /// The second dataset's run `.1` on the mechanics kept from the first dataset's run `.0`
+    /// simulated ahead.
+    SecondOnto(usize, usize),
 }
 
 /// The pair's outcome: each dataset's summary and how many runs shared their mechanics.
@@ -71,12 +85,21 @@ fn same_mechanics(
             == split::mechanics_part(&b.overrides.apply(base_b))
 }
 
-/// Pair the runs: by stem, sharing where the mechanics agree.
+/// Whether a run of the first dataset was simulated ahead, and kept its mechanics.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum AheadRun {
+    NotYet,
+    Written,
+    Kept,
+}
+
+/// Pair the runs: by stem, sharing where the mechanics agree (also with the mechanics kept
+/// from a run simulated ahead).
 fn tasks(
     (runs_a, base_a): (&[PlannedRun], &SimulationConfig),
     (runs_b, base_b): (&[PlannedRun], &SimulationConfig),
     rigs_agree: bool,
-    done_a: &[bool],
+    done_a: &[AheadRun],
 ) -> Vec<Task> {
     let by_stem: HashMap<&str, usize> = runs_b
         .iter()
@@ -86,18 +109,23 @@ fn tasks(
     let mut taken = vec![false; runs_b.len()];
     let mut out = Vec::with_capacity(runs_a.len() + runs_b.len());
     for (i, ra) in runs_a.iter().enumerate() {
-        if done_a[i] {
+        if done_a[i] == AheadRun::Written {
             continue;
         }
         let partner = by_stem.get(ra.stem.as_str()).copied().filter(|&j| {
             rigs_agree && same_mechanics((&ra.scenario, base_a), (&runs_b[j].scenario, base_b))
         });
-        match partner {
-            Some(j) => {
+        match (partner, done_a[i]) {
+            (Some(j), AheadRun::Kept) => {
+                taken[j] = true;
+                out.push(Task::SecondOnto(i, j));
+            }
+            (None, AheadRun::Kept) => {}
+            (Some(j), _) => {
                 taken[j] = true;
                 out.push(Task::Shared(i, j));
             }
-            None => out.push(Task::First(i)),
+            (None, _) => out.push(Task::First(i)),
         }
     }
     out.extend((0..runs_b.len()).filter(|&j| !taken[j]).map(Task::Second));
@@ -143,7 +171,7 @@ fn run_task(
     jobs: [&DatasetJob; 2],
     runs: [&[PlannedRun]; 2],
     bases: [&SimulationConfig; 2],
-    ext: &str,
+    (ext, kept): (&str, &KeptMechanics),
 ) -> Result<Rows> {
     Ok(match task {
         Task::First(i) => {
@@ -161,14 +189,41 @@ fn run_task(
             let (n1, l1) = finish_and_write(jobs[1], bases[1], &runs[1][j], &mech, ext)?;
             vec![(0, n0, l0), (1, n1, l1)]
         }
+        Task::SecondOnto(i, j) => {
+            let mech = kept
+                .take(i)
+                .with_context(|| format!("internal: no mechanics kept for {}", runs[0][i].stem))?;
+            let (n, l) = finish_and_write(jobs[1], bases[1], &runs[1][j], &mech, ext)?;
+            vec![(1, n, l)]
+        }
     })
 }
 
+/// The mechanics kept from the runs simulated ahead, by run index; each is taken (and its
+/// memory freed) by the one task that finishes it for the second dataset.
+struct KeptMechanics(HashMap<usize, Mutex<Option<EngineRun>>>);
+
+impl KeptMechanics {
+    fn take(&self, i: usize) -> Option<EngineRun> {
+        self.0.get(&i)?.lock().ok()?.take()
+    }
+}
+
 /// Runs of the first dataset already written by [`simulate_ahead`]: (run index, file
-/// name, label).
-#[derive(Debug, Clone, Default)]
+/// name, label), and the mechanics they kept (by run index).
+#[derive(Default)]
 pub struct Ahead {
     done: Vec<(usize, String, String)>,
+    mechanics: HashMap<usize, EngineRun>,
+}
+
+impl std::fmt::Debug for Ahead {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Ahead")
+            .field("done", &self.done.len())
+            .field("mechanics_kept", &self.mechanics.len())
+            .finish()
+    }
 }
 
 impl Ahead {
@@ -177,40 +232,56 @@ impl Ahead {
         self.done.len()
     }
 
+    /// How many of them kept their mechanics for the second dataset.
+    pub fn mechanics_kept(&self) -> usize {
+        self.mechanics.len()
+    }
+
     pub fn is_empty(&self) -> bool {
         self.done.is_empty()
     }
 }
 
 /// Simulate the first dataset's runs one after another, on the calling thread, until
-/// `stop` is set (the run under way is finished) or every run is done.
+/// `stop` is set (the run under way is finished) or every run is done. Each run's mechanics
+/// run apart from its modes ([`split::run_mechanics`]) and are kept while they fit in
+/// `keep_bytes`, for the second dataset's run that shares them ([`generate_pair`]).
 pub fn simulate_ahead(
     job: DatasetJob,
     ext: &str,
     calibrated: CalibratedDraws,
-    stop: &AtomicBool,
+    (stop, keep_bytes): (&AtomicBool, usize),
 ) -> Result<Ahead> {
     let runs = dataset::expand_for(job.rig, job.plan, calibrated)?;
+    let base = rig_simulation(job.rig)?;
     std::fs::create_dir_all(job.dir)
         .with_context(|| format!("cannot create output directory {}", job.dir.display()))?;
     let mut ahead = Ahead::default();
+    let mut kept_bytes = 0usize;
     for (i, run) in runs.iter().enumerate() {
         if stop.load(Ordering::Relaxed) {
             break;
         }
-        let (name, label) = alone(&job, run, ext)?;
+        let mech = split::run_mechanics(job.rig, base, &run.scenario)
+            .with_context(|| format!("simulating {}", run.stem))?;
+        let (name, label) = finish_and_write(&job, base, run, &mech, ext)?;
         ahead.done.push((i, name, label));
+        if kept_bytes + mech.bytes() <= keep_bytes {
+            kept_bytes += mech.bytes();
+            ahead.mechanics.insert(i, mech);
+        }
     }
     Ok(ahead)
 }
 
 /// Generate both datasets (each as [`dataset::generate`] would, with the same
 /// `calibrated` draws), sharing the mechanics of every run that allows it; the first
-/// dataset's runs in `ahead` are already written. One progress bar counts the recordings of
-/// both.
+/// dataset's runs in `ahead` are already written (their kept mechanics serve the second
+/// dataset's runs that share them, and are freed as they are used). One progress bar counts
+/// the recordings of both.
 pub fn generate_pair(
     jobs: [DatasetJob; 2],
-    ahead: &Ahead,
+    ahead: Ahead,
     ext: &str,
     threads: Option<usize>,
     progress: bool,
@@ -226,9 +297,13 @@ pub fn generate_pair(
             .with_context(|| format!("cannot create output directory {}", j.dir.display()))?;
     }
     let rigs_agree = rig_without_simulation(jobs[0].rig) == rig_without_simulation(jobs[1].rig);
-    let mut done = vec![false; runs[0].len()];
+    let mut done = vec![AheadRun::NotYet; runs[0].len()];
     for &(i, ..) in &ahead.done {
-        done[i] = true;
+        done[i] = if ahead.mechanics.contains_key(&i) {
+            AheadRun::Kept
+        } else {
+            AheadRun::Written
+        };
     }
     let tasks = tasks(
         (&runs[0], bases[0]),
@@ -238,19 +313,44 @@ pub fn generate_pair(
     );
     let shared_runs = tasks
         .iter()
-        .filter(|t| matches!(t, Task::Shared(..)))
+        .filter(|t| matches!(t, Task::Shared(..) | Task::SecondOnto(..)))
         .count();
+    let Ahead {
+        done: ahead_done,
+        mechanics,
+    } = ahead;
+    // the kept mechanics no task finishes are freed now
+    let onto: std::collections::HashSet<usize> = tasks
+        .iter()
+        .filter_map(|t| match t {
+            Task::SecondOnto(i, _) => Some(*i),
+            _ => None,
+        })
+        .collect();
+    let kept = KeptMechanics(
+        mechanics
+            .into_iter()
+            .filter(|(i, _)| onto.contains(i))
+            .map(|(i, m)| (i, Mutex::new(Some(m))))
+            .collect(),
+    );
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(threads.unwrap_or(0))
         .build()?;
-    let total = runs[0].len() + runs[1].len() - ahead.len();
+    let total = runs[0].len() + runs[1].len() - ahead_done.len();
     let bar = dataset::recordings_bar(progress, total as u64);
     let t0 = Instant::now();
     let results: Vec<Result<Rows>> = pool.install(|| {
         tasks
             .par_iter()
             .map(|&t| {
-                let rows = run_task(t, [&jobs[0], &jobs[1]], [&runs[0], &runs[1]], bases, ext)?;
+                let rows = run_task(
+                    t,
+                    [&jobs[0], &jobs[1]],
+                    [&runs[0], &runs[1]],
+                    bases,
+                    (ext, &kept),
+                )?;
                 bar.inc(rows.len() as u64);
                 Ok(rows)
             })
@@ -258,7 +358,7 @@ pub fn generate_pair(
     });
     bar.finish_and_clear();
     let mut rows: [Vec<(String, String)>; 2] = [Vec::new(), Vec::new()];
-    rows[0].extend(ahead.done.iter().map(|(_, n, l)| (n.clone(), l.clone())));
+    rows[0].extend(ahead_done.into_iter().map(|(_, n, l)| (n, l)));
     for r in results {
         for (k, name, label) in r? {
             rows[k].push((name, label));
@@ -372,7 +472,7 @@ mod tests {
                         dir: c,
                     },
                 ],
-                &Ahead::default(),
+                Ahead::default(),
                 "wav",
                 Some(2),
                 false,
@@ -393,52 +493,67 @@ mod tests {
         );
     }
 
-    /// One run simulated ahead: the other shares, both datasets still as alone; a stopped
-    /// ahead simulates nothing.
+    /// Runs simulated ahead, the first kept with its mechanics: the calibrated partner of
+    /// the kept one is finished onto them and the other run shares in the pair (2 runs
+    /// share; 1 when nothing may be kept), both datasets still as alone; a stopped ahead
+    /// simulates nothing.
     #[test]
-    fn runs_simulated_ahead_are_kept_and_the_rest_shared() {
+    fn runs_simulated_ahead_keep_their_mechanics_for_the_second_dataset() {
         let rig0 = rig();
         let mut rig1 = rig0.clone();
-        rig1.simulation.as_mut().unwrap().structure.noise_rms_m_s2 *= 3.0;
+        let sim = rig1.simulation.as_mut().unwrap();
+        sim.structure.resonances[0].hz *= 1.3;
+        sim.structure.noise_rms_m_s2 *= 3.0;
         let plan = plan();
         let tmp = tempfile::tempdir().unwrap();
         let d = |s: &str| tmp.path().join(s);
         let (zb, cb) = (d("z-alone"), d("c-alone"));
         simulated_alone([&rig0, &rig1], &plan, [&zb, &cb]);
         let stop = AtomicBool::new(false);
+        for (keep, shared) in [(usize::MAX, 2), (0, 1)] {
+            let (z, c) = (d(&format!("z-ahead-{keep}")), d(&format!("c-ahead-{keep}")));
+            let job0 = DatasetJob {
+                rig: &rig0,
+                plan: &plan,
+                dir: &z,
+            };
+            let mut ahead =
+                simulate_ahead(job0, "wav", CalibratedDraws::Spread, (&stop, keep)).unwrap();
+            assert_eq!(ahead.len(), 2);
+            assert_eq!(ahead.mechanics_kept(), if keep == 0 { 0 } else { 2 });
+            ahead.done.truncate(1);
+            ahead.mechanics.remove(&1);
+            let job1 = DatasetJob {
+                rig: &rig1,
+                plan: &plan,
+                dir: &c,
+            };
+            let pair = generate_pair(
+                [job0, job1],
+                ahead,
+                "wav",
+                Some(2),
+                false,
+                CalibratedDraws::Spread,
+            )
+            .unwrap();
+            assert_eq!(pair.shared_runs, shared, "keeping {keep} bytes");
+            assert!(worst_difference(&z, &zb) < 1e-5);
+            assert!(worst_difference(&c, &cb) < 1e-5);
+            for (a, b) in [(&z, &zb), (&c, &cb)] {
+                assert_eq!(
+                    std::fs::read_to_string(a.join("labels.csv")).unwrap(),
+                    std::fs::read_to_string(b.join("labels.csv")).unwrap()
+                );
+            }
+        }
+        stop.store(true, Ordering::Relaxed);
         let job0 = DatasetJob {
             rig: &rig0,
             plan: &plan,
-            dir: &d("z-ahead"),
+            dir: &d("z-stopped"),
         };
-        let mut ahead = simulate_ahead(job0, "wav", CalibratedDraws::Spread, &stop).unwrap();
-        assert_eq!(ahead.len(), 2);
-        ahead.done.truncate(1);
-        let c_ahead = d("c-ahead");
-        let job1 = DatasetJob {
-            rig: &rig1,
-            plan: &plan,
-            dir: &c_ahead,
-        };
-        let pair = generate_pair(
-            [job0, job1],
-            &ahead,
-            "wav",
-            Some(2),
-            false,
-            CalibratedDraws::Spread,
-        )
-        .unwrap();
-        assert_eq!(pair.shared_runs, 1);
-        assert!(worst_difference(&d("z-ahead"), &zb) < 1e-5);
-        assert!(worst_difference(&c_ahead, &cb) < 1e-5);
-        let labels0 = std::fs::read_to_string(d("z-ahead").join("labels.csv")).unwrap();
-        assert_eq!(
-            labels0,
-            std::fs::read_to_string(zb.join("labels.csv")).unwrap()
-        );
-        stop.store(true, Ordering::Relaxed);
-        let none = simulate_ahead(job0, "wav", CalibratedDraws::Spread, &stop).unwrap();
+        let none = simulate_ahead(job0, "wav", CalibratedDraws::Spread, (&stop, 0)).unwrap();
         assert!(none.is_empty());
     }
 }

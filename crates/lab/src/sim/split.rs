@@ -33,6 +33,13 @@ pub fn run_mechanics(
 }
 
 impl EngineRun {
+    /// Bytes this run holds (its signals, shaft angles and any housing forces kept).
+    pub fn bytes(&self) -> usize {
+        let signals: usize = self.out.signals.iter().map(Vec::len).sum();
+        let forces = self.out.housing_forces.as_ref().map_or(0, |(f, _)| f.len());
+        8 * (signals + self.out.boundary_angles.len()) + 24 * forces
+    }
+
     /// This run of the mechanics ([`run_mechanics`]) with the structural modes `res`
     /// added: the run [`super::run_engine`] gives for a section with these resonances, up
     /// to rounding (the modes' response is decimated on its own and added). The result
