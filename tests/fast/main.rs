@@ -36,6 +36,7 @@ mod rule_agreement;
 mod service_binary;
 mod sim;
 mod snapshots;
+mod speed_comb_sim;
 mod speed_cues;
 mod speed_cwru;
 mod speed_free;

@@ -16,6 +16,22 @@
 //! A healthy machine shows no train in the envelope, so nothing changes there; a true shaft
 //! comb has no line at g m / order below it.
 //!
+//! **A comb without its first line** ([`bare_comb`], issue 34 on the project's simulator):
+//! where the slow shaft shows no line of its own at all (the simulator's outer race at 588
+//! rpm: neither the raw spectrum nor the envelope has a line at 9.8 Hz or its harmonics,
+//! 0.9x the median over the whole 8 s), the first condition cannot hold, and the comb's
+//! reading as a 45 Hz shaft stood. A shaft at g shows its 1x: the line of a rotor's
+//! unbalance, its strongest or near it in an accelerometer at that speed (CWRU's 6205 at
+//! 1797 rpm: 10-110x the local median in every drive-end record). An impact train seen
+//! below the structure's first mode is a comb whose lines rise with frequency (the
+//! acceleration of a stiffness-controlled structure to a flat force comb grows as f^2), so
+//! its fundamental may be lost in the floor while its harmonics stand (the simulator's
+//! 45 Hz 1.3x the local median, 90 Hz 12.7x). When g's own fundamental is no line
+//! ([`BARE_FUNDAMENTAL`]), the envelope shows c's train and nothing of g's series is left
+//! unexplained, the comb is read as the train of c = m g / order exactly (the kinematic
+//! order: no own line to place c within the slip; a real bearing's slip of 1-2 % then is
+//! the speed's error).
+//!
 //! A candidate's own lines must be its own: the train's lines sit on g's series by
 //! construction (order c = m g), and a harmonic of c may fall on g's line too (2xBSF = 4.71
 //! orders, and a harmonic 5c lies within the slip of g: CWRU's 6205 at 1797 rpm, a healthy
@@ -48,6 +64,33 @@ const COMB_MULTIPLES: [f64; 3] = [1.0, 2.0, 3.0];
 /// harmonics (outer race 130@6_0), for most of those records.
 pub fn train_orders(o: &FaultOrders) -> [f64; 1] {
     [o.bpfo]
+}
+
+/// The prominence below which the comb's first line is no line ([`bare_comb`]): the
+/// tracker's noise level for a harmonic series (`SCORE_NOISE`: the best of many candidates
+/// on noise reads about 0.5).
+pub const BARE_FUNDAMENTAL: f64 = 1.0;
+
+/// g's comb has no line at its own fundamental (a shaft at g would show its 1x): the
+/// prominence at g in the shaft spectrum `w` is under [`BARE_FUNDAMENTAL`], off the mains
+/// lines, while g's series stands (`w.shaft(g)` above it).
+pub fn bare_comb(w: &Whitened, g: f64) -> bool {
+    !w.on_mains(g) && w.at(g) < BARE_FUNDAMENTAL && w.shaft(g) > BARE_FUNDAMENTAL
+}
+
+/// The speeds (Hz, with the train's order) whose train at its kinematic order puts its
+/// fundamental on g's comb at g's 1x, 2x or 3x, inside [lo, hi].
+pub fn comb_speeds(g: f64, o: &FaultOrders, lo: f64, hi: f64) -> Vec<(f64, f64)> {
+    let mut out = Vec::new();
+    for order in train_orders(o) {
+        for m in COMB_MULTIPLES {
+            let c = m * g / order;
+            if (lo..=hi).contains(&c) {
+                out.push((c, order));
+            }
+        }
+    }
+    out
 }
 
 /// The speeds (Hz, with the train's order) whose train would put its fundamental on g's

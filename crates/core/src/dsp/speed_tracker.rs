@@ -45,10 +45,12 @@
 //! how they were cut into blocks, so a live stream and a whole recording get the same speeds.
 
 use super::decimate::Decimator;
-use super::fault_family::{EnvelopeFeed, FamilyEvidence, FamilySettings};
+use super::fault_family::{EnvelopeFeed, FamilyEvidence, FamilySettings, FAMILY_PRESENT};
 use super::harmonic_sum::{fundamental, on_mains_harmonic, Whitened, Whitener, HARMONICS};
 use super::speed::SpeedTrack;
-use super::speed_comb::{best_own, comb_spans, train_present, unexplained};
+use super::speed_comb::{
+    bare_comb, best_own, comb_spans, comb_speeds, train_present, train_support, unexplained,
+};
 use super::speed_hint::{octave_off_hint, OffHint, SCORE_CLEAR};
 use super::speed_phase::{self, PhaseFit};
 use crate::vocabulary::SpeedSourceKind;
@@ -452,7 +454,8 @@ impl SpeedTracker {
             Some(lock) => self.follow(lock, n),
             None => self.acquire(n),
         };
-        best.recent = self.recent_support(best.hz, best.trend);
+        // a speed read from a comb's train is seen in the newest stretch by the comb
+        best.recent = self.recent_support(best.train_of.unwrap_or(best.hz), best.trend);
         let phase = self.phase_reading(&best);
         if let Some(p) = &phase {
             // the line followed in phase through the history and the newest second
@@ -653,6 +656,7 @@ impl SpeedTracker {
             recent: true,
             phase: false,
             off_hint: None,
+            train_of: None,
         };
         if let Some(lock) = self.lock {
             let t = self.t_newest();
@@ -715,13 +719,23 @@ impl SpeedTracker {
                 }
             }
         }
+        let mut bare = false;
         if best.is_none() && self.joint.comb {
-            best = self.comb_as_train(g, lo);
+            if let Some((r, s, b)) = self.comb_as_train(g, lo) {
+                (best, bare) = (Some((r, s)), b);
+            }
         }
         if let Some((r, _)) = best {
-            let r = self.refine(r);
-            c.score = self.explained_score(r, g);
+            // a train read without a line of its own is at its kinematic order exactly, and
+            // its evidence is the comb it explains
+            let r = if bare { r } else { self.refine(r) };
+            c.score = if bare {
+                self.spec.shaft(g)
+            } else {
+                self.explained_score(r, g)
+            };
             (c.hz, c.rival, c.by_family) = (r, Some(g), true);
+            c.train_of = bare.then_some(g);
             c.followed = self.lock.is_some_and(|l| {
                 let pred = l.hz * (1.0 + l.trend * (self.t_newest() - l.t));
                 (r / pred - 1.0).abs() < FOLLOW_BAND
@@ -761,8 +775,12 @@ impl SpeedTracker {
     /// The speed that explains the shaft lines' choice `g` as a bearing's train
     /// ([`super::speed_comb`]): the clearest shaft line of its own (off g's series) among the
     /// speeds whose BPFO train would sit on g's comb, whose train the envelope shows, and under which
-    /// the rest of g's series is noise; with its clarity plus the train's support.
-    fn comb_as_train(&self, g: f64, lo: f64) -> Option<(f64, f64)> {
+    /// the rest of g's series is noise; with its clarity and false. Where no such speed
+    /// shows a line of its own and g's comb has no line at its fundamental
+    /// ([`bare_comb`]), the speed at the train's kinematic order whose train the envelope
+    /// shows best and under which the rest of g's series is noise, with the train's
+    /// support and true.
+    fn comb_as_train(&self, g: f64, lo: f64) -> Option<(f64, f64, bool)> {
         let fam = self.families?;
         let top = KEEP * self.fs_d / 2.0;
         let mut best: Option<(f64, f64)> = None;
@@ -780,7 +798,25 @@ impl SpeedTracker {
                 best = Some((c, s));
             }
         }
-        best
+        if let Some((c, s)) = best {
+            return Some((c, s, false));
+        }
+        if !bare_comb(&self.spec, g) {
+            return None;
+        }
+        let mut bare: Option<(f64, f64)> = None;
+        for (c, order) in comb_speeds(g, &fam.orders, lo, self.fmax) {
+            let s = train_support(&self.env_spec, order, c, top);
+            if s < FAMILY_PRESENT
+                || unexplained(&self.spec, g, c, order).is_some_and(|u| u > RIVAL_SUPPORT)
+            {
+                continue;
+            }
+            if bare.is_none_or(|(_, v)| s > v) {
+                bare = Some((c, s));
+            }
+        }
+        bare.map(|(c, s)| (c, s, true))
     }
 
     /// The speed near `hz` read from its harmonics' own peaks (joint reading:
@@ -1043,6 +1079,9 @@ struct Candidate {
     phase: bool,
     /// With a hint: the octave the vibration clearly shows instead ([`super::speed_hint`]).
     off_hint: Option<OffHint>,
+    /// The comb (Hz) this speed's bearing train makes, where the speed shows no line of its
+    /// own ([`super::speed_comb::bare_comb`]): the newest stretch must show the comb.
+    train_of: Option<f64>,
 }
 
 impl Candidate {
@@ -1283,6 +1322,7 @@ mod tests {
             recent: true,
             phase: false,
             off_hint: None,
+            train_of: None,
         }
     }
 
