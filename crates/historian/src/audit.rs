@@ -31,6 +31,10 @@ pub const OVERLAP: Duration = Duration::from_secs(30);
 /// checked again (the historian had caught up when the search began).
 const WRITTEN_WITHIN: Duration = Duration::from_secs(60);
 
+/// A search that could not be done (no connection, the buffer not written in time) is tried
+/// again after this long.
+const RETRY: Duration = Duration::from_secs(30);
+
 /// What the audit watches and feeds.
 pub struct Auditor {
     pub target: Target,
@@ -62,47 +66,60 @@ impl Auditor {
             return;
         }
         let every = Duration::from_secs_f64(self.settings.audit_every_s);
-        let mut last: Option<Instant> = None;
+        // The start of the last search that completed (the next looks back to it), and of
+        // the last one tried (a failed one is tried again after RETRY).
+        let (mut searched, mut tried): (Option<Instant>, Option<Instant>) = (None, None);
         loop {
-            let due = match last {
-                None => self.counters.db_connected.load(Ordering::Relaxed),
-                Some(t) => !every.is_zero() && t.elapsed() >= every && self.caught_up(),
+            let connected = self.counters.db_connected.load(Ordering::Relaxed);
+            let due = match (searched, tried) {
+                (None, None) => connected,
+                (None, Some(t)) => connected && t.elapsed() >= RETRY,
+                (Some(t), tried) => {
+                    let paced = tried.is_none_or(|x| x.elapsed() >= RETRY.min(every));
+                    !every.is_zero() && t.elapsed() >= every && paced && self.caught_up()
+                }
             };
             if !due {
                 tokio::time::sleep(Duration::from_millis(250)).await;
                 continue;
             }
-            let span = last.map_or(span_max, |t| {
+            let span = searched.map_or(span_max, |t| {
                 (t.elapsed() + OVERLAP).as_secs_f64().min(span_max)
             });
-            let first = last.is_none();
-            last = Some(Instant::now());
+            let now = Instant::now();
+            tried = Some(now);
             self.counters.auditing.store(true, Ordering::Relaxed);
-            self.search(span, first).await;
+            if self.search(span, searched.is_none()).await {
+                searched = Some(now);
+            }
             self.counters.auditing.store(false, Ordering::Relaxed);
-            if every.is_zero() {
+            if every.is_zero() && searched.is_some() {
                 return;
             }
         }
     }
 
-    /// One search over `span` seconds; what it finds goes into the recovery plan.
-    async fn search(&self, span: f64, at_start: bool) {
+    /// One search over `span` seconds; what it finds goes into the recovery plan. False when
+    /// it could not be done (tried again after [`RETRY`]).
+    async fn search(&self, span: f64, at_start: bool) -> bool {
         let found = match self.target.connect().await {
-            Ok(client) => self.holes(&client, span).await,
+            Ok(client) => self.holes(&client, span, at_start).await,
             Err(e) => Err(e),
         };
         Counters::add(&self.counters.audits, 1);
         let gaps = match found {
             Ok(g) => g,
             Err(e) => {
-                tracing::warn!("{e:#}; holes in the database are not asked for this time");
-                return;
+                tracing::warn!(
+                    "{e:#}; the holes in the database are searched again in {} s",
+                    RETRY.as_secs()
+                );
+                return false;
             }
         };
         let windows: u64 = gaps.iter().map(Gap::len).sum();
         let Some(example) = gaps.first() else {
-            return;
+            return true;
         };
         if at_start {
             tracing::info!(
@@ -124,13 +141,24 @@ impl Auditor {
             Counters::add(&self.counters.gaps, 1);
             self.missing.gap(g);
         }
+        true
     }
 
     /// The holes of the last `span` s that are still missing once everything the buffer held
     /// at the end of the search is written (a window recovered just before the search may
-    /// still have been on its way), named neither in the loss ledger nor in the plan.
-    async fn holes(&self, client: &tokio_postgres::Client, span: f64) -> anyhow::Result<Vec<Gap>> {
+    /// still have been on its way), named neither in the loss ledger nor in the plan. At
+    /// start the holes are asked for at once (a spill left by the last run may fill some:
+    /// those come back as duplicates): the buffer may hold minutes of backlog then.
+    async fn holes(
+        &self,
+        client: &tokio_postgres::Client,
+        span: f64,
+        at_start: bool,
+    ) -> anyhow::Result<Vec<Gap>> {
         let holes = super::holes::recent(client, span, self.listening_since_ns).await?;
+        if at_start {
+            return Ok(self.unlisted(holes.into_iter().map(|h| h.gap).collect()));
+        }
         if holes.is_empty() {
             return Ok(Vec::new());
         }
