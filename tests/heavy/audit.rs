@@ -7,16 +7,15 @@
 //! run's first windows, and one the point's recent history no longer holds. The audit must
 //! bring back the first two and count the third by point and seq range, and say so.
 
-use super::backpressure::{now_ns, stop};
+use super::backpressure::{now_ns, stop, test_historian};
 use super::historian::{
-    bin, every_field_set, historian_status, loopback_client, loopback_router, wait_until, Guard,
+    every_field_set, historian_status, loopback_client, loopback_router, wait_until, Guard,
     Postgres,
 };
 use rigmon::publish::recent::RecentHistory;
 use rigmon::publish::zenoh::FLEET_CONGESTION;
 use std::collections::BTreeSet;
 use std::path::Path;
-use std::process::{Command, Stdio};
 use std::sync::Arc;
 use std::time::Duration;
 use zenoh::Wait;
@@ -28,31 +27,13 @@ const KEPT: [usize; 3] = [100, 100, 10];
 
 /// A historian that audits its database every second once it has caught up.
 fn auditing_historian(dir: &Path, pg: &Postgres, router: &str) -> Guard {
-    let cfg = dir.join("historian.toml");
-    std::fs::write(
-        &cfg,
-        format!(
-            "name = \"test\"\ndefault_site = \"plant\"\nstatus_every_s = 0.3\n\
-             [zenoh]\nmode = \"client\"\nconnect = [\"{router}\"]\nhistory_windows = 0\n\
-             [buffer]\nspill_dir = \"spill\"\n[batch]\nmax_delay_ms = 100\n\
-             [recovery]\nquery_timeout_s = 5.0\naudit_every_s = 1.0\n"
-        ),
+    test_historian(
+        dir,
+        pg,
+        router,
+        "[buffer]\nspill_dir = \"spill\"\n[batch]\nmax_delay_ms = 100\n\
+         [recovery]\nquery_timeout_s = 5.0\naudit_every_s = 1.0\n",
     )
-    .unwrap();
-    let c = Command::new(bin())
-        .args([
-            "historian",
-            "--summary-json",
-            "--config",
-            cfg.to_str().unwrap(),
-        ])
-        .envs(pg.env("fleet"))
-        .env("RUST_LOG", "info")
-        .stdout(Stdio::piped())
-        .stderr(std::fs::File::create(dir.join("historian.log")).unwrap())
-        .spawn()
-        .unwrap();
-    Guard(c)
 }
 
 #[test]

@@ -41,14 +41,26 @@ pub(crate) fn now_ns() -> u64 {
 /// The historian with a small buffer (50 messages in memory, ~64 KB of spill), so that a
 /// stalled database makes it drop; its last status comes on stdout (`--summary-json`).
 fn slow_historian(dir: &Path, pg: &Postgres, router: &str) -> Guard {
+    test_historian(
+        dir,
+        pg,
+        router,
+        "[buffer]\nmemory_messages = 50\nspill_dir = \"spill\"\nspill_max_mb = 0.0625\n\
+         [batch]\nmax_delay_ms = 100\n[recovery]\nquery_timeout_s = 5.0\n",
+    )
+}
+
+/// The historian `test` on the fleet database and the router, with `sections` of
+/// `historian.toml` after its name and Zenoh client settings; its log in `dir`, its last
+/// status on stdout (`--summary-json`).
+pub(crate) fn test_historian(dir: &Path, pg: &Postgres, router: &str, sections: &str) -> Guard {
     let cfg = dir.join("historian.toml");
     std::fs::write(
         &cfg,
         format!(
             "name = \"test\"\ndefault_site = \"plant\"\nstatus_every_s = 0.3\n\
              [zenoh]\nmode = \"client\"\nconnect = [\"{router}\"]\nhistory_windows = 0\n\
-             [buffer]\nmemory_messages = 50\nspill_dir = \"spill\"\nspill_max_mb = 0.0625\n\
-             [batch]\nmax_delay_ms = 100\n[recovery]\nquery_timeout_s = 5.0\n"
+             {sections}"
         ),
     )
     .unwrap();

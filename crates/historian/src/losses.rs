@@ -72,6 +72,15 @@ impl Ranges {
         true
     }
 
+    /// `first..=last` (nothing when `first > last`).
+    pub(crate) fn of(first: u64, last: u64) -> Ranges {
+        let mut r = Ranges::default();
+        if first <= last {
+            r.insert(first, last);
+        }
+        r
+    }
+
     /// The ranges, ascending.
     pub(crate) fn iter(&self) -> impl Iterator<Item = (u64, u64)> + '_ {
         self.0.iter().map(|(&f, &l)| (f, l))
@@ -177,13 +186,9 @@ impl LossLedger {
         first: u64,
         last: u64,
     ) -> Vec<(u64, u64)> {
-        let mut left = Ranges::default();
-        if first > last {
-            return Vec::new();
-        }
-        left.insert(first, last);
+        let mut left = Ranges::of(first, last);
         let Ok(g) = self.inner.lock() else {
-            return vec![(first, last)];
+            return left.iter().collect();
         };
         for ((p, run), r) in &g.lost {
             if p == point && same_run(*run, run_start_ns) {

@@ -198,11 +198,7 @@ impl Plan {
         first: u64,
         last: u64,
     ) -> Vec<(u64, u64)> {
-        let mut left = Ranges::default();
-        if first > last {
-            return Vec::new();
-        }
-        left.insert(first, last);
+        let mut left = Ranges::of(first, last);
         let ours = |t: &Target| t.key == key && same_run(t.run_start_ns, run_start_ns);
         for (_, w) in self.waiting.iter().filter(|(t, _)| ours(t)) {
             for (f, l) in w.missing.iter() {
