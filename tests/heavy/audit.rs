@@ -7,18 +7,12 @@
 //! run's first windows, and one the point's recent history no longer holds. The audit must
 //! bring back the first two and count the third by point and seq range, and say so.
 
-use super::backpressure::{now_ns, stop, test_historian};
+use super::backpressure::{now_ns, stop, stored, test_historian, wait_connected, Points};
 use super::historian::{
-    every_field_set, historian_status, loopback_client, loopback_router, wait_until, Guard,
-    Postgres,
+    historian_status, loopback_client, loopback_router, wait_until, Guard, Postgres,
 };
-use rigmon::publish::recent::RecentHistory;
-use rigmon::publish::zenoh::FLEET_CONGESTION;
-use std::collections::BTreeSet;
 use std::path::Path;
-use std::sync::Arc;
 use std::time::Duration;
-use zenoh::Wait;
 
 const TICKS: u64 = 30;
 /// Windows each point's recent history keeps: the first two points hold all, the third only
@@ -45,56 +39,15 @@ fn windows_missing_behind_the_historians_back_are_found_asked_for_or_counted() {
     let fleet = loopback_client(&router_ep);
     let (_status_sub, status) = historian_status(&fleet);
     let hist = auditing_historian(d, &pg, &router_ep);
-    wait_until("the historian's database", Duration::from_secs(60), || {
-        status
-            .lock()
-            .unwrap()
-            .as_ref()
-            .is_some_and(|s| s.database.connected)
-    });
+    wait_connected(&status);
     // The run begins after the historian listens: its first windows count.
-    let run_ns = now_ns();
-    let rings: Vec<RecentHistory> = KEPT
-        .iter()
-        .enumerate()
-        .map(|(i, &kept)| {
-            let key = format!("rigmon/au-{i}/shaft/nde");
-            RecentHistory::declare(&fleet, &key, kept, Arc::default())
-                .unwrap()
-                .unwrap()
-        })
-        .collect();
-    let pubs: Vec<_> = (0..KEPT.len())
-        .map(|i| {
-            fleet
-                .declare_publisher(format!("rigmon/au-{i}/shaft/nde/health"))
-                .congestion_control(FLEET_CONGESTION)
-                .wait()
-                .unwrap()
-        })
-        .collect();
+    let points = Points::declare(&fleet, "au", now_ns(), &KEPT);
     for seq in 1..=TICKS {
-        for (i, (ring, publisher)) in rings.iter().zip(&pubs).enumerate() {
-            let mut m = every_field_set(run_ns, seq);
-            m.rig = format!("au-{i}");
-            m.publish_time_ns = now_ns();
-            let json = serde_json::to_vec(&m).unwrap();
-            ring.push(&json);
-            publisher.put(json).wait().unwrap();
-        }
+        points.put(seq);
         std::thread::sleep(Duration::from_millis(20));
     }
     let (rt, db) = pg.client("fleet");
-    let stored = || -> BTreeSet<(String, i64)> {
-        rt.block_on(db.query(
-            "SELECT p.key, w.seq FROM windows w JOIN points p USING (point_id)",
-            &[],
-        ))
-        .unwrap()
-        .iter()
-        .map(|r| (r.get(0), r.get(1)))
-        .collect()
-    };
+    let stored = || stored(&rt, &db);
     let all = KEPT.len() * TICKS as usize;
     wait_until("every window stored", Duration::from_secs(30), || {
         stored().len() == all

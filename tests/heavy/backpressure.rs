@@ -90,6 +90,83 @@ pub(crate) fn stop(mut g: Guard) -> HistorianStatus {
     serde_json::from_str(out.trim()).unwrap_or_else(|e| panic!("last status {out:?}: {e}"))
 }
 
+/// Simulated points `<rig>-<i>/shaft/nde` of one run, each with a daemon's recent history
+/// (keeping its `kept` windows) and a publisher with the fleet's congestion policy.
+pub(crate) struct Points {
+    rig: String,
+    run_ns: u64,
+    each: Vec<(RecentHistory, zenoh::pubsub::Publisher<'static>)>,
+}
+
+impl Points {
+    pub(crate) fn declare(
+        fleet: &zenoh::Session,
+        rig: &str,
+        run_ns: u64,
+        kept: &[usize],
+    ) -> Points {
+        let each = kept
+            .iter()
+            .enumerate()
+            .map(|(i, &kept)| {
+                let base = format!("rigmon/{rig}-{i}/shaft/nde");
+                let ring = RecentHistory::declare(fleet, &base, kept, Arc::default())
+                    .unwrap()
+                    .unwrap();
+                let publisher = fleet
+                    .declare_publisher(format!("{base}/health"))
+                    .congestion_control(FLEET_CONGESTION)
+                    .wait()
+                    .unwrap();
+                (ring, publisher)
+            })
+            .collect();
+        Points {
+            rig: rig.to_string(),
+            run_ns,
+            each,
+        }
+    }
+
+    /// Window `seq` of every point: into its recent history, then published.
+    pub(crate) fn put(&self, seq: u64) {
+        for (i, (ring, publisher)) in self.each.iter().enumerate() {
+            let mut m = every_field_set(self.run_ns, seq);
+            m.rig = format!("{}-{i}", self.rig);
+            m.publish_time_ns = now_ns();
+            let json = serde_json::to_vec(&m).unwrap();
+            ring.push(&json);
+            publisher.put(json).wait().unwrap();
+        }
+    }
+}
+
+/// (point key, seq) of every window in the fleet database.
+pub(crate) fn stored(
+    rt: &tokio::runtime::Runtime,
+    db: &tokio_postgres::Client,
+) -> BTreeSet<(String, i64)> {
+    rt.block_on(db.query(
+        "SELECT p.key, w.seq FROM windows w JOIN points p USING (point_id)",
+        &[],
+    ))
+    .unwrap()
+    .iter()
+    .map(|r| (r.get(0), r.get(1)))
+    .collect()
+}
+
+/// Wait (up to 60 s) for the test historian's status to say its database is connected.
+pub(crate) fn wait_connected(status: &std::sync::Mutex<Option<HistorianStatus>>) {
+    wait_until("the historian's database", Duration::from_secs(60), || {
+        status
+            .lock()
+            .unwrap()
+            .as_ref()
+            .is_some_and(|s| s.database.connected)
+    });
+}
+
 #[test]
 fn a_historian_slower_than_its_fleet_loses_nothing_in_silence() {
     let tmp = tempfile::tempdir().unwrap();
@@ -99,57 +176,12 @@ fn a_historian_slower_than_its_fleet_loses_nothing_in_silence() {
     let fleet = loopback_client(&router_ep);
     let (_status_sub, status) = historian_status(&fleet);
     let hist = slow_historian(d, &pg, &router_ep);
-    wait_until("the historian's database", Duration::from_secs(60), || {
-        status
-            .lock()
-            .unwrap()
-            .as_ref()
-            .is_some_and(|s| s.database.connected)
-    });
-    let run_ns = now_ns() - 120_000_000_000;
-    let rings: Vec<RecentHistory> = (0..POINTS)
-        .map(|i| {
-            RecentHistory::declare(
-                &fleet,
-                &format!("rigmon/bp-{i}/shaft/nde"),
-                KEPT,
-                Arc::default(),
-            )
-            .unwrap()
-            .unwrap()
-        })
-        .collect();
-    let pubs: Vec<_> = (0..POINTS)
-        .map(|i| {
-            fleet
-                .declare_publisher(format!("rigmon/bp-{i}/shaft/nde/health"))
-                .congestion_control(FLEET_CONGESTION)
-                .wait()
-                .unwrap()
-        })
-        .collect();
-    let put = |seq: u64| {
-        for (i, (ring, publisher)) in rings.iter().zip(&pubs).enumerate() {
-            let mut m = every_field_set(run_ns, seq);
-            m.rig = format!("bp-{i}");
-            m.publish_time_ns = now_ns();
-            let json = serde_json::to_vec(&m).unwrap();
-            ring.push(&json);
-            publisher.put(json).wait().unwrap();
-        }
-    };
+    wait_connected(&status);
+    let points = Points::declare(&fleet, "bp", now_ns() - 120_000_000_000, &[KEPT; POINTS]);
+    let put = |seq: u64| points.put(seq);
     put(1);
     let (rt, db) = pg.client("fleet");
-    let stored = || -> BTreeSet<(String, i64)> {
-        rt.block_on(db.query(
-            "SELECT p.key, w.seq FROM windows w JOIN points p USING (point_id)",
-            &[],
-        ))
-        .unwrap()
-        .iter()
-        .map(|r| (r.get(0), r.get(1)))
-        .collect()
-    };
+    let stored = || stored(&rt, &db);
     wait_until(
         "window 1 of every point stored",
         Duration::from_secs(30),
