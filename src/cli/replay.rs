@@ -6,7 +6,7 @@ use crate::acquire::{FileSourceConfig, ReplaySpeed, SourceConfig};
 use crate::daemon::config::{DaemonConfig, ModelConfig, PipelineConfig};
 use crate::daemon::{self, DaemonOptions, Output};
 use crate::health::HealthPolicy;
-use crate::publish::zenoh::{ZenohArgs, ZenohSettings};
+use crate::publish::zenoh::{ZenohArgs, ZenohSettings, REPLAY_WAIT_BEFORE_DROP};
 use crate::recorder::RecordConfig;
 use anyhow::{bail, Result};
 use std::path::PathBuf;
@@ -84,7 +84,10 @@ pub fn run(args: Args) -> Result<()> {
         None => HealthPolicy::default(),
     };
     let zenoh = if args.zenoh.any() {
-        args.zenoh.apply(ZenohSettings::default())
+        ZenohSettings {
+            wait_before_drop: Some(REPLAY_WAIT_BEFORE_DROP),
+            ..args.zenoh.apply(ZenohSettings::default())
+        }
     } else {
         ZenohSettings {
             enabled: false,

@@ -84,7 +84,19 @@ pub struct ZenohSettings {
     /// after a restart); 0 turns the cache off. See [`super::recent`].
     #[serde(default = "default_history_windows")]
     pub history_windows: usize,
+    /// How long a message waits for room in a full send queue before it is dropped (zenoh's
+    /// `wait_before_drop`; None: zenoh's 1 ms, so a live daemon never stalls its acquisition
+    /// behind a slow link). Not a config key: `rigmon replay` sets [`REPLAY_WAIT_BEFORE_DROP`].
+    #[serde(skip)]
+    pub wait_before_drop: Option<Duration>,
 }
+
+/// A replay's [`ZenohSettings::wait_before_drop`]: a file can wait for its slowest
+/// subscriber. At `--speed max` on a loaded machine the send queue's thread may not run for
+/// more than zenoh's 1 ms, and windows were dropped in the middle of a replay (3 to 6 of 15
+/// under three busy loops on 2 cores); a drop is still possible (a subscriber stuck for this
+/// long), and is then the seq gap every dropped window is.
+pub const REPLAY_WAIT_BEFORE_DROP: Duration = Duration::from_millis(500);
 
 fn default_history_windows() -> usize {
     super::recent::DEFAULT_WINDOWS
@@ -111,6 +123,7 @@ impl Default for ZenohSettings {
             tls: TlsSettings::default(),
             acl: AclSettings::default(),
             history_windows: default_history_windows(),
+            wait_before_drop: None,
         }
     }
 }
@@ -274,6 +287,13 @@ impl ZenohSettings {
             // Keep retrying configured endpoints forever (router restarts), never give up.
             set(&mut c, "connect/timeout_ms", "-1".into())?;
             set(&mut c, "connect/exit_on_failure", "false".into())?;
+        }
+        if let Some(w) = self.wait_before_drop {
+            set(
+                &mut c,
+                "transport/link/tx/queue/congestion_control/drop/wait_before_drop",
+                w.as_micros().clamp(1, i64::MAX as u128).to_string(),
+            )?;
         }
         super::access::apply(&mut c, &self.key_prefix, &self.auth, &self.tls, &self.acl)?;
         Ok(c)
@@ -892,6 +912,27 @@ mod tests {
             "invalid port value"
         );
         assert_eq!(error_text(&"look at me"), "look at me");
+    }
+
+    #[test]
+    fn a_replay_waits_for_room_before_dropping_and_a_daemon_does_not() {
+        let key = "transport/link/tx/queue/congestion_control/drop/wait_before_drop";
+        let live = ZenohSettings::default().zenoh_config().unwrap();
+        assert_eq!(
+            live.get_json(key).unwrap(),
+            "1000",
+            "zenoh's 1 ms for a live daemon"
+        );
+        let replay = ZenohSettings {
+            wait_before_drop: Some(REPLAY_WAIT_BEFORE_DROP),
+            ..Default::default()
+        }
+        .zenoh_config()
+        .unwrap();
+        assert_eq!(
+            replay.get_json(key).unwrap(),
+            REPLAY_WAIT_BEFORE_DROP.as_micros().to_string()
+        );
     }
 
     #[test]
