@@ -7,7 +7,9 @@
 //! more is taken: a candidate c = m g / order (g the shaft lines' choice, m = 1-3, the order
 //! of BPFO within the bearing's slip: [`train_orders`]) replaces g when
 //! - c shows a shaft line of its own ([`own_lines`]: its harmonics off g's series; the
-//!   tracker checks their clarity),
+//!   tracker checks their clarity), or c is the line the tracker followed in the last
+//!   windows (continuity: found there over a longer history, while the span searched now,
+//!   a second while acquiring, is too short to resolve a weak 1x),
 //! - the envelope shows c's train ([`train_support`], as strong as a fault family must be:
 //!   [`FAMILY_PRESENT`]) with its fundamental where the comb's lines are, and
 //! - the lines of g's series that c explains neither as its own harmonics nor as its train

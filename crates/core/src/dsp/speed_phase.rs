@@ -34,6 +34,12 @@ const LEAD_BLOCK_SNR: f64 = 2.0;
 /// Detection statistic of the newest stretch above which it shows the line: under noise
 /// alone it is a sum of K unit exponentials (K harmonics); P(> 12) < 1e-3 for K <= 5.
 const NEWEST_DETECT: f64 = 12.0;
+/// Highest phase degree of a speed that is steady or changes linearly (a trend, which the
+/// spectrum's warp already follows).
+const STRAIGHT_DEGREE: usize = 2;
+/// Bayesian information criterion by which a curved speed law must beat the best straight
+/// one to count as curved: "very strong" evidence on Kass and Raftery's scale (1995).
+const CURVED_BIC: f64 = 10.0;
 
 /// The speed law the phase fit found over the history.
 #[derive(Debug, Clone, PartialEq)]
@@ -44,6 +50,9 @@ pub struct PhaseFit {
     pub hz: Vec<f64>,
     /// Degree of the phase polynomial chosen.
     pub degree: usize,
+    /// How much better (Bayesian information criterion) the chosen law fits than the best
+    /// steady or linearly changing one (0 when it is one of them).
+    pub curved_by: f64,
     /// Harmonics that took part.
     pub harmonics: usize,
     /// Detection statistic of the line over the newest stretch ([`NEWEST_DETECT`]).
@@ -59,6 +68,12 @@ impl PhaseFit {
     /// The newest stretch shows the line along the fit.
     pub fn newest_shows_line(&self) -> bool {
         self.newest >= NEWEST_DETECT
+    }
+
+    /// The speed curves over the history (a fluctuation, not a steady speed or a linear
+    /// trend), by very strong evidence ([`CURVED_BIC`]).
+    pub fn curved(&self) -> bool {
+        self.degree > STRAIGHT_DEGREE && self.curved_by >= CURVED_BIC
     }
 }
 
@@ -109,11 +124,11 @@ pub fn fit(x: &[f32], fs: f64, hz: f64, r: f64, newest_s: f64) -> Option<PhaseFi
     let span = (tb[blocks - 1] - tb[0]).max(1e-9);
     let u: Vec<f64> = tb.iter().map(|t| 2.0 * (t - tb[0]) / span - 1.0).collect();
     // the lead alone, then every harmonic unwrapped to its prediction, then all together
-    let (lead_fit, _) = best_degree(&hs[..1], &u)?;
+    let (lead_fit, _, _) = best_degree(&hs[..1], &u)?;
     for h in hs.iter_mut().skip(1) {
         unwrap_to(h, &lead_fit, &u);
     }
-    let (coef, degree) = best_degree(&hs, &u)?;
+    let (coef, degree, curved_by) = best_degree(&hs, &u)?;
     let newest = newest_detection(&hs, &coef, &u, &tb, newest_s);
     let du_dt = 2.0 / span;
     let knots = (((-tb[0]) / 0.1).ceil() as usize).max(2);
@@ -143,6 +158,7 @@ pub fn fit(x: &[f32], fs: f64, hz: f64, r: f64, newest_s: f64) -> Option<PhaseFi
         t,
         hz: f,
         degree,
+        curved_by,
         harmonics: hs.len(),
         newest,
     })
@@ -274,22 +290,34 @@ fn poly_slope(p: &[f64], u: f64) -> f64 {
 }
 
 /// The degree (1..=[`MAX_DEGREE`], fewer than a third of the blocks) with the smallest
-/// Bayesian information criterion, and its fit.
-fn best_degree(hs: &[Harmonic], u: &[f64]) -> Option<(Coef, usize)> {
+/// Bayesian information criterion, its fit, and by how much it beats the best degree up to
+/// [`STRAIGHT_DEGREE`] (0 when it is one of those).
+fn best_degree(hs: &[Harmonic], u: &[f64]) -> Option<(Coef, usize, f64)> {
     let n = (hs.len() * u.len()) as f64;
     let top = MAX_DEGREE.min(u.len() / 3).max(1);
     let mut best: Option<(f64, Coef, usize)> = None;
+    let mut straight = f64::INFINITY;
     for d in 1..=top {
         let Some((coef, rss)) = solve(hs, u, d) else {
             continue;
         };
         let wsum: f64 = hs.iter().map(|h| h.weight).sum::<f64>() * u.len() as f64;
         let bic = n * (rss / wsum).max(1e-300).ln() + (d + hs.len()) as f64 * n.ln();
+        if d <= STRAIGHT_DEGREE {
+            straight = straight.min(bic);
+        }
         if best.as_ref().is_none_or(|(b, _, _)| bic < *b) {
             best = Some((bic, coef, d));
         }
     }
-    best.map(|(_, c, d)| (c, d))
+    best.map(|(b, c, d)| {
+        let gain = if straight.is_finite() {
+            (straight - b).max(0.0)
+        } else {
+            0.0
+        };
+        (c, d, gain)
+    })
 }
 
 /// Weighted least squares of degree `d`: the coefficients and the weighted residual sum.

@@ -248,6 +248,11 @@ pub struct JointParts {
     /// The speed over the history is read from the harmonics' phase ([`super::speed_phase`]),
     /// which also says whether the newest second still shows the line.
     pub phase: bool,
+    /// Where the phase shows the speed curving over the history (a fluctuation; very strong
+    /// evidence, [`PhaseFit::curved`]) and the newest second shows the line along it, the
+    /// window's speed and track are the phase's; its status and confidence stay the
+    /// spectrum's. Without [`Self::phase`] only.
+    pub phase_curved: bool,
 }
 
 impl JointParts {
@@ -258,12 +263,14 @@ impl JointParts {
             line_speed: on,
             comb: on,
             phase: on,
+            phase_curved: on,
         }
     }
 
     /// The tracker's default: every part but the phase reading, which is measured
     /// (`tests/fast/speed_joint.rs`) but not yet on (docs/speed.md: it made mains hum and one
-    /// CWRU record confident at a wrong speed).
+    /// CWRU record confident at a wrong speed); its speed is used where it curves
+    /// ([`Self::phase_curved`]), which makes nothing confident.
     pub fn default_on() -> JointParts {
         JointParts {
             phase: false,
@@ -480,8 +487,28 @@ impl SpeedTracker {
         }
         if let Some(p) = phase.filter(|_| e.status == SpeedStatus::Tracking) {
             self.apply_phase(&mut e, &p, t_end);
+        } else if let Some(p) = self.curved_reading(&best, &e) {
+            self.apply_phase(&mut e, &p, t_end);
         }
         Ok(e)
+    }
+
+    /// The phase fit over the whole history where the speed curves in it and the newest
+    /// second shows the line along it ([`JointParts::phase_curved`]), for a window that tracks
+    /// the candidate's line (not a hint, a jump or an unclear line) and whose mean the fit
+    /// agrees with (within [`FOLLOW_BAND`]).
+    fn curved_reading(&self, c: &Candidate, e: &TrackedSpeed) -> Option<PhaseFit> {
+        let own = e.status == SpeedStatus::Tracking;
+        if self.joint.phase || !self.joint.phase_curved || !own || c.train_of.is_some() {
+            return None;
+        }
+        // the whole history: the longer the span, the clearer a curve
+        let last = self.hist.len();
+        let m = self.cap.min(last);
+        let p = speed_phase::fit(&self.hist[last - m..], self.fs_d, c.hz, c.trend, RECENT_S)?;
+        let mean = p.hz.iter().sum::<f64>() / p.hz.len() as f64;
+        let agrees = (mean * 60.0 / e.rpm - 1.0).abs() < FOLLOW_BAND;
+        (p.curved() && p.newest_shows_line() && agrees).then_some(p)
     }
 
     /// The phase of the candidate's harmonics over the span it was found in
@@ -495,6 +522,17 @@ impl SpeedTracker {
         let m = ((c.span * self.fs_d).round() as usize).min(last);
         speed_phase::fit(&self.hist[last - m..], self.fs_d, c.hz, c.trend, RECENT_S)
             .filter(PhaseFit::newest_shows_line)
+    }
+
+    /// Where the line followed from the last windows is predicted now (Hz), if any: along
+    /// its trend when it is trusted, else where it was (a guess's trend is a guess too).
+    fn predicted(&self) -> Option<f64> {
+        self.lock
+            .map(|l| {
+                let trend = if l.confirmed { l.trend } else { 0.0 };
+                l.hz * (1.0 + trend * (self.t_newest() - l.t))
+            })
+            .filter(|p| *p > 0.0)
     }
 
     /// `hz` is where the line followed is predicted now (within [`FOLLOW_BAND`]).
@@ -775,7 +813,9 @@ impl SpeedTracker {
     /// The speed that explains the shaft lines' choice `g` as a bearing's train
     /// ([`super::speed_comb`]): the clearest shaft line of its own (off g's series) among the
     /// speeds whose BPFO train would sit on g's comb, whose train the envelope shows, and under which
-    /// the rest of g's series is noise; with its clarity and false. Where no such speed
+    /// the rest of g's series is noise; with its clarity and false (the line followed from
+    /// the last windows stands for a line of its own where this span shows none: then true,
+    /// its evidence the comb it explains, as for a bare comb). Where no such speed
     /// shows a line of its own and g's comb has no line at its fundamental
     /// ([`bare_comb`]), the speed at the train's kinematic order whose train the envelope
     /// shows best and under which the rest of g's series is noise, with the train's
@@ -783,23 +823,32 @@ impl SpeedTracker {
     fn comb_as_train(&self, g: f64, lo: f64) -> Option<(f64, f64, bool)> {
         let fam = self.families?;
         let top = KEEP * self.fs_d / 2.0;
-        let mut best: Option<(f64, f64)> = None;
+        // (speed, its own lines' clarity, read without a line of its own in this span)
+        let mut best: Option<(f64, f64, bool)> = None;
         for (a, b, order) in comb_spans(g, &fam.orders, lo, self.fmax) {
             // c's evidence from its own lines only: its train and any harmonic of it that
             // falls on g's series are g's lines
-            let (c, s) = best_own(&self.spec, g, a, b);
-            if s <= SCORE_NOISE || !train_present(&self.env_spec, order, c, top) {
+            let (mut c, s) = best_own(&self.spec, g, a, b);
+            // continuity: the line followed from the last windows, found there over a longer
+            // history, stands for a line of its own where this span is too short to show it
+            let followed = self
+                .predicted()
+                .filter(|p| s <= SCORE_NOISE && (a..=b).contains(p));
+            if s <= SCORE_NOISE && followed.is_none() {
                 continue;
             }
-            if unexplained(&self.spec, g, c, order).is_some_and(|u| u > RIVAL_SUPPORT) {
+            c = followed.unwrap_or(c);
+            if !train_present(&self.env_spec, order, c, top)
+                || unexplained(&self.spec, g, c, order).is_some_and(|u| u > RIVAL_SUPPORT)
+            {
                 continue;
             }
-            if best.is_none_or(|(_, v)| s > v) {
-                best = Some((c, s));
+            if best.is_none_or(|(_, v, _)| s > v) {
+                best = Some((c, s, followed.is_some()));
             }
         }
-        if let Some((c, s)) = best {
-            return Some((c, s, false));
+        if best.is_some() {
+            return best;
         }
         if !bare_comb(&self.spec, g) {
             return None;
