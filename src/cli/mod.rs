@@ -27,3 +27,4 @@ pub mod simulate;
 pub mod train;
 pub mod trend;
 pub mod watch;
+pub mod watch_gaps;

@@ -2,8 +2,11 @@
 //! confidence, probabilities, rpm, velocity zone, quality) for an operator's terminal, or the
 //! raw JSON with `--json`. `--query` asks the daemons' queryables for the latest message.
 //! Within [`UNREACHABLE_AFTER`] it says when nothing is reachable at the endpoint (and keeps
-//! waiting); it never claims a connection it does not have.
+//! waiting); it never claims a connection it does not have. A window that did not come (a
+//! gap in its point's seq) is fetched from the daemon's recent history and printed, or said
+//! to be lost ([`super::watch_gaps`]).
 
+use super::watch_gaps::MissedWindows;
 use crate::publish::zenoh::{ZenohArgs, ZenohSettings, ZenohSubscriber, DEFAULT_PORT};
 use crate::wire::health::HealthMessage;
 use anyhow::{bail, Result};
@@ -67,14 +70,21 @@ pub fn run(args: Args) -> Result<()> {
     let idle = args.timeout.map(Duration::from_secs_f64);
     // None: not known yet; Some(false): told the user nothing is reachable.
     let mut reachable: Option<bool> = None;
+    let mut missed = MissedWindows::new();
     loop {
         if args.count.is_some_and(|c| n >= c) {
             break;
         }
         match sub.recv_timeout(Duration::from_millis(200))? {
             Some((key, payload)) => {
-                n += 1;
                 last = Instant::now();
+                if let Ok(m) = serde_json::from_slice::<HealthMessage>(&payload) {
+                    for (k, p) in missed.before(&sub, &key, &m) {
+                        n += 1;
+                        print_one(&mut out, &k, &p, args.json)?;
+                    }
+                }
+                n += 1;
                 print_one(&mut out, &key, &payload, args.json)?;
             }
             None => {
@@ -93,6 +103,9 @@ pub fn run(args: Args) -> Result<()> {
             }
         }
         reachable = report_reach(&sub, started, reachable, &reach);
+    }
+    if let Some(s) = missed.summary() {
+        tracing::warn!("{s}");
     }
     sub.close();
     Ok(())

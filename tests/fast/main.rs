@@ -42,3 +42,4 @@ mod speed_cwru;
 mod speed_free;
 mod speed_hint;
 mod speed_joint;
+mod watch_gaps;
