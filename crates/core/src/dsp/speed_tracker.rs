@@ -192,6 +192,13 @@ struct Lock {
     trend: f64,
 }
 
+impl Lock {
+    /// Where the line is predicted at time `t` (s, stream clock), along its trend.
+    fn at(&self, t: f64) -> f64 {
+        self.hz * (1.0 + self.trend * (t - self.t))
+    }
+}
+
 /// The streaming tracker (see the module doc). Buffers and FFT plans are made once.
 pub struct SpeedTracker {
     fs: f64,
@@ -532,18 +539,19 @@ impl SpeedTracker {
     fn predicted(&self) -> Option<f64> {
         self.lock
             .map(|l| {
-                let trend = if l.confirmed { l.trend } else { 0.0 };
-                l.hz * (1.0 + trend * (self.t_newest() - l.t))
+                if l.confirmed {
+                    l.at(self.t_newest())
+                } else {
+                    l.hz
+                }
             })
             .filter(|p| *p > 0.0)
     }
 
     /// `hz` is where the line followed is predicted now (within [`FOLLOW_BAND`]).
     fn near_lock(&self, hz: f64) -> bool {
-        self.lock.is_some_and(|l| {
-            let pred = l.hz * (1.0 + l.trend * (self.t_newest() - l.t));
-            (hz / pred - 1.0).abs() < FOLLOW_BAND
-        })
+        self.lock
+            .is_some_and(|l| (hz / l.at(self.t_newest()) - 1.0).abs() < FOLLOW_BAND)
     }
 
     /// The window's speed from the phase fit: its track over the history (half a second
@@ -572,7 +580,7 @@ impl SpeedTracker {
         let min_n = (MIN_REVS / self.fmax * self.fs_d).ceil() as usize;
         // the trend is held as a constant change in Hz per second (a linear run-up), so
         // relative to the speed now it is smaller than it was relative to the last speed
-        let pred = lock.hz * (1.0 + lock.trend * (self.t_newest() - lock.t));
+        let pred = lock.at(self.t_newest());
         let r0 = if pred > 0.0 {
             lock.trend * lock.hz / pred
         } else {
@@ -701,7 +709,7 @@ impl SpeedTracker {
         };
         if let Some(lock) = self.lock {
             let t = self.t_newest();
-            let pred = lock.hz * (1.0 + lock.trend * (t - lock.t));
+            let pred = lock.at(t);
             let band = FOLLOW_BAND + 0.5 * lock.trend.abs() * (t - lock.t);
             let (f, s) = self.spec.best_in(
                 (pred * (1.0 - band)).max(lo),
@@ -777,10 +785,7 @@ impl SpeedTracker {
             };
             (c.hz, c.rival, c.by_family) = (r, Some(g), true);
             c.train_of = bare.then_some(g);
-            c.followed = self.lock.is_some_and(|l| {
-                let pred = l.hz * (1.0 + l.trend * (self.t_newest() - l.t));
-                (r / pred - 1.0).abs() < FOLLOW_BAND
-            });
+            c.followed = self.near_lock(r);
         } else if let Some(r) = c.rival {
             if ev.prefers(g, r).is_some() {
                 c.score = self.explained_score(g, r);
