@@ -239,10 +239,10 @@ fn case(name: &str, m: Machine, hz: &dyn Fn(f64) -> f64, seed: u64) -> Readings 
     Readings::of(name, &signal(m, 30.0, hz, seed), hz)
 }
 
-/// A healthy machine at 588 rpm (weak 1x), steady: the joint reading's median within
-/// 0.5 % and its p95 below the reading before; the phase fit's p95 below the joint
-/// reading's. Issue 34's target (p95 <= 0.5 %, every window confident) is not met yet:
-/// docs/speed.md. 1188 rpm is printed beside it.
+/// A healthy machine at 588 rpm (weak 1x), steady: issue 34's target, p95 within 0.5 %
+/// (the newest second shown in phase keeps the weak line followed: `newest_in_phase`), and
+/// most windows confident (before that part: p95 4.4 %, 43 of 53 uncertain; docs/speed.md).
+/// 1188 rpm is printed beside it.
 #[test]
 fn a_weak_1x_at_588_rpm_is_read() {
     let hz = |_: f64| 588.0 / 60.0;
@@ -255,21 +255,17 @@ fn a_weak_1x_at_588_rpm_is_read() {
             .count()
     };
     eprintln!(
-        "healthy 588 steady: uncertain windows {} joint, {} with the phase fit",
+        "healthy 588 steady: uncertain windows {} joint, {} with the phase fit, {} without the newest second in phase",
         unsure(JointParts::default_on()),
-        unsure(JointParts::all(true))
+        unsure(JointParts::all(true)),
+        unsure(JointParts {
+            newest_in_phase: false,
+            ..JointParts::default_on()
+        })
     );
-    assert!(
-        quantile(&r.now, 0.5) <= 0.005,
-        "median {}",
-        quantile(&r.now, 0.5)
-    );
-    assert!(r.p95() < quantile(&r.before, 0.95));
-    assert!(
-        quantile(&r.phase, 0.95) < r.p95(),
-        "phase fit p95 {}",
-        quantile(&r.phase, 0.95)
-    );
+    assert!(r.p95() <= 0.005, "p95 {}", r.p95());
+    let uncertain = unsure(JointParts::default_on());
+    assert!(2 * uncertain < r.now.len(), "{uncertain} windows uncertain");
     let hz = |_: f64| 1188.0 / 60.0;
     Readings::of(
         "healthy 1188 steady",
@@ -308,7 +304,8 @@ fn a_clean_line_is_read_without_bias() {
 }
 
 /// An outer race at 588 rpm whose BPFO comb (45, 90, 135 Hz) stands above the shaft lines:
-/// the shaft is 9.8 Hz with the comb its train, not a shaft at 22.5, 30 or 45 Hz.
+/// the shaft is 9.8 Hz with the comb its train, not a shaft at 22.5, 30 or 45 Hz, and read
+/// within issue 34's 0.5 % for a steady speed (p95).
 #[test]
 fn a_bearing_comb_does_not_become_the_shaft() {
     let hz = |_: f64| 588.0 / 60.0;
@@ -318,10 +315,10 @@ fn a_bearing_comb_does_not_become_the_shaft() {
     };
     // a shaft read from the comb is 30 % or more off (1350, 1800 or 2700 rpm)
     let r = case("outer race 588", m, &hz, 9);
-    assert!(r.p95() < 0.1, "p95 {}", r.p95());
+    assert!(r.p95() <= 0.005, "p95 {}", r.p95());
 }
 
-/// An impulsive inner race with a weak shaft line at 588 rpm.
+/// An impulsive inner race with a weak shaft line at 588 rpm: within 0.5 % (p95).
 #[test]
 fn an_impulsive_inner_race_keeps_the_shaft() {
     let hz = |_: f64| 588.0 / 60.0;
@@ -330,7 +327,7 @@ fn an_impulsive_inner_race_keeps_the_shaft() {
         ..healthy(588.0)
     };
     let r = case("inner race 588", m, &hz, 13);
-    assert!(r.p95() < 0.1, "p95 {}", r.p95());
+    assert!(r.p95() <= 0.005, "p95 {}", r.p95());
 }
 
 /// A slow drift 588 -> 700 rpm over 30 s is followed better than before.

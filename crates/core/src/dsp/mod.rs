@@ -23,6 +23,7 @@ pub(crate) mod harmonic_sum;
 pub mod kurtogram;
 pub mod order_spectrum;
 pub(crate) mod order_tracking;
+pub mod phase_smoother;
 pub mod quality;
 pub mod resample;
 pub(crate) mod sliding_median;

@@ -5,16 +5,23 @@
 //! the block), and the phase left in each block, unwrapped and divided by k, is the shaft angle's
 //! departure from that speed. A polynomial in time fitted to it (weighted least squares, the
 //! harmonics sharing the polynomial, each its own offset; the degree chosen by the Bayesian
-//! information criterion, so a steady shaft keeps one straight line over the whole history and
-//! a fluctuating one gets the curve it needs) gives the speed at every time of the history:
-//! the speed of the newest second from its slope there, no longer the history's mean.
+//! information criterion) unwraps the harmonics against each other and says whether the speed
+//! curves over the history (a fluctuation, not a steady speed or a linear trend). The speed at
+//! every time of the history is read by a Kalman smoother from the harmonics' phases combined
+//! per block ([`super::phase_smoother`]: the speed a random walk whose freedom the phases
+//! themselves choose, a steady speed among the choices), so the newest second's speed comes
+//! from the newest blocks and the continuity of the ones before, not from the end of a
+//! polynomial, where its fit is least determined.
 //!
 //! The same fit says whether the newest second still shows the line: the harmonics'
-//! demodulated amplitude over that second, coherently along the fit, against the scatter of
-//! the blocks around it (the noise): a matched filter at a known frequency, where the check
-//! of the newest spectrum has to search every bin for a peak.
+//! amplitude over that second, demodulated sample by sample along the fit under one Hann
+//! window, against the scatter of the blocks around the fit (the noise): a matched filter at a
+//! known frequency, where the check of the newest spectrum has to search every bin for a peak,
+//! and as selective as that spectrum (averaging the blocks instead let a new shaft 5 Hz off
+//! a harmonic through: a block of two revolutions is 5 Hz wide at 600 rpm).
 
 use super::harmonic_sum::{on_mains_harmonic, HARMONICS};
+use super::phase_smoother;
 use std::f64::consts::TAU;
 
 /// Revolution count of a block is chosen so that it lasts about this long, s (at least two
@@ -44,8 +51,8 @@ const CURVED_BIC: f64 = 10.0;
 /// The speed law the phase fit found over the history.
 #[derive(Debug, Clone, PartialEq)]
 pub struct PhaseFit {
-    /// Times (s, relative to the newest sample: <= 0) and shaft speeds (Hz) there, from the
-    /// oldest block's centre to the newest sample.
+    /// Times (s, relative to the newest sample: <= 0) and shaft speeds (Hz) there, the
+    /// smoother's: every block's centre, oldest first, and the newest sample.
     pub t: Vec<f64>,
     pub hz: Vec<f64>,
     /// Degree of the phase polynomial chosen.
@@ -129,18 +136,15 @@ pub fn fit(x: &[f32], fs: f64, hz: f64, r: f64, newest_s: f64) -> Option<PhaseFi
         unwrap_to(h, &lead_fit, &u);
     }
     let (coef, degree, curved_by) = best_degree(&hs, &u)?;
-    let newest = newest_detection(&hs, &coef, &u, &tb, newest_s);
-    let du_dt = 2.0 / span;
-    let knots = (((-tb[0]) / 0.1).ceil() as usize).max(2);
-    let (t, dev): (Vec<f64>, Vec<f64>) = (0..=knots)
-        .map(|i| {
-            let t = tb[0] * (1.0 - i as f64 / knots as f64);
-            (
-                t,
-                du_dt * poly_slope(&coef.poly, 2.0 * (t - tb[0]) / span - 1.0),
-            )
-        })
-        .unzip();
+    let along = Along {
+        fs,
+        hz,
+        r,
+        coef: &coef,
+        tb: &tb,
+    };
+    let newest = newest_detection(x, &along, &hs, len, newest_s);
+    let (t, dev) = smoothed_law(&hs, &coef, &tb, hz)?;
     // a line that leaves the reference by a quarter turn per block is not followed: its
     // blocks' phases no longer tell the turns apart
     if dev.iter().any(|d| !(d.abs() * len as f64 / fs < 0.25)) {
@@ -162,6 +166,32 @@ pub fn fit(x: &[f32], fs: f64, hz: f64, r: f64, newest_s: f64) -> Option<PhaseFi
         harmonics: hs.len(),
         newest,
     })
+}
+
+/// The speed's departure from the reference over the history, read by the Kalman smoother
+/// ([`phase_smoother`]) from the harmonics' phases combined per block (each less its offset,
+/// weighted by its inverse variance), at the blocks' centres and at the newest sample (the
+/// newest block's speed): times (s, <= 0) and departures (Hz).
+fn smoothed_law(hs: &[Harmonic], coef: &Coef, tb: &[f64], hz: f64) -> Option<(Vec<f64>, Vec<f64>)> {
+    let wsum: f64 = hs.iter().map(|h| h.weight).sum();
+    let y: Vec<f64> = (0..tb.len())
+        .map(|b| {
+            hs.iter()
+                .zip(&coef.offsets)
+                .map(|(h, off)| h.weight * (h.cyc[b] - off))
+                .sum::<f64>()
+                / wsum
+        })
+        .collect();
+    // a block's phase (rad) scatters 1 / (2 SNR) in variance; in shaft cycles that is
+    // 1 / (2 (2 pi)^2 k^2 SNR) = 1 / (2 (2 pi)^2 weight), and the harmonics add
+    let var = vec![1.0 / (2.0 * TAU * TAU * wsum); tb.len()];
+    let s = phase_smoother::smooth(tb, &y, &var, hz)?;
+    let mut t = tb.to_vec();
+    let mut dev = s.hz;
+    t.push(0.0);
+    dev.push(*dev.last()?);
+    Some((t, dev))
 }
 
 /// Blocks of `len` samples of `x` demodulated at each harmonic of the reference shaft
@@ -282,13 +312,6 @@ fn poly(p: &[f64], u: f64) -> f64 {
     p.iter().rev().fold(0.0, |acc, c| (acc + c) * u)
 }
 
-fn poly_slope(p: &[f64], u: f64) -> f64 {
-    p.iter()
-        .enumerate()
-        .rev()
-        .fold(0.0, |acc, (j, c)| acc * u + (j + 1) as f64 * c)
-}
-
 /// The degree (1..=[`MAX_DEGREE`], fewer than a third of the blocks) with the smallest
 /// Bayesian information criterion, its fit, and by how much it beats the best degree up to
 /// [`STRAIGHT_DEGREE`] (0 when it is one of those).
@@ -383,21 +406,52 @@ fn gauss(mut a: Vec<Vec<f64>>) -> Option<Vec<f64>> {
     Some(x)
 }
 
-/// The line's detection statistic over the blocks of the newest `s` seconds: per harmonic,
-/// the power of their mean along the fit against the blocks' scatter around it over the whole
-/// history divided by their number (about 1 under noise alone), summed over the harmonics.
-fn newest_detection(hs: &[Harmonic], coef: &Coef, u: &[f64], tb: &[f64], s: f64) -> f64 {
-    let first = tb.iter().position(|&t| t >= -s).unwrap_or(tb.len() - 1);
-    let count = (tb.len() - first) as f64;
+/// Where the fit puts a window's samples: the reference shaft (speed `hz` (1 + r t), t = 0
+/// at the newest sample) and the polynomial over the blocks' centres `tb`.
+struct Along<'a> {
+    fs: f64,
+    hz: f64,
+    r: f64,
+    coef: &'a Coef,
+    tb: &'a [f64],
+}
+
+impl Along<'_> {
+    /// The shaft angle (cycles, less a harmonic's offset) at time `t` (s, <= 0) along the fit.
+    fn cycles(&self, t: f64) -> f64 {
+        self.hz * (t + 0.5 * self.r * t * t) + self.departure(t)
+    }
+
+    /// The polynomial's departure from the reference (cycles) at time `t`.
+    fn departure(&self, t: f64) -> f64 {
+        let span = (self.tb[self.tb.len() - 1] - self.tb[0]).max(1e-9);
+        poly(&self.coef.poly, 2.0 * (t - self.tb[0]) / span - 1.0)
+    }
+}
+
+/// The line's detection statistic over the newest `s` seconds of `x` (the newest sample
+/// last): per harmonic, the power of those samples demodulated along the fit and averaged
+/// under one Hann window (a matched filter as selective as a spectrum of that stretch: a line
+/// a few hertz off, which a block of two revolutions would pass, falls on its sidelobes)
+/// against the blocks' scatter around the fit over the whole history scaled to that length
+/// (about 1 under noise alone), summed over the harmonics.
+fn newest_detection(x: &[f32], along: &Along, hs: &[Harmonic], len: usize, s: f64) -> f64 {
+    let n = x.len();
+    let m = ((s * along.fs).round() as usize).clamp(len, n);
+    let hann: Vec<f64> = (0..m)
+        .map(|i| 0.5 - 0.5 * (TAU * (i as f64 + 0.5) / m as f64).cos())
+        .collect();
+    let norm: f64 = hann.iter().sum();
     let mut total = 0.0;
-    for (h, off) in hs.iter().zip(&coef.offsets) {
+    for (h, off) in hs.iter().zip(&along.coef.offsets) {
         let k = h.k as f64;
-        // each block rotated back along the fit: a line leaves a constant there
+        // the blocks rotated back along the fit: a line leaves a constant there, the noise
+        // its scatter
         let rotated: Vec<(f64, f64)> =
             h.z.iter()
-                .zip(u)
-                .map(|(c, &uu)| {
-                    let (sn, cs) = (TAU * k * (off + poly(&coef.poly, uu))).sin_cos();
+                .zip(along.tb)
+                .map(|(c, &t)| {
+                    let (sn, cs) = (TAU * k * (off + along.departure(t))).sin_cos();
                     (c.0 * cs + c.1 * sn, c.1 * cs - c.0 * sn)
                 })
                 .collect();
@@ -411,12 +465,19 @@ fn newest_detection(hs: &[Harmonic], coef: &Coef, u: &[f64], tb: &[f64], s: f64)
             .map(|c| (c.0 - mean.0).powi(2) + (c.1 - mean.1).powi(2))
             .sum::<f64>()
             / (all - 1.0);
-        let new = rotated[first..]
-            .iter()
-            .fold((0.0, 0.0), |a, c| (a.0 + c.0, a.1 + c.1));
-        let new = (new.0 / count, new.1 / count);
-        if scatter > 0.0 {
-            total += (new.0 * new.0 + new.1 * new.1) / (scatter / count);
+        // the newest stretch demodulated sample by sample along the fit
+        let (mut re, mut im) = (0.0, 0.0);
+        for (j, (&v, w)) in x[n - m..].iter().zip(&hann).enumerate() {
+            let t = -((m - 1 - j) as f64) / along.fs;
+            let (sn, cs) = (TAU * k * (along.cycles(t) + off)).sin_cos();
+            re += v as f64 * w * cs;
+            im -= v as f64 * w * sn;
+        }
+        let (re, im) = (re / norm, im / norm);
+        // a block's noise power over m / len blocks' worth of samples
+        let noise = scatter * len as f64 / m as f64;
+        if noise > 0.0 {
+            total += (re * re + im * im) / noise;
         }
     }
     total

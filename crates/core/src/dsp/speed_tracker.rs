@@ -243,7 +243,15 @@ pub struct SpeedTracker {
     /// The joint reading's parts (a lone 1x line counts, speeds read from the harmonics' own
     /// peaks, a comb may be a bearing's train: [`super::speed_comb`]).
     joint: JointParts,
+    /// This window's phase fits, by the stretch, speed and trend they were made along: the
+    /// newest-second check, the acquiring shortcut and the curving speed often ask for the
+    /// same one ([`Self::phase_fit`]).
+    phase_fits: Vec<(PhaseKey, Option<PhaseFit>)>,
 }
+
+/// What a phase fit was made along: samples of the history (the newest last), speed and
+/// trend (bits, so equal inputs are equal keys).
+type PhaseKey = (usize, u64, u64);
 
 /// The parts of the joint reading (issue 34), each switchable for measuring one against the
 /// others; all off is the reading before issue 34.
@@ -263,6 +271,13 @@ pub struct JointParts {
     /// window's speed and track are the phase's; its status and confidence stay the
     /// spectrum's. Without [`Self::phase`] only.
     pub phase_curved: bool,
+    /// Where the newest second's spectrum shows no line of the window's speed
+    /// ([`RECENT_LINE`], one bin's bar), the matched filter along its harmonics' phase may
+    /// ([`PhaseFit::newest_shows_line`]: P < 1e-3 on noise); and while acquiring, a line the
+    /// whole history shows above noise and the newest second shows in phase is taken as it
+    /// stands, without searching halves and quarters of the history along trends (a steady
+    /// line needs no trend, and the best of those 36 searches is often noise's).
+    pub newest_in_phase: bool,
 }
 
 impl JointParts {
@@ -274,6 +289,7 @@ impl JointParts {
             comb: on,
             phase: on,
             phase_curved: on,
+            newest_in_phase: on,
         }
     }
 
@@ -362,6 +378,7 @@ impl SpeedTracker {
             env_span: None,
             recent_spec: Whitened::default(),
             joint: JointParts::default_on(),
+            phase_fits: Vec::new(),
         })
     }
 
@@ -467,12 +484,19 @@ impl SpeedTracker {
         }
         let t_end = self.t_newest();
         self.env_span = None;
+        self.phase_fits.clear();
         let mut best = match self.lock.filter(|l| l.confirmed) {
             Some(lock) => self.follow(lock, n),
             None => self.acquire(n),
         };
         // a speed read from a comb's train is seen in the newest stretch by the comb
         best.recent = self.recent_support(best.train_of.unwrap_or(best.hz), best.trend);
+        if !best.recent && best.train_of.is_none() && self.joint.newest_in_phase {
+            let m = (best.span * self.fs_d).round() as usize;
+            best.recent = self
+                .phase_fit(m, best.hz, best.trend)
+                .is_some_and(|p| p.newest_shows_line());
+        }
         let phase = self.phase_reading(&best);
         if let Some(p) = &phase {
             // the line followed in phase through the history and the newest second
@@ -504,18 +528,21 @@ impl SpeedTracker {
     }
 
     /// The phase fit over the whole history where the speed curves in it and the newest
-    /// second shows the line along it ([`JointParts::phase_curved`]), for a window that tracks
-    /// the candidate's line (not a hint, a jump or an unclear line) and whose mean the fit
-    /// agrees with (within [`FOLLOW_BAND`]).
-    fn curved_reading(&self, c: &Candidate, e: &TrackedSpeed) -> Option<PhaseFit> {
-        let own = e.status == SpeedStatus::Tracking;
+    /// second shows the line along it ([`JointParts::phase_curved`]), for a window that reads
+    /// the candidate's own line (tracking it, or not yet clear about it; not a hint, a jump or
+    /// the vibration off a hint) and whose mean the fit agrees with (within [`FOLLOW_BAND`]).
+    /// The curve is the phase's evidence, not the spectrum's: a line too weak for a clear
+    /// spectrum over the history may still show its curve there.
+    fn curved_reading(&mut self, c: &Candidate, e: &TrackedSpeed) -> Option<PhaseFit> {
+        let own = matches!(
+            e.status,
+            SpeedStatus::Tracking | SpeedStatus::Unclear | SpeedStatus::Acquiring
+        );
         if self.joint.phase || !self.joint.phase_curved || !own || c.train_of.is_some() {
             return None;
         }
         // the whole history: the longer the span, the clearer a curve
-        let last = self.hist.len();
-        let m = self.cap.min(last);
-        let p = speed_phase::fit(&self.hist[last - m..], self.fs_d, c.hz, c.trend, RECENT_S)?;
+        let p = self.phase_fit(self.cap, c.hz, c.trend)?;
         let mean = p.hz.iter().sum::<f64>() / p.hz.len() as f64;
         let agrees = (mean * 60.0 / e.rpm - 1.0).abs() < FOLLOW_BAND;
         (p.curved() && p.newest_shows_line() && agrees).then_some(p)
@@ -524,14 +551,27 @@ impl SpeedTracker {
     /// The phase of the candidate's harmonics over the span it was found in
     /// ([`speed_phase::fit`]; joint reading only), when the newest second shows the line
     /// along it.
-    fn phase_reading(&self, c: &Candidate) -> Option<PhaseFit> {
+    fn phase_reading(&mut self, c: &Candidate) -> Option<PhaseFit> {
         if !self.joint.phase {
             return None;
         }
-        let last = self.hist.len();
-        let m = ((c.span * self.fs_d).round() as usize).min(last);
-        speed_phase::fit(&self.hist[last - m..], self.fs_d, c.hz, c.trend, RECENT_S)
+        let m = (c.span * self.fs_d).round() as usize;
+        self.phase_fit(m, c.hz, c.trend)
             .filter(PhaseFit::newest_shows_line)
+    }
+
+    /// The phase fit ([`speed_phase::fit`]) over the newest `m` samples of the history (at
+    /// most all of it) along speed `hz` and trend `r`, made once per window.
+    fn phase_fit(&mut self, m: usize, hz: f64, r: f64) -> Option<PhaseFit> {
+        let last = self.hist.len();
+        let m = m.min(last);
+        let key = (m, hz.to_bits(), r.to_bits());
+        if let Some((_, p)) = self.phase_fits.iter().find(|(k, _)| *k == key) {
+            return p.clone();
+        }
+        let p = speed_phase::fit(&self.hist[last - m..], self.fs_d, hz, r, RECENT_S);
+        self.phase_fits.push((key, p.clone()));
+        p
     }
 
     /// Where the line followed from the last windows is predicted now (Hz), if any: along
@@ -653,6 +693,16 @@ impl SpeedTracker {
         let last = self.hist.len();
         let mut best = self.search(last - n, last, 0.0);
         if best.confidence() >= MIN_CONFIDENCE {
+            return best;
+        }
+        // a line above noise that the newest second shows in phase needs no trend
+        let steady = self.joint.newest_in_phase && best.score > SCORE_NOISE;
+        if steady
+            && best.train_of.is_none()
+            && self
+                .phase_fit(n, best.hz, 0.0)
+                .is_some_and(|p| p.newest_shows_line())
+        {
             return best;
         }
         for part in [1, 2, 4] {
