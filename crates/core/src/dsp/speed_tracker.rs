@@ -30,9 +30,12 @@
 //! - **the joint reading** (issue 34, on by default, [`JointParts`]): a lone strong 1x line
 //!   counts as shaft evidence, the speed is read from the harmonics' own interpolated peaks
 //!   (no bias from the harmonic sum's grid), and a comb may be a bearing's impact train
-//!   ([`super::speed_comb`]) when a slower shaft shows lines of its own beside it. A fourth
-//!   part, the speed over the history from the harmonics' phase ([`super::speed_phase`]), is
-//!   measured but off by default (`JointParts::default_on`; docs/speed.md says why).
+//!   ([`super::speed_comb`]) when a slower shaft shows lines of its own beside it. The
+//!   harmonics' phase over the history ([`super::speed_phase`]) shows a weak line in the
+//!   newest second where its spectrum cannot (a matched filter), so the line stays followed,
+//!   and gives the speed where it curves (a fluctuation); reading every window's speed from
+//!   the phase is measured but off by default (`JointParts::default_on`; docs/speed.md says
+//!   why).
 //!
 //! A hint (a fixed or nominal speed) narrows the search to a band around it and is used
 //! itself when the vibration shows no clear line there; it is a prior, not the truth: where

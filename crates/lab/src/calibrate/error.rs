@@ -97,6 +97,14 @@ pub fn min_cut(c: ErrorComponent) -> f64 {
     }
 }
 
+/// The smallest cut of an effect's own error (the sum of its components `own`) that counts
+/// as a change: the components' smallest cuts ([`min_cut`]) combined as independent
+/// scatter, the root of their sum of squares. (Summed outright, an effect seen in five
+/// views had to cut twice what one seen in its strongest view alone had to.)
+pub fn least_cut(own: &[ErrorComponent]) -> f64 {
+    own.iter().map(|&c| min_cut(c).powi(2)).sum::<f64>().sqrt()
+}
+
 fn mean_abs(a: &[f64], b: &[f64]) -> f64 {
     let n = a.len().min(b.len());
     if n == 0 {

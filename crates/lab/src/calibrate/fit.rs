@@ -13,7 +13,7 @@
 //! length ([`views::compute`]).
 
 use super::catalog::{self, Effect, ALL};
-use super::error::{self, min_cut, ErrorComponent, ErrorParts};
+use super::error::{self, least_cut, min_cut, ErrorComponent, ErrorParts};
 use super::locate::{locate, Unexplained};
 use super::measured::{several_speeds, Measured};
 use super::modes::Mode;
@@ -36,14 +36,14 @@ use std::collections::{BTreeMap, HashMap};
 use std::sync::{Arc, Mutex};
 
 /// Relative cut an effect must make in its own components on the fit part, and the
-/// multiple of the components' smallest meaningful cut ([`min_cut`]) it must reach...
+/// multiple of their smallest meaningful cut ([`least_cut`]) it must reach...
 pub const FIT_CUT: (f64, f64) = (0.20, 1.0);
 /// ... and on the held-out part.
 pub const HELD_CUT: (f64, f64) = (0.10, 0.6);
 
 /// Acceptance rule. On the effect's own error components `own` (before, after): the fit
-/// part drops by >= 20 % and by at least the sum of their [`min_cut`]s, AND the held-out
-/// part by >= 10 % and 0.6 times that sum. And the whole error (all components, before,
+/// part drops by >= 20 % and by at least their smallest meaningful cut ([`least_cut`]), AND
+/// the held-out part by >= 10 % and 0.6 times that. And the whole error (all components, before,
 /// after) drops on both parts: an effect that mends its own view but breaks others is not
 /// taken.
 pub fn accepts(
@@ -53,7 +53,7 @@ pub fn accepts(
     fit_total: (f64, f64),
     held_total: (f64, f64),
 ) -> bool {
-    let floor: f64 = own.iter().map(|&c| min_cut(c)).sum();
+    let floor = least_cut(own);
     let cut = |(b, a): (f64, f64), (rel, abs): (f64, f64)| b - a >= rel * b && b - a >= abs * floor;
     cut(fit, FIT_CUT)
         && cut(held, HELD_CUT)
@@ -759,7 +759,7 @@ pub fn ruled_out_by(
     moved_by: &dyn Fn(ErrorComponent) -> f64,
 ) -> bool {
     let own = effect.components();
-    let floor: f64 = own.iter().map(|&c| min_cut(c)).sum();
+    let floor = least_cut(own);
     let fit_passed = b - a >= FIT_CUT.0 * b && b - a >= FIT_CUT.1 * floor;
     let moved = own.iter().any(|&c| moved_by(c).abs() > min_cut(c));
     !fit_passed && !moved

@@ -122,6 +122,7 @@ pub fn json(rig: &RigConfig, o: &Outcome, ops: &[Measured], id: &str) -> Value {
                     "stages": o.timings, "recordings": o.recording_times, "rounds": o.round_times},
         "acceptance": {"fit_cut_relative": FIT_CUT.0, "fit_cut_min_cuts": FIT_CUT.1,
                         "held_cut_relative": HELD_CUT.0, "held_cut_min_cuts": HELD_CUT.1,
+                        "min_cuts_combined": "root of the sum of squares over the effect's own components",
                         "min_cut": ErrorComponent::ALL.iter().map(|&c| (c.name(), min_cut(c))).collect::<std::collections::BTreeMap<_, _>>()},
     })
 }
