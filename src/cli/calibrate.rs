@@ -29,8 +29,9 @@ pub struct Args {
     /// Print the report as one JSON object on stdout.
     #[arg(long)]
     pub json: bool,
-    /// Search `looseness_impacts` too (a loose housing's landings; not in the default
-    /// catalog yet, issue 39 and docs/calibration.md).
+    /// Search `looseness_impacts` (a loose housing's landings) whatever the recordings show;
+    /// without this flag it is searched where they show the landings (a half-order comb of
+    /// the envelope against the model: docs/calibration.md).
     #[arg(long)]
     pub looseness_impacts: bool,
 }

@@ -414,12 +414,16 @@ fn subharmonics_are_found() {
     );
 }
 
-/// Looseness with impacts (issue 26): a 0.5x line plus an impact once every two revolutions
-/// ringing down at 900 Hz (a resonance of the loose joint below the generator's structural
-/// ones), generator seed 7. `subharmonics` is named first with the 0.5x line of the total
-/// vertical signal within 20 %; the impacts, which no catalog effect models, are located in
-/// the envelope at the half order, locked to speed, with impacting once every two revolutions
-/// among the candidates. (The error does not halve: the ring-down is left unexplained.)
+/// Looseness with impacts (issues 26, 39): a 0.5x line plus an impact once every two
+/// revolutions ringing down at 900 Hz (a resonance of the loose joint below the generator's
+/// structural ones; 12 m/s^2 at 1200 rpm, speed^2, so 3 m/s^2 at 600 rpm), generator seed 7.
+/// The measured recordings show the landings (a half-order comb of the envelope against the
+/// model), so `looseness_impacts` is searched without being asked for and named first, its
+/// mode and damping within 20 % and its landing peak within 25 % (measured: -20 %, the
+/// generator's ring-down a cosine from its peak, rigmon's a sine); `subharmonics` follows
+/// with the 0.5x line of the total vertical signal within 20 %; and the landings are no
+/// longer left in the envelope (before issue 39 they were located there and named, with
+/// `subharmonics` alone accepted).
 #[test]
 fn looseness_with_impacts_is_found() {
     let dir = tempfile::tempdir().unwrap();
@@ -433,23 +437,41 @@ fn looseness_with_impacts_is_found() {
     );
     check_shape(&r);
     let effects = r["effects"].as_array().unwrap();
+    let names: Vec<&str> = effects.iter().filter_map(|e| e["name"].as_str()).collect();
     assert!(
-        !effects.is_empty() && effects[0]["name"] == "subharmonics",
+        names.first() == Some(&"looseness_impacts") && names.contains(&"subharmonics"),
         "looseness_impacts: effects {}; trials {}",
         r["effects"],
         r["rounds"]
     );
-    let fitted = num(&effects[0]["params"]["half_order_m_s2"], "half_order_m_s2");
-    let want = num(&truth["params"]["half_order_m_s2"], "truth half_order_m_s2");
+    let landings = &effects[0]["params"];
+    let p = truth["params"].clone();
+    let at_600 = num(&p["impact_m_s2"], "impact") * (600.0f64 / 1200.0).powi(2);
+    for (key, want, tol) in [
+        ("mode_hz", num(&p["ring_hz"], "ring_hz"), 0.2),
+        ("damping", num(&p["damping"], "damping"), 0.2),
+        ("peak_m_s2", at_600, 0.25),
+    ] {
+        let got = num(&landings[key], key);
+        assert!(
+            (got - want).abs() <= tol * want,
+            "looseness_impacts: {key} fitted {got}, truth {want} (more than {} % off); {landings}",
+            100.0 * tol
+        );
+    }
+    assert_eq!(num(&landings["at_rpm"], "at_rpm"), 600.0, "{landings}");
+    let sub = effects
+        .iter()
+        .find(|e| e["name"] == "subharmonics")
+        .unwrap();
+    let fitted = num(&sub["params"]["half_order_m_s2"], "half_order_m_s2");
+    let want = num(&p["half_order_m_s2"], "truth half_order_m_s2");
     assert!(
         (fitted - want).abs() <= 0.2 * want,
         "looseness_impacts: 0.5x fitted {fitted} m/s^2, truth {want} (more than 20 % off)"
     );
-    let landing = r["unexplained"].as_array().unwrap().iter().any(|u| {
-        u["view"] == "env"
-            && u["unit"] == "order"
-            && u["locked_to"] == "speed"
-            && (num(&u["location"], "location") - 0.5).abs() <= 0.02
+    let left = r["unexplained"].as_array().unwrap().iter().any(|u| {
+        (u["view"] == "env" || u["view"] == "impacts")
             && u["candidates"].as_array().unwrap().iter().any(|c| {
                 c.as_str()
                     .unwrap_or("")
@@ -457,13 +479,13 @@ fn looseness_with_impacts_is_found() {
             })
     });
     assert!(
-        landing,
-        "looseness_impacts: the impacts' half-order envelope comb is not located: {}",
+        !left,
+        "looseness_impacts: the landings are still left in the envelope: {}",
         r["unexplained"]
     );
     eprintln!(
-        "looseness_impacts: effects {}; 0.5x fitted {fitted}, truth {want} (line {}, impacts' own 0.5x {})",
-        r["effects"], truth["params"]["line_m_s2"], truth["params"]["impact_half_order_m_s2"]
+        "looseness_impacts: effects {}; landings {landings} (truth 900 Hz, 0.04, {at_600} m/s^2 at 600 rpm); 0.5x fitted {fitted}, truth {want}",
+        r["effects"]
     );
 }
 

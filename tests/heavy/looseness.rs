@@ -5,13 +5,15 @@
 //! nor measured_like.py's looseness. Two of the cases from docs/calibration.md's sweep run
 //! here (strong landings ringing a high mode over a clipped rocking; weak landings at a low
 //! mode with no rocking at all); the sweep's other cases are rerun by the command there.
-//! Each: `looseness_impacts` accepted (or `subharmonics` first, then it), its mode and its
-//! landing peak within 20 % of the truth, no `noise` or `resonance` taken before it, and no
-//! unexplained residual where looseness shows (half orders, the impacts' envelope). Not met
-//! yet, so ignored, and `looseness_impacts` is out of `catalog::ALL` (docs/calibration.md);
-//! the cases calibrate with `--looseness-impacts`.
-//! Two checks run (not ignored): the simulator's own landings are fitted back, and the
-//! absolute `floor` is what tells the landing strength on the strong independent case.
+//! Each calibrates as a user runs it, without `--looseness-impacts`: where the recordings show
+//! the landings (a half-order comb of the envelope against the model), `looseness_impacts` is
+//! searched anyway. Each: `looseness_impacts` accepted (or `subharmonics` first, then it), its
+//! mode and its landing peak within 20 % of the truth, no `noise` or `resonance` taken before
+//! it, and no unexplained residual where looseness shows (half orders, the impacts'
+//! envelope). The strong case meets it; the weak one does not (its landings are not located,
+//! so not searched), so it is ignored (docs/calibration.md).
+//! Two checks more: the simulator's own landings are fitted back, and the absolute `floor` is
+//! what tells the landing strength on the strong independent case.
 
 use serde_json::Value;
 use std::path::PathBuf;
@@ -74,7 +76,6 @@ fn calibrate(case: &str, args: &[&str]) -> (Value, Value) {
         .arg("--report")
         .arg(dir.path().join("report"))
         .arg("--json")
-        .arg("--looseness-impacts")
         .output()
         .unwrap();
     assert!(
@@ -162,7 +163,6 @@ fn found(case: &Case) {
 /// Strong landings (30 m/s^2 at 1200 rpm) ringing a 2.5 kHz mode, over a rocking clipped at
 /// 60 % of its stroke: the strength at which `noise` used to be named first.
 #[test]
-#[ignore = "too long for the heavy tier (339 s in a release build at load 7); its checks held there: named first, mode -0.4 %, damping +5 %, peak at 600 rpm +11 % (docs/calibration.md); run with --ignored"]
 fn strong_landings_at_a_high_mode_are_looseness() {
     found(&Case {
         name: "strong, 2.5 kHz, clipped rocking",
@@ -172,7 +172,7 @@ fn strong_landings_at_a_high_mode_are_looseness() {
 
 /// Weak landings (1 m/s^2) ringing a 600 Hz mode with no rocking line at all.
 #[test]
-#[ignore = "issue 39 not done: nothing is accepted on this case (the 10 Hz landing comb is left unexplained in `env`); run with --ignored"]
+#[ignore = "issue 39 not done: the landings are not located, so not searched, and nothing is accepted; run with --ignored"]
 fn weak_landings_at_a_low_mode_without_rocking_are_looseness() {
     found(&Case {
         name: "weak, 600 Hz, no rocking",

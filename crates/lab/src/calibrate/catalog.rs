@@ -55,8 +55,9 @@ pub const ALL: [Effect; 9] = [
     Effect::Noise,
 ];
 
-/// [`ALL`] with `looseness_impacts` (before `noise`): what a calibration searches with
-/// `rigmon calibrate --looseness-impacts` ([`super::fit::Options::looseness_impacts`]).
+/// [`ALL`] with `looseness_impacts` (before `noise`): what a calibration searches where the
+/// measured recordings show a loose housing's landings, or with `rigmon calibrate
+/// --looseness-impacts` ([`super::fit::Options::looseness_impacts`]).
 pub const WITH_LOOSENESS_IMPACTS: [Effect; 10] = [
     Effect::Slip,
     Effect::ContactAngle,

@@ -169,8 +169,9 @@ pub struct Options {
     /// [`ENGINE_CACHE_PER_OP`]; else that many), so a later round's search that revisits a
     /// section does not simulate it again.
     pub engine_cache_by_memory: bool,
-    /// Search `looseness_impacts` too ([`catalog::WITH_LOOSENESS_IMPACTS`]; else [`ALL`],
-    /// which leaves it out until issue 39 is done).
+    /// Search `looseness_impacts` whatever the recordings show
+    /// ([`catalog::WITH_LOOSENESS_IMPACTS`]); without it, only where they show a loose
+    /// housing's landings ([`shows_landings`]), else the catalog is [`ALL`].
     pub looseness_impacts: bool,
 }
 
@@ -925,7 +926,7 @@ pub fn calibrate_with(
         );
     }
     let before = twin.error(&base, &all)?;
-    let catalog: &[Effect] = if options.looseness_impacts {
+    let catalog: &[Effect] = if options.looseness_impacts || shows_landings(&twin, &base, &all)? {
         &catalog::WITH_LOOSENESS_IMPACTS
     } else {
         &ALL
@@ -1047,6 +1048,19 @@ pub fn context(ops: &[Measured]) -> catalog::Context {
         ringing_hz: None,
         healthy_fit_rpm: None,
     }
+}
+
+/// The measured recordings `all` show a loose housing's landings against the model `base`
+/// ([`super::trace::shows_landings`]: a half-order comb of the envelope): only then is
+/// `looseness_impacts` searched without being asked for, so a calibration of a machine
+/// without them pays nothing for the effect.
+fn shows_landings(twin: &Twin, base: &SimulationConfig, all: &[usize]) -> Result<bool> {
+    let views: Vec<Views> = all
+        .iter()
+        .map(|&i| twin.simulated(base, i).map(|v| (*v).clone()))
+        .collect::<Result<_>>()?;
+    let pairs: Vec<(&Views, &Views)> = twin.measured.iter().zip(views.iter()).collect();
+    Ok(locate(&pairs).iter().any(super::trace::shows_landings))
 }
 
 /// The trial a round adds, among those that pass [`accepts`]: the one that cuts its own

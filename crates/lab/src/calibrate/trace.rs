@@ -115,6 +115,23 @@ pub fn candidates(u: &Unexplained, faults: &FaultOrders) -> Vec<String> {
     own(out)
 }
 
+/// Shaft order `o` is a half order (k + 1/2) below [`HALF_ORDERS_UP_TO`].
+fn half_order(o: f64) -> bool {
+    let integer = (o - o.round()).abs() <= FRACTION_TOL;
+    !integer && o < HALF_ORDERS_UP_TO && near_fraction(o, 2.0, &[1.0])
+}
+
+/// The residual is impacting once every two revolutions: a half order of the shaft in an
+/// envelope view (`env`, `impacts`), not locked to a fixed frequency. Where the measured
+/// recordings show one, a calibration searches the landings of a loose housing
+/// (`looseness_impacts`) too.
+pub fn shows_landings(u: &Unexplained) -> bool {
+    matches!(u.view.as_str(), "env" | "impacts")
+        && u.locked_to != "frequency"
+        && u.order > 0.0
+        && half_order(u.order)
+}
+
 /// Candidates of a residual at shaft order `o`; `envelope`: seen in an envelope view (`env`,
 /// `impacts`), where a half order is the repetition rate of impacts, not a line.
 fn order_candidates(o: f64, envelope: bool, f: &FaultOrders, out: &mut Vec<&str>) {
@@ -124,8 +141,7 @@ fn order_candidates(o: f64, envelope: bool, f: &FaultOrders, out: &mut Vec<&str>
     if (0.38..=0.48).contains(&o) {
         out.push("fluid-film (oil) whirl or another sub-synchronous instability");
     }
-    let integer = (o - o.round()).abs() <= FRACTION_TOL;
-    let half = !integer && o < HALF_ORDERS_UP_TO && near_fraction(o, 2.0, &[1.0]);
+    let half = half_order(o);
     if half && envelope {
         out.push(
             "impacting once every two revolutions (a loose part lifting and landing, a rub): \
@@ -142,6 +158,7 @@ fn order_candidates(o: f64, envelope: bool, f: &FaultOrders, out: &mut Vec<&str>
              `subharmonics` does not compare)"
         });
     }
+    let integer = (o - o.round()).abs() <= FRACTION_TOL;
     if !integer && o < THIRD_ORDERS_UP_TO && near_fraction(o, 3.0, &[1.0, 2.0]) {
         out.push("looseness or rub (third-order sub-harmonics)");
     }
