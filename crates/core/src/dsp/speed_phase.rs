@@ -128,8 +128,7 @@ pub fn fit(x: &[f32], fs: f64, hz: f64, r: f64, newest_s: f64) -> Option<PhaseFi
         .0;
     hs.swap(0, lead);
     unwrap_sequential(&mut hs[0]);
-    let span = (tb[blocks - 1] - tb[0]).max(1e-9);
-    let u: Vec<f64> = tb.iter().map(|t| 2.0 * (t - tb[0]) / span - 1.0).collect();
+    let u: Vec<f64> = tb.iter().map(|&t| unit_time(&tb, t)).collect();
     // the lead alone, then every harmonic unwrapped to its prediction, then all together
     let (lead_fit, _, _) = best_degree(&hs[..1], &u)?;
     for h in hs.iter_mut().skip(1) {
@@ -424,9 +423,15 @@ impl Along<'_> {
 
     /// The polynomial's departure from the reference (cycles) at time `t`.
     fn departure(&self, t: f64) -> f64 {
-        let span = (self.tb[self.tb.len() - 1] - self.tb[0]).max(1e-9);
-        poly(&self.coef.poly, 2.0 * (t - self.tb[0]) / span - 1.0)
+        poly(&self.coef.poly, unit_time(self.tb, t))
     }
+}
+
+/// Time `t` (s) on the polynomial's scale: -1 at the oldest block's centre `tb[0]`, +1 at the
+/// newest's.
+fn unit_time(tb: &[f64], t: f64) -> f64 {
+    let span = (tb[tb.len() - 1] - tb[0]).max(1e-9);
+    2.0 * (t - tb[0]) / span - 1.0
 }
 
 /// The line's detection statistic over the newest `s` seconds of `x` (the newest sample

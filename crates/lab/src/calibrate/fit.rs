@@ -1055,11 +1055,16 @@ pub fn context(ops: &[Measured]) -> catalog::Context {
 /// `looseness_impacts` searched without being asked for, so a calibration of a machine
 /// without them pays nothing for the effect.
 fn shows_landings(twin: &Twin, base: &SimulationConfig, all: &[usize]) -> Result<bool> {
-    let views: Vec<Views> = all
+    // the twins' views are shared with the cache (the report's `before` reads them again)
+    let views: Vec<Arc<Views>> = all
         .iter()
-        .map(|&i| twin.simulated(base, i).map(|v| (*v).clone()))
+        .map(|&i| twin.simulated(base, i))
         .collect::<Result<_>>()?;
-    let pairs: Vec<(&Views, &Views)> = twin.measured.iter().zip(views.iter()).collect();
+    let pairs: Vec<(&Views, &Views)> = twin
+        .measured
+        .iter()
+        .zip(views.iter().map(|v| &**v))
+        .collect();
     Ok(locate(&pairs).iter().any(super::trace::shows_landings))
 }
 
