@@ -38,6 +38,7 @@ fn landings_ring_every_other_revolution_and_reach_the_dataset() {
         damping: 0.04,
         horizontal_ratio: 0.5,
         phase_deg: 30.0,
+        timing_jitter: 0.01,
     });
     let scenario = Scenario::constant(&[], 1200.0, 2.0, 5);
     let without = impacts_at(&sim::simulate(&plain, &scenario).unwrap(), 10.0);

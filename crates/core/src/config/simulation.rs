@@ -193,10 +193,23 @@ pub struct LooseImpactsConfig {
     /// Shaft angle of the first landing relative to the tacho mark, degrees (0-720).
     #[serde(default)]
     pub phase_deg: f64,
+    /// Each landing's time slips by this fraction of the landing spacing (standard
+    /// deviation): a loose joint does not land the same way twice, and the slip smears the
+    /// comb's high lines (0.01 by default, the slip the project's bearing-impact models use).
+    #[serde(default = "default_timing_jitter")]
+    pub timing_jitter: f64,
 }
 
 fn default_horizontal_ratio() -> f64 {
     0.5
+}
+
+/// Each landing's slip where the rig file does not say: the 1 % the project's bearing-impact
+/// models use for a rolling element's slip.
+pub const DEFAULT_TIMING_JITTER: f64 = 0.01;
+
+fn default_timing_jitter() -> f64 {
+    DEFAULT_TIMING_JITTER
 }
 
 impl LooseImpactsConfig {
@@ -235,6 +248,13 @@ impl LooseImpactsConfig {
         }
         if !ok(self.damping, 1e-4, 0.5) {
             bail!("{key} damping = {}: the mode's damping ratio; use 0.0001..0.5 (0.02-0.1 is typical)", self.damping);
+        }
+        if !ok(self.timing_jitter, 0.0, 0.2) {
+            bail!(
+                "{key} timing_jitter = {}: each landing's slip as a fraction of the landing \
+                 spacing; use 0..0.2 (0.01 by default)",
+                self.timing_jitter
+            );
         }
         if !ok(self.horizontal_ratio, 0.0, 10.0) {
             bail!(

@@ -11,7 +11,7 @@
 //! | `speed_fluctuation` | `period_s` 0.2-5 (log), `fraction` 0.002-0.1 (log); around a measured speed line ([`Context::speed_line`]): `period_s` over its frequency +- one resolution step (1 / the shortest length), `fraction` over its depth / 2-x2 (log), within those bounds, starting there | `speed_fluctuation.period_s`, `.fraction` |
 //! | `looseness` | `harmonics_m_s2` 0.0005-3 (log), `slope` -2-3, `highest_order` {5, 10, 20, 30} | `shaft_lines` orders 3..highest: `harmonics_m_s2` (k / k_mid)^`slope`, k_mid the geometric mean order |
 //! | `subharmonics` | `half_order_m_s2` 0.0005-3 (log), `exponent` 0-6 (two speeds or more; else 2), `slope` -1-4 (searched from 4, so the 0.5x line is fitted first): the half-order lines of looseness or a rub, 0.5x at `half_order_m_s2`, order o at (2 o)^-`slope` of it, up to 3.5x (the highest half order the fractional view compares) | `subharmonics` at the highest measured speed, `highest_order` 3.5 |
-//! | `looseness_impacts` | `impact_m_s2` 0.01-300 (log, at the highest speed of the fit part's healthy recordings, where `floor` and `impacts` see it absolutely; else the highest measured speed), `mode_hz` 300-0.4 fs (log, starting where the healthy recordings exceed the uncalibrated model most), `damping` 0.005-0.3 (log), `exponent` 0-6 (two speeds or more; else 2); searched twice over (the impact's size and its mode's frequency pull on each other): a loose housing landing once every two revolutions, each landing ringing one mode | `loose_impacts` at that speed |
+//! | `looseness_impacts` | `impact_m_s2` 0.01-300 (log, at the highest speed of the fit part's healthy recordings, where `floor` and `impacts` see it absolutely; else the highest measured speed), `mode_hz` 300-0.4 fs (log, starting in the band where the healthy recordings' landings ring, else where they exceed the uncalibrated model most), `damping` 0.005-0.3 (log), `exponent` 0-6 (two speeds or more; else 2); searched twice over (the impact's size and its mode's frequency pull on each other): a loose housing landing once every two revolutions, each landing ringing one mode | `loose_impacts` at that speed |
 //! | `noise` | `noise_rms_m_s2` 0.003-3 (log) | `structure.noise_rms_m_s2` |
 
 use super::half_orders;
@@ -401,6 +401,7 @@ impl Effect {
                     damping: values[2],
                     horizontal_ratio: 0.5,
                     phase_deg: 0.0,
+                    timing_jitter: crate::config::simulation::DEFAULT_TIMING_JITTER,
                 })
             }
             Effect::Noise => s.structure.noise_rms_m_s2 = values[0],

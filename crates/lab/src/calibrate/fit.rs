@@ -1110,11 +1110,27 @@ fn model_mode_hz(rig: &RigConfig, sim: &SimulationConfig) -> Option<f64> {
 }
 
 /// Where the healthy recordings among `measured` ring that the uncalibrated model (`base`,
-/// the same recordings simulated) does not: the band whose measured level exceeds the
-/// simulated one most (the median over the recordings; all recordings when none is
-/// healthy), Hz. A mode the landings of a loose part ring shows there; the model's own
-/// modes, present on both sides, do not.
+/// the same recordings simulated) does not: the centre of the band where their landings
+/// ring ([`super::landing_comb`]) when they show landings the model lacks (the median over
+/// those recordings); else the band whose measured level exceeds the simulated one most
+/// (the median over the recordings; all recordings when none is healthy), Hz. A mode the
+/// landings of a loose part ring shows there; the model's own modes, present on both
+/// sides, do not.
 fn ringing_hz(measured: &[&Views], base: &[Arc<Views>]) -> Option<f64> {
+    let mut landing_hz: Vec<f64> = measured
+        .iter()
+        .zip(base)
+        .filter(|(m, _)| m.healthy && m.landings.detected())
+        .filter_map(|(m, s)| {
+            let k = m.landings.strongest()?;
+            let (lo, hi) = m.landings.best_band_hz()?;
+            (s.landings.ratio_in(k) < super::landing_comb::DETECT_RATIO).then(|| (lo * hi).sqrt())
+        })
+        .collect();
+    if !landing_hz.is_empty() {
+        landing_hz.sort_by(f64::total_cmp);
+        return Some(landing_hz[landing_hz.len() / 2]);
+    }
     let any_healthy = measured.iter().any(|v| v.healthy);
     let mut hz: Vec<f64> = measured
         .iter()

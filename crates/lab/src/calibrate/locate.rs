@@ -3,13 +3,15 @@
 //! (`frequency`: same Hz at different speeds) or cannot be told (`undetermined`: one speed
 //! only). Narrowband content comes from the `lines` and `env` views, sub-synchronous and
 //! fractional shaft orders from `fractional`, repeated impacting from `impacts` (envelope of
-//! the band energy, in Hz), broadband from `bands`, modulation from the fault combs'
+//! the band energy, in Hz), landings once every two revolutions that the model lacks from
+//! `landings` (found in the band where they ring, [`landing_comb`], at 0.5x), broadband from `bands`, modulation from the fault combs'
 //! sideband ratios (`modulation`) and misplaced fault lines from their located orders
 //! (`peaks`). Each finding carries the physical causes that usually produce such a
 //! signature ([`super::trace`]): candidates, not findings.
 
 use super::fractional_orders;
 use super::impacts;
+use super::landing_comb;
 use super::measured::{distinct_speeds, several_speeds};
 use super::views::{env_order, Views, BAND_HZ, LINES_MIN_HZ};
 use serde::Serialize;
@@ -23,13 +25,15 @@ pub struct Unexplained {
     pub unit: String,
     /// `speed`, `frequency` or `undetermined`.
     pub locked_to: String,
-    /// `lines` (narrowband, raw spectrum), `env` (envelope order spectrum), `bands`
-    /// (broadband), `modulation` (sideband ratio of a fault comb) or `peaks` (a fault comb
-    /// located elsewhere than simulated).
+    /// `lines` (narrowband, raw spectrum), `env` (envelope order spectrum), `fractional`,
+    /// `impacts` (envelope of the broadband energy), `landings` (a half-order comb of impacts
+    /// in the band where they ring), `bands` (broadband), `modulation` (sideband ratio of a
+    /// fault comb) or `peaks` (a fault comb located elsewhere than simulated).
     pub view: String,
     /// Measured above simulated, dB (largest over recordings); for `modulation` the
     /// measured minus the simulated sideband ratio, dB, negative when the simulation's
-    /// sidebands are the stronger; for `peaks` the location difference in per mille.
+    /// sidebands are the stronger; for `peaks` the location difference in per mille; for
+    /// `landings` the measured comb's ratio over the simulated one's in that band, dB.
     pub excess_db: f64,
     /// Recordings showing it.
     pub recordings: usize,
@@ -89,6 +93,25 @@ fn on_fault_comb(m: &Views, order: f64) -> bool {
     })
 }
 
+/// Measured minus simulated, element by element.
+fn difference(m: &[f64], s: &[f64]) -> Vec<f64> {
+    m.iter().zip(s).map(|(a, b)| a - b).collect()
+}
+
+/// Landings the model lacks in recording `rec` (turning at `fr`): a measured half-order comb
+/// ([`landing_comb`]) where the twin, judged in the band where the measured landings ring,
+/// shows none; a residual at 0.5x, its excess the two combs' ratio in dB.
+fn landing_peak(m: &Views, s: &Views, rec: usize, fr: f64) -> Option<Peak> {
+    let b = m.landings.strongest().filter(|_| m.landings.detected())?;
+    let simulated = s.landings.ratio_in(b);
+    (simulated < landing_comb::DETECT_RATIO).then(|| Peak {
+        rec,
+        hz: 0.5 * fr,
+        order: 0.5,
+        excess: 10.0 * (m.landings.best_ratio() / simulated.max(1.0)).log10(),
+    })
+}
+
 /// Residual locations for pairs of (measured, simulated) views.
 pub fn locate(pairs: &[(&Views, &Views)]) -> Vec<Unexplained> {
     let speeds: Vec<f64> = pairs.iter().map(|(m, _)| m.rpm / 60.0).collect();
@@ -99,6 +122,7 @@ pub fn locate(pairs: &[(&Views, &Views)]) -> Vec<Unexplained> {
     let mut band_peaks = Vec::new();
     let mut fractional_peaks = Vec::new();
     let mut impact_peaks = Vec::new();
+    let mut landing_peaks = Vec::new();
     let frac_orders = fractional_orders::orders();
     let impact_hz = impacts::frequencies();
     let mut modulation = Vec::new();
@@ -129,7 +153,7 @@ pub fn locate(pairs: &[(&Views, &Views)]) -> Vec<Unexplained> {
             }
         }
         let fr = speeds[r];
-        let res: Vec<f64> = m.lines.iter().zip(&s.lines).map(|(a, b)| a - b).collect();
+        let res = difference(&m.lines, &s.lines);
         for (i, e) in peaks(&res, LINE_EXCESS_DB) {
             let hz = (i + LINES_MIN_HZ) as f64;
             line_peaks.push(Peak {
@@ -139,7 +163,7 @@ pub fn locate(pairs: &[(&Views, &Views)]) -> Vec<Unexplained> {
                 excess: e,
             });
         }
-        let res: Vec<f64> = m.env.iter().zip(&s.env).map(|(a, b)| a - b).collect();
+        let res = difference(&m.env, &s.env);
         for (i, e) in peaks(&res, LINE_EXCESS_DB) {
             let o = env_order(i);
             env_peaks.push(Peak {
@@ -149,12 +173,7 @@ pub fn locate(pairs: &[(&Views, &Views)]) -> Vec<Unexplained> {
                 excess: e,
             });
         }
-        let res: Vec<f64> = m
-            .fractional
-            .iter()
-            .zip(&s.fractional)
-            .map(|(a, b)| a - b)
-            .collect();
+        let res = difference(&m.fractional, &s.fractional);
         for (i, e) in peaks(&res, LINE_EXCESS_DB) {
             let o = frac_orders[i];
             fractional_peaks.push(Peak {
@@ -164,12 +183,7 @@ pub fn locate(pairs: &[(&Views, &Views)]) -> Vec<Unexplained> {
                 excess: e,
             });
         }
-        let res: Vec<f64> = m
-            .impacts
-            .iter()
-            .zip(&s.impacts)
-            .map(|(a, b)| a - b)
-            .collect();
+        let res = difference(&m.impacts, &s.impacts);
         for (i, e) in peaks(&res, LINE_EXCESS_DB) {
             let hz = impact_hz[i];
             if on_fault_comb(m, hz / fr) {
@@ -182,6 +196,7 @@ pub fn locate(pairs: &[(&Views, &Views)]) -> Vec<Unexplained> {
                 excess: e,
             });
         }
+        landing_peaks.extend(landing_peak(m, s, r, fr));
         for (i, (a, b)) in m.bands.iter().zip(&s.bands).enumerate() {
             if a - b > BAND_EXCESS_DB {
                 let hz = m.band_lo_hz[i] + BAND_HZ / 2.0;
@@ -198,6 +213,7 @@ pub fn locate(pairs: &[(&Views, &Views)]) -> Vec<Unexplained> {
     group(&env_peaks, &speeds, "env", &mut out);
     group(&fractional_peaks, &speeds, "fractional", &mut out);
     group(&impact_peaks, &speeds, "impacts", &mut out);
+    group(&landing_peaks, &speeds, "landings", &mut out);
     group(&band_peaks, &speeds, "bands", &mut out);
     group(&modulation, &speeds, "modulation", &mut out);
     group(&misplaced, &speeds, "peaks", &mut out);
@@ -205,11 +221,20 @@ pub fn locate(pairs: &[(&Views, &Views)]) -> Vec<Unexplained> {
     out
 }
 
+/// The number of recordings among `peaks[idx]`.
+fn recordings(peaks: &[Peak], idx: &[usize]) -> usize {
+    let mut v: Vec<usize> = idx.iter().map(|&j| peaks[j].rec).collect();
+    v.sort_unstable();
+    v.dedup();
+    v.len()
+}
+
 fn group(peaks: &[Peak], speeds: &[f64], view: &str, out: &mut Vec<Unexplained>) {
     let several_speeds = several_speeds(speeds);
     let broadband = view == "bands";
-    // envelope and fault-comb findings are orders by nature
-    let by_order = matches!(view, "env" | "modulation" | "peaks");
+    // envelope, fault-comb and landing findings are orders by nature
+    let by_order = matches!(view, "env" | "modulation" | "peaks" | "landings");
+    let alone_counts = view == "landings"; // a detection with its own false-alarm rate
     let mut used = vec![false; peaks.len()];
     for (i, p) in peaks.iter().enumerate() {
         if used[i] {
@@ -228,17 +253,13 @@ fn group(peaks: &[Peak], speeds: &[f64], view: &str, out: &mut Vec<Unexplained>)
             v.dedup_by(|a, b| !distinct_speeds(*a, *b));
             v.len()
         };
-        let recs = |idx: &[usize]| {
-            let mut v: Vec<usize> = idx.iter().map(|&j| peaks[j].rec).collect();
-            v.sort_unstable();
-            v.dedup();
-            v.len()
-        };
         let (members, unit, locked) = if several_speeds {
             if speeds_of(&same_order) >= 2 && (by_order || speeds_of(&same_hz) < 2) {
                 (same_order, "order", "speed")
             } else if speeds_of(&same_hz) >= 2 {
                 (same_hz, "Hz", "frequency")
+            } else if alone_counts {
+                (same_order, "order", "undetermined")
             } else {
                 continue;
             }
@@ -248,8 +269,8 @@ fn group(peaks: &[Peak], speeds: &[f64], view: &str, out: &mut Vec<Unexplained>)
             (same_hz, "Hz", "undetermined")
         };
         // one recording alone is noise unless there is only one
-        let n = recs(&members);
-        if n < 2 && speeds.len() > 1 {
+        let n = recordings(peaks, &members);
+        if n < 2 && speeds.len() > 1 && !alone_counts {
             continue;
         }
         // the largest in magnitude, sign kept (a modulation mismatch may go either way)

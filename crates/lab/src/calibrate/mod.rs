@@ -16,6 +16,7 @@ pub mod fit;
 pub mod fractional_orders;
 pub mod half_orders;
 pub mod impacts;
+pub mod landing_comb;
 pub mod locate;
 pub mod measured;
 pub mod modes;

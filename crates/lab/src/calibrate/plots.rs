@@ -219,13 +219,39 @@ pub fn looseness(path: &Path, name: &str, m: &Views, b: &Views, a: &Views) -> Re
         "dB (thresholded)",
         &three(&fractional),
     )?;
-    let hz = super::impacts::frequencies();
-    let impacts = |v: &Views| hz.iter().copied().zip(v.impacts.iter().copied()).collect();
-    let title = format!(
-        "impacts: envelope of the broadband energy (landings every other revolution: {:.1} Hz)",
-        m.rpm / 120.0
-    );
-    chart(&middle, &title, "Hz", "dB (thresholded)", &three(&impacts))?;
+    // landings the measured recording shows, in the band where they ring; else the
+    // broadband energy's envelope
+    match m.landings.strongest().filter(|_| m.landings.detected()) {
+        Some(k) => {
+            let (lo, hi) = m.landings.best_band_hz().unwrap_or_default();
+            let levels = |v: &Views| {
+                let l = v.landings.levels_db.get(k).copied().unwrap_or_default();
+                l.iter()
+                    .enumerate()
+                    .map(|(j, d)| (j as f64 + 0.5, *d))
+                    .collect()
+            };
+            let title = format!(
+                "landings: half orders of the energy envelope in {lo:.0}-{hi:.0} Hz, where they ring"
+            );
+            chart(
+                &middle,
+                &title,
+                "order",
+                "dB (thresholded)",
+                &three(&levels),
+            )?;
+        }
+        None => {
+            let hz = super::impacts::frequencies();
+            let impacts = |v: &Views| hz.iter().copied().zip(v.impacts.iter().copied()).collect();
+            let title = format!(
+                "impacts: envelope of the broadband energy (landings every other revolution: {:.1} Hz)",
+                m.rpm / 120.0
+            );
+            chart(&middle, &title, "Hz", "dB (thresholded)", &three(&impacts))?;
+        }
+    }
     chart(
         &bottom,
         "band energy (100 Hz bands: the mode the landings ring)",
@@ -261,11 +287,10 @@ pub fn all(
         &m[worst],
         &a[worst],
     )?;
-    let loose =
-        |i: usize| {
-            super::error::pair_only(&m[i], &b[i], &[C::Impacts, C::HalfOrders, C::Fractional])
-                .of(&[C::Impacts, C::HalfOrders, C::Fractional])
-        };
+    let loose = |i: usize| {
+        let views = [C::Impacts, C::HalfOrders, C::Fractional];
+        super::error::pair_only(&m[i], &b[i], &views).of(&views)
+    };
     let l = (0..m.len())
         .max_by(|x, y| loose(*x).total_cmp(&loose(*y)))
         .unwrap_or(worst);

@@ -6,6 +6,7 @@
 use super::error::{min_cut, ErrorComponent, ErrorParts};
 use super::fit::{Outcome, FIT_CUT, HELD_CUT};
 use super::measured::Measured;
+use super::views::Views;
 use crate::config::RigConfig;
 use anyhow::{Context, Result};
 use serde_json::{json, Value};
@@ -75,6 +76,22 @@ fn description(c: ErrorComponent) -> &'static str {
     }
 }
 
+/// A recording's landings once every two revolutions ([`super::landing_comb`]): the measured
+/// comb's strongest band and its ratio there, and the twins' ratios in that band before and
+/// after calibration.
+fn landings(m: &Views, before: &Views, after: &Views) -> Value {
+    match (m.landings.strongest(), m.landings.best_band_hz()) {
+        (Some(k), Some((lo, hi))) => json!({
+            "detected": m.landings.detected(),
+            "band_hz": [lo.round(), hi.round()],
+            "ratio": r3(m.landings.ratio[k]),
+            "ratio_before": r3(before.landings.ratio_in(k)),
+            "ratio_after": r3(after.landings.ratio_in(k)),
+        }),
+        _ => Value::Null,
+    }
+}
+
 /// The report object printed by `--json`.
 pub fn json(rig: &RigConfig, o: &Outcome, ops: &[Measured], id: &str) -> Value {
     let effects: Vec<Value> = o
@@ -103,7 +120,8 @@ pub fn json(rig: &RigConfig, o: &Outcome, ops: &[Measured], id: &str) -> Value {
             json!({"recording": m.name, "seconds": (v.seconds * 1000.0).round() / 1000.0,
                    "segments": v.segments, "sample_rate_hz": m.recording.sample_rate,
                    "recorded_sample_rate_hz": m.recorded_sample_rate,
-                   "before": parts(&b), "after": parts(&a)})
+                   "before": parts(&b), "after": parts(&a),
+                   "landings": landings(v, &o.views_before[i], &o.views_after[i])})
         })
         .collect();
     json!({

@@ -15,7 +15,7 @@
 //! | narrowband, frequency-locked, no mains multiple | a source not locked to this shaft (another machine, a fan, a pump, the foundation) |
 //! | order at the cage rate (FTF +-3 %) | cage defect or cage-rate modulation |
 //! | order 0.38-0.48 | fluid-film (oil) whirl or another sub-synchronous instability |
-//! | order near k + 1/2 (+-0.03), below 10x, in an envelope view (`env`, `impacts`) | impacting once every two revolutions (a loose part lifting and landing, a rub), which `subharmonics` (half-order lines of the raw signal) does not model |
+//! | order near k + 1/2 (+-0.03), below 10x, in an envelope view (`env`, `impacts`, `landings`) | impacting once every two revolutions (a loose part lifting and landing, a rub), which `subharmonics` (half-order lines of the raw signal) does not model |
 //! | order near k + 1/2 (+-0.03), below 4x | mechanical looseness or rub (half-order sub-harmonics) that the catalog's `subharmonics` did not explain: a line off the exact half order, levels unlike its power law, or not confirmed on the held-out part |
 //! | order near k + 1/2 (+-0.03), 4x-10x | mechanical looseness or rub (half-order sub-harmonics above 3.5x, which `subharmonics` does not compare) |
 //! | order near k + 1/3 or k + 2/3 (+-0.03), below 5x | looseness or rub (third-order sub-harmonics) |
@@ -108,7 +108,7 @@ pub fn candidates(u: &Unexplained, faults: &FaultOrders) -> Vec<String> {
     if !frequency_locked {
         let o = u.order;
         if o > 0.0 {
-            let envelope = matches!(u.view.as_str(), "env" | "impacts");
+            let envelope = matches!(u.view.as_str(), "env" | "impacts" | "landings");
             order_candidates(o, envelope, faults, &mut out);
         }
     }
@@ -122,11 +122,11 @@ fn half_order(o: f64) -> bool {
 }
 
 /// The residual is impacting once every two revolutions: a half order of the shaft in an
-/// envelope view (`env`, `impacts`), not locked to a fixed frequency. Where the measured
+/// envelope view (`env`, `impacts`, `landings`), not locked to a fixed frequency. Where the measured
 /// recordings show one, a calibration searches the landings of a loose housing
 /// (`looseness_impacts`) too.
 pub fn shows_landings(u: &Unexplained) -> bool {
-    matches!(u.view.as_str(), "env" | "impacts")
+    matches!(u.view.as_str(), "env" | "impacts" | "landings")
         && u.locked_to != "frequency"
         && u.order > 0.0
         && half_order(u.order)

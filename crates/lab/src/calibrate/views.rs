@@ -19,7 +19,9 @@
 //!   ([`super::fractional_orders`]), every recording, with the half-order lines 0.5x-3.5x
 //!   (`half_orders`, [`super::half_orders`]);
 //! - `impacts`: the envelope spectrum in Hz of the broadband band energy
-//!   ([`super::impacts`]), every recording.
+//!   ([`super::impacts`]), every recording;
+//! - `landings`: impacts once every two revolutions, read in the band where they ring
+//!   ([`super::landing_comb`]), every recording; located and drawn, not part of the error.
 //!
 //! A recording longer than [`SEGMENT_S`] is analysed whole: every view but `speed` is
 //! computed on each [`SEGMENT_S`] segment and averaged over the segments (the expected value
@@ -29,6 +31,7 @@
 
 use super::fault_peaks::{self, DbSpectrum, FaultPeak};
 use super::half_orders::HalfOrders;
+use super::landing_comb::{self, LandingComb};
 use super::modes::{self, Mode};
 use super::shaft_orders::{self, ShaftOrders};
 use super::stats::{median, quantile};
@@ -101,6 +104,8 @@ pub struct Views {
     /// Envelope spectrum of the broadband energy in Hz, thresholded dB
     /// ([`impacts::frequencies`]).
     pub impacts: Vec<f64>,
+    /// The half-order comb of impacts in the band where they ring ([`landing_comb`]).
+    pub landings: LandingComb,
     /// Seconds of signal analysed.
     pub seconds: f64,
     /// Segments averaged.
@@ -234,6 +239,7 @@ fn average(parts: Vec<Views>) -> Views {
     v.half_orders.amplitude = mean_vec(&parts, |p| &p.half_orders.amplitude);
     v.half_orders.floor = mean_vec(&parts, |p| &p.half_orders.floor);
     v.impacts = mean_vec(&parts, |p| &p.impacts);
+    v.landings = LandingComb::mean(&parts.iter().map(|p| &p.landings).collect::<Vec<_>>());
     v.shaft.amplitude = mean_vec(&parts, |p| &p.shaft.amplitude);
     v.shaft.floor = mean_vec(&parts, |p| &p.shaft.floor);
     v.floor_db = parts.iter().map(|p| p.floor_db).sum::<f64>() / n as f64;
@@ -338,6 +344,8 @@ pub struct Parts {
     pub fractional: bool,
     /// `impacts`.
     pub impacts: bool,
+    /// `landings` (no error component reads it: the locator and the looseness figure do).
+    pub landings: bool,
 }
 
 impl Parts {
@@ -347,6 +355,7 @@ impl Parts {
         shaft: true,
         fractional: true,
         impacts: true,
+        landings: true,
     };
     pub const NONE: Parts = Parts {
         env: false,
@@ -354,6 +363,7 @@ impl Parts {
         shaft: false,
         fractional: false,
         impacts: false,
+        landings: false,
     };
 
     /// The groups the simulated side of the named error components reads
@@ -467,6 +477,11 @@ fn compute_parts_along(
     }
     if parts.impacts {
         v.impacts = impacts::measure(&ch.samples, fs, BAND_MIN_HZ);
+    }
+    if parts.landings {
+        let orders = rig.bearing.fault_orders();
+        v.landings =
+            landing_comb::measure(&ch.samples, fs, rpm / 60.0, BAND_MIN_HZ, faults, &orders);
     }
     Ok(v)
 }

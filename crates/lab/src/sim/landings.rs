@@ -42,13 +42,11 @@ impl Radial {
 /// Ring-downs are cut where they have decayed to this fraction of their peak.
 const DECAYED: f64 = 1e-4;
 
-/// A loose joint does not land the same way twice: each landing's time slips by this
-/// fraction of the landing spacing (standard deviation; the 1 % the bearing-impact models of
-/// this project use for a rolling element's slip)...
-const TIME_JITTER: f64 = 0.01;
-/// ... and its strength by this fraction. Without them the train is a perfect comb of lines
-/// up to the mode's frequency, which no real landing train is (at 2.5 kHz and 1200 rpm a
-/// 1 % slip is 1 ms, several periods of the ring: the comb's high lines smear into a band).
+/// A loose joint does not land the same way twice: each landing's time slips by the
+/// section's `timing_jitter` (a fraction of the landing spacing, standard deviation) and its
+/// strength by this fraction. Without them the train is a perfect comb of lines up to the
+/// mode's frequency, which no real landing train is (at 2.5 kHz and 1200 rpm a 1 % slip is
+/// 1 ms, several periods of the ring: the comb's high lines smear into a band).
 const STRENGTH_JITTER: f64 = 0.1;
 
 /// Two standard normal draws fixed by landing `k` (SplitMix64 and Box-Muller): the same
@@ -89,12 +87,12 @@ pub fn signal(l: &LooseImpactsConfig, boundary_angles: &[f64], fs: f64) -> Vec<f
             continue;
         }
         // the landing's angle, its time inside the sample by linear interpolation, then its
-        // slip and strength ([`TIME_JITTER`], [`STRENGTH_JITTER`])
+        // slip (`timing_jitter`) and strength ([`STRENGTH_JITTER`])
         let k = index(a1);
         let at = phase + 2.0 * TAU * k;
         let rpm = 60.0 * (a1 - a0) * fs / TAU;
         let (g_time, g_strength) = normals(k as i64);
-        let t0 = (i as f64 + (at - a0) / (a1 - a0)) / fs + TIME_JITTER * 120.0 / rpm * g_time;
+        let t0 = (i as f64 + (at - a0) / (a1 - a0)) / fs + l.timing_jitter * 120.0 / rpm * g_time;
         let peak =
             l.impact_m_s2 * l.speed_gain(rpm) * (1.0 + STRENGTH_JITTER * g_strength).max(0.0);
         let first = (t0 * fs).ceil().max(0.0) as usize;
@@ -131,6 +129,7 @@ mod tests {
             damping: 0.05,
             horizontal_ratio: 0.5,
             phase_deg: 0.0,
+            timing_jitter: 0.01,
         }
     }
 
