@@ -100,11 +100,13 @@ fn difference(m: &[f64], s: &[f64]) -> Vec<f64> {
 
 /// Landings the model lacks in recording `rec` (turning at `fr`): a measured half-order comb
 /// ([`landing_comb`]) where the twin, judged in the band where the measured landings ring,
-/// shows none; a residual at 0.5x, its excess the two combs' ratio in dB.
+/// shows none and the measured comb stands the detection ratio above the twin's (as a comb
+/// must stand above noise); a residual at 0.5x, its excess the two combs' ratio in dB.
 fn landing_peak(m: &Views, s: &Views, rec: usize, fr: f64) -> Option<Peak> {
     let b = m.landings.strongest().filter(|_| m.landings.detected())?;
     let simulated = s.landings.ratio_in(b);
-    (simulated < landing_comb::DETECT_RATIO).then(|| Peak {
+    let apart = m.landings.best_ratio() >= landing_comb::DETECT_RATIO * simulated.max(1.0);
+    (simulated < landing_comb::DETECT_RATIO && apart).then(|| Peak {
         rec,
         hz: 0.5 * fr,
         order: 0.5,

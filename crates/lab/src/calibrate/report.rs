@@ -85,6 +85,8 @@ fn landings(m: &Views, before: &Views, after: &Views) -> Value {
             "detected": m.landings.detected(),
             "band_hz": [lo.round(), hi.round()],
             "ratio": r3(m.landings.ratio[k]),
+            "standing_lines": m.landings.standing_lines(),
+            "levels_db": m.landings.levels_db[k].iter().map(|d| r3(*d)).collect::<Vec<_>>(),
             "ratio_before": r3(before.landings.ratio_in(k)),
             "ratio_after": r3(after.landings.ratio_in(k)),
         }),
