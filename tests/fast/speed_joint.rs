@@ -274,15 +274,35 @@ fn a_weak_1x_at_588_rpm_is_read() {
     );
 }
 
-/// The speed fluctuating +-2 % at 0.3 Hz: better than before, and the phase fit's median
-/// below the joint reading's (which reads the history's mean). Target p95 <= 1.5 % not met
-/// yet. 1188 rpm is printed beside it.
+/// The speed fluctuating +-2 % at 0.3 Hz: better than before, and by the phase's wandering
+/// law (`JointParts::phase_wander`) no worse than the spectrum's reading alone (the history's
+/// mean along its trend) in p95 and better in the median. Target p95 <= 1.5 % not met yet
+/// (docs/speed.md). 1188 rpm is printed beside it.
 #[test]
 fn a_fluctuating_speed_is_read_better_than_before() {
     let hz = |t: f64| 588.0 / 60.0 * (1.0 + 0.02 * (TAU * 0.3 * t).sin());
-    let r = case("healthy 588 fluctuating", healthy(588.0), &hz, 5);
+    let x = signal(healthy(588.0), 30.0, hz, 5);
+    let r = Readings::of("healthy 588 fluctuating", &x, &hz);
     assert!(r.p95() < quantile(&r.before, 0.95), "p95 {}", r.p95());
-    assert!(quantile(&r.phase, 0.5) < quantile(&r.now, 0.5));
+    let spectrum = errors(&windows(
+        &x,
+        settings(None),
+        &hz,
+        JointParts {
+            phase_wander: false,
+            ..JointParts::default_on()
+        },
+    ));
+    let now = &r.now;
+    eprintln!(
+        "healthy 588 fluctuating: p95 {:.3} % median {:.3} % with the wandering law, {:.3} % / {:.3} % without",
+        100.0 * quantile(now, 0.95),
+        100.0 * quantile(now, 0.5),
+        100.0 * quantile(&spectrum, 0.95),
+        100.0 * quantile(&spectrum, 0.5)
+    );
+    assert!(quantile(now, 0.95) <= quantile(&spectrum, 0.95));
+    assert!(quantile(now, 0.5) < quantile(&spectrum, 0.5));
     let hz = |t: f64| 1188.0 / 60.0 * (1.0 + 0.02 * (TAU * 0.3 * t).sin());
     case("healthy 1188 fluctuating", healthy(1188.0), &hz, 6);
 }
@@ -354,7 +374,8 @@ fn no_lines_no_speed() {
 
 /// A clear line fluctuating +-2 % at 0.3 Hz at 1188 rpm (issue 34: p95 <= 1.5 % with a 4 %
 /// fluctuation): the phase of its harmonics over the whole history curves by very strong
-/// evidence, so the window's speed is the phase's (`JointParts::phase_curved`, on by
+/// evidence, so the window's speed is the phase smoother's wandering law, weighed against the
+/// spectrum's steady one by their posterior probabilities (`JointParts::phase_wander`, on by
 /// default): p95 within 1.5 % over three draws, below the spectrum's own reading (which
 /// reads the history's mean and trend); on a steady line the curve is never taken, so the
 /// speeds are the same to the bit with and without it.
@@ -362,7 +383,7 @@ fn no_lines_no_speed() {
 fn a_fluctuating_clear_line_is_read_from_its_phase() {
     let hz = |t: f64| 1188.0 / 60.0 * (1.0 + 0.02 * (TAU * 0.3 * t).sin());
     let without = JointParts {
-        phase_curved: false,
+        phase_wander: false,
         ..JointParts::default_on()
     };
     let (mut on, mut off) = (Vec::new(), Vec::new());

@@ -1,53 +1,124 @@
 //! The shaft's phase over the tracker's history smoothed by a Kalman filter and a
 //! Rauch-Tung-Striebel smoother (issue 34): the state is the shaft angle's departure from the
 //! reference speed (cycles) and the speed's departure (Hz), the speed wandering as a random
-//! walk. How fast it may wander (the walk's intensity) is not a setting: it is chosen over a
-//! grid by the likelihood of the blocks' phases themselves, with a steady speed (no walk) among
-//! the choices, so a steady shaft is read as one straight phase line and a fluctuating one
-//! gets the freedom its phases show. Each speed is then read from the phases on both sides of
-//! it (the smoother), the newest from the newest blocks and the walk's continuity.
+//! walk. How fast it may wander (the walk's intensity) is not a setting, and neither is the
+//! phases' noise level: every intensity of a grid is weighed by the likelihood of the blocks'
+//! phases themselves (the noise level, which a block's SNR only estimates, fitted for each),
+//! with a steady speed (no walk) holding half the prior and the wandering intensities the other
+//! half, uniform on the grid's log scale. The law read is the average of every intensity's
+//! law by its posterior weight (Bayesian model averaging): a steady shaft is read as one
+//! straight phase line, a fluctuating one gets the freedom its phases show, and a stretch of
+//! noise that a walk happens to fit a little better does not swing the reading. Each speed
+//! is read from the phases on both sides of it (the smoother), the newest from the newest
+//! blocks and the walk's continuity.
 
-/// Relative walk intensities tried (per square-root second, times the reference speed):
-/// from a speed steady to a part in 10^4 over a second to one wandering by a third.
+/// Relative walk intensities tried (per square-root second, times the reference speed, for
+/// the noise level the blocks' SNR gives): from a speed steady to a part in 10^4 over a second
+/// to one wandering by a third; 0 is the steady speed.
 const WALK_GRID: [f64; 14] = [
     0.0, 1e-4, 2e-4, 5e-4, 1e-3, 2e-3, 5e-3, 0.01, 0.02, 0.03, 0.05, 0.1, 0.2, 0.3,
 ];
+/// Prior probability of a steady speed; the wandering intensities share the rest equally
+/// (even odds between the two explanations: no preference stated by the data's absence).
+const STEADY_PRIOR: f64 = 0.5;
 /// Prior spread of the first phase (cycles) and speed departure (Hz): no prior.
 const DIFFUSE: f64 = 1e4;
 
 /// The smoothed departures at the blocks' centres.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Smoothed {
-    /// Speed departure from the reference at each block centre, Hz.
+    /// Speed departure from the reference at each block centre, Hz: every intensity's law
+    /// averaged by its posterior weight.
     pub hz: Vec<f64>,
-    /// Phase departure at each block centre, cycles.
+    /// Phase departure at each block centre, cycles (averaged the same way).
     pub cycles: Vec<f64>,
-    /// Walk intensity chosen (relative, per square-root second; 0 = steady).
-    pub walk: f64,
+    /// Posterior probability that the speed wanders (1 less that of a steady speed).
+    pub wander: f64,
+    /// Speed departure at each block centre under the wandering intensities alone (their
+    /// laws averaged by their posterior weights), Hz.
+    pub wander_hz: Vec<f64>,
 }
 
-/// Smooth the phases `y` (cycles, unwrapped) with variances `var` (cycles^2) at block centres
-/// `t` (s, equally spaced), reference speed `hz`. None with fewer than three blocks.
+/// Smooth the phases `y` (cycles, unwrapped) with variances `var` (cycles^2; their level is
+/// fitted, their ratios kept) at block centres `t` (s, equally spaced), reference speed `hz`.
+/// None with fewer than three blocks.
 pub fn smooth(t: &[f64], y: &[f64], var: &[f64], hz: f64) -> Option<Smoothed> {
     let n = t.len();
     if n < 3 || y.len() != n || var.len() != n {
         return None;
     }
     let dt = t[1] - t[0];
-    let mut best: Option<(f64, Pass)> = None;
-    for &rho in &WALK_GRID {
-        let pass = filter(y, var, dt, (rho * hz).powi(2));
-        if best.as_ref().is_none_or(|(_, b)| pass.loglik > b.loglik) {
-            best = Some((rho, pass));
-        }
+    let level = var.iter().sum::<f64>() / n as f64;
+    if !(level > 0.0 && level.is_finite()) {
+        return None;
     }
-    let (walk, pass) = best?;
-    let (cycles, hz) = rts(&pass, dt);
-    Some(Smoothed { hz, cycles, walk })
+    let rel: Vec<f64> = var.iter().map(|v| v / level).collect();
+    let laws: Vec<Law> = WALK_GRID
+        .iter()
+        .map(|&rho| {
+            let pass = filter(y, &rel, dt, (rho * hz).powi(2) / level);
+            let (cycles, hz) = rts(&pass, dt);
+            Law {
+                loglik: pass.loglik,
+                cycles,
+                hz,
+            }
+        })
+        .collect();
+    let top = laws
+        .iter()
+        .map(|l| l.loglik)
+        .fold(f64::NEG_INFINITY, f64::max);
+    if !top.is_finite() {
+        return None;
+    }
+    let walks = (WALK_GRID.len() - 1) as f64;
+    let weights: Vec<f64> = laws
+        .iter()
+        .zip(WALK_GRID)
+        .map(|(l, rho)| {
+            let prior = if rho == 0.0 {
+                STEADY_PRIOR
+            } else {
+                (1.0 - STEADY_PRIOR) / walks
+            };
+            prior * (l.loglik - top).exp()
+        })
+        .collect();
+    let total: f64 = weights.iter().sum();
+    let wander_total = total - weights[0];
+    // the laws from `from` on averaged by their weights (summing to `sum`)
+    let average = |pick: fn(&Law) -> &[f64], from: usize, sum: f64| {
+        let mut out = vec![0.0; n];
+        for (l, w) in laws.iter().zip(&weights).skip(from) {
+            for (o, v) in out.iter_mut().zip(pick(l)) {
+                *o += w / sum * v;
+            }
+        }
+        out
+    };
+    Some(Smoothed {
+        hz: average(|l| &l.hz, 0, total),
+        cycles: average(|l| &l.cycles, 0, total),
+        wander: wander_total / total,
+        wander_hz: if wander_total > 0.0 {
+            average(|l| &l.hz, 1, wander_total)
+        } else {
+            laws[0].hz.clone()
+        },
+    })
 }
 
-/// One forward pass: filtered and predicted states and covariances, and the log-likelihood
-/// of the innovations after the first two (which only fix the diffuse start).
+/// One walk intensity's reading: its log-likelihood and smoothed departures.
+struct Law {
+    loglik: f64,
+    cycles: Vec<f64>,
+    hz: Vec<f64>,
+}
+
+/// One forward pass with the phases' variances `rel` known up to a common level: filtered and
+/// predicted states and covariances (for level 1), and the log-likelihood of the innovations
+/// after the first two (which only fix the diffuse start) at the level that maximises it.
 struct Pass {
     xf: Vec<[f64; 2]>,
     pf: Vec<[[f64; 2]; 2]>,
@@ -56,7 +127,7 @@ struct Pass {
     loglik: f64,
 }
 
-fn filter(y: &[f64], var: &[f64], dt: f64, q: f64) -> Pass {
+fn filter(y: &[f64], rel: &[f64], dt: f64, q: f64) -> Pass {
     let n = y.len();
     let mut pass = Pass {
         xf: Vec::with_capacity(n),
@@ -67,7 +138,8 @@ fn filter(y: &[f64], var: &[f64], dt: f64, q: f64) -> Pass {
     };
     let mut x = [y[0], 0.0];
     let mut p = [[DIFFUSE, 0.0], [0.0, DIFFUSE]];
-    for (i, (&yi, &r)) in y.iter().zip(var).enumerate() {
+    let (mut scaled, mut log_s, mut m) = (0.0, 0.0, 0.0f64);
+    for (i, (&yi, &r)) in y.iter().zip(rel).enumerate() {
         if i > 0 {
             (x, p) = predict(x, p, dt, q);
         }
@@ -82,11 +154,16 @@ fn filter(y: &[f64], var: &[f64], dt: f64, q: f64) -> Pass {
             [p[1][0] - k[1] * p[0][0], p[1][1] - k[1] * p[0][1]],
         ];
         if i >= 2 {
-            pass.loglik -= 0.5 * ((std::f64::consts::TAU * s).ln() + innov * innov / s);
+            scaled += innov * innov / s;
+            log_s += s.ln();
+            m += 1.0;
         }
         pass.xf.push(x);
         pass.pf.push(p);
     }
+    // the level that maximises the likelihood is the innovations' mean scaled square
+    let level = (scaled / m.max(1.0)).max(1e-300);
+    pass.loglik = -0.5 * (m * level.ln() + log_s + m);
     pass
 }
 
@@ -183,9 +260,12 @@ mod tests {
         // 0.05 Hz above the reference, phases scattering 0.08 cycles (0.5 rad) per block
         let (t, y) = phases(|_| 0.05, 0.08, 7);
         let s = smooth(&t, &y, &[0.08 * 0.08; 20], 9.8).unwrap();
-        assert_eq!(s.walk, 0.0, "a steady speed needs no walk");
+        assert!(s.wander < 0.5, "a steady speed needs no walk: {}", s.wander);
         let spread = s.hz.iter().fold(0.0f64, |m, v| m.max((v - s.hz[0]).abs()));
-        assert!(spread < 1e-9, "one speed over the history: spread {spread}");
+        assert!(
+            spread < 0.01,
+            "one speed over the history: spread {spread} Hz"
+        );
         assert!((s.hz[0] - 0.05).abs() < 0.02, "speed departure {}", s.hz[0]);
     }
 
@@ -198,8 +278,9 @@ mod tests {
             let (t, y) = phases(dev, 0.04, seed);
             let s = smooth(&t, &y, &[0.04 * 0.04; 20], 9.8).unwrap();
             assert!(
-                s.walk > 0.0,
-                "seed {seed}: the phases show the speed wander"
+                s.wander > 0.5,
+                "seed {seed}: the phases show the speed wander ({})",
+                s.wander
             );
             // the newest second's mean speed: smoothed phases at its ends against the truth
             let i = t.len() - 6;

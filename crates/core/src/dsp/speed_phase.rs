@@ -6,12 +6,13 @@
 //! departure from that speed. A polynomial in time fitted to it (weighted least squares, the
 //! harmonics sharing the polynomial, each its own offset; the degree chosen by the Bayesian
 //! information criterion) unwraps the harmonics against each other and says whether the speed
-//! curves over the history (a fluctuation, not a steady speed or a linear trend). The speed at
-//! every time of the history is read by a Kalman smoother from the harmonics' phases combined
-//! per block ([`super::phase_smoother`]: the speed a random walk whose freedom the phases
-//! themselves choose, a steady speed among the choices), so the newest second's speed comes
-//! from the newest blocks and the continuity of the ones before, not from the end of a
-//! polynomial, where its fit is least determined.
+//! curves over the history (a fluctuation, not a steady speed or a linear trend). The speed at every time
+//! of the history is read by a Kalman smoother from the harmonics' phases combined per block
+//! ([`super::phase_smoother`]: a steady speed and random walks of every freedom weighed by
+//! how well each explains the phases), so the newest second's speed comes from the newest
+//! blocks and the continuity of the ones before, not from the end of a polynomial, where its
+//! fit is least determined; the smoother also says how probable it is that the speed wanders
+//! at all (a fluctuation, not a steady speed along the reference's trend).
 //!
 //! The same fit says whether the newest second still shows the line: the harmonics'
 //! amplitude over that second, demodulated sample by sample along the fit under one Hann
@@ -57,13 +58,18 @@ pub struct PhaseFit {
     pub hz: Vec<f64>,
     /// Degree of the phase polynomial chosen.
     pub degree: usize,
-    /// How much better (Bayesian information criterion) the chosen law fits than the best
-    /// steady or linearly changing one (0 when it is one of them).
+    /// How much better (Bayesian information criterion) the chosen polynomial fits than the
+    /// best steady or linearly changing one (0 when it is one of them).
     pub curved_by: f64,
     /// Harmonics that took part.
     pub harmonics: usize,
     /// Detection statistic of the line over the newest stretch ([`NEWEST_DETECT`]).
     pub newest: f64,
+    /// Posterior probability that the speed wanders over the history rather than holding
+    /// steady along the reference ([`phase_smoother`]).
+    pub wander: f64,
+    /// Shaft speeds (Hz) at `t` if it wanders: the wandering laws alone, averaged.
+    pub wander_hz: Vec<f64>,
 }
 
 impl PhaseFit {
@@ -77,8 +83,8 @@ impl PhaseFit {
         self.newest >= NEWEST_DETECT
     }
 
-    /// The speed curves over the history (a fluctuation, not a steady speed or a linear
-    /// trend), by very strong evidence ([`CURVED_BIC`]).
+    /// The polynomial says the speed curves over the history (a fluctuation, not a steady
+    /// speed or a linear trend), by very strong evidence ([`CURVED_BIC`]).
     pub fn curved(&self) -> bool {
         self.degree > STRAIGHT_DEGREE && self.curved_by >= CURVED_BIC
     }
@@ -143,18 +149,24 @@ pub fn fit(x: &[f32], fs: f64, hz: f64, r: f64, newest_s: f64) -> Option<PhaseFi
         tb: &tb,
     };
     let newest = newest_detection(x, &along, &hs, len, newest_s);
-    let (t, dev) = smoothed_law(&hs, &coef, &tb, hz)?;
+    let law = smoothed_law(&hs, &coef, &tb, hz)?;
+    let (t, dev) = (law.t, law.dev);
     // a line that leaves the reference by a quarter turn per block is not followed: its
     // blocks' phases no longer tell the turns apart
     if dev.iter().any(|d| !(d.abs() * len as f64 / fs < 0.25)) {
         return None;
     }
-    let f: Vec<f64> = t
-        .iter()
-        .zip(&dev)
-        .map(|(t, d)| hz * (1.0 + r * t) + d)
-        .collect();
-    if f.iter().any(|v| !(v.is_finite() && *v > 0.0)) {
+    let absolute = |dev: &[f64]| -> Vec<f64> {
+        t.iter()
+            .zip(dev)
+            .map(|(t, d)| hz * (1.0 + r * t) + d)
+            .collect()
+    };
+    let (f, wander_hz) = (absolute(&dev), absolute(&law.wander_dev));
+    if f.iter()
+        .chain(&wander_hz)
+        .any(|v| !(v.is_finite() && *v > 0.0))
+    {
         return None;
     }
     Some(PhaseFit {
@@ -164,14 +176,27 @@ pub fn fit(x: &[f32], fs: f64, hz: f64, r: f64, newest_s: f64) -> Option<PhaseFi
         curved_by,
         harmonics: hs.len(),
         newest,
+        wander: law.wander,
+        wander_hz,
     })
 }
 
 /// The speed's departure from the reference over the history, read by the Kalman smoother
 /// ([`phase_smoother`]) from the harmonics' phases combined per block (each less its offset,
 /// weighted by its inverse variance), at the blocks' centres and at the newest sample (the
-/// newest block's speed): times (s, <= 0) and departures (Hz).
-fn smoothed_law(hs: &[Harmonic], coef: &Coef, tb: &[f64], hz: f64) -> Option<(Vec<f64>, Vec<f64>)> {
+/// newest block's speed).
+struct SmoothedLaw {
+    /// Times, s (<= 0).
+    t: Vec<f64>,
+    /// Departures, Hz: every walk intensity averaged by its posterior weight.
+    dev: Vec<f64>,
+    /// Posterior probability that the speed wanders.
+    wander: f64,
+    /// Departures under the wandering intensities alone, Hz.
+    wander_dev: Vec<f64>,
+}
+
+fn smoothed_law(hs: &[Harmonic], coef: &Coef, tb: &[f64], hz: f64) -> Option<SmoothedLaw> {
     let wsum: f64 = hs.iter().map(|h| h.weight).sum();
     let y: Vec<f64> = (0..tb.len())
         .map(|b| {
@@ -186,11 +211,19 @@ fn smoothed_law(hs: &[Harmonic], coef: &Coef, tb: &[f64], hz: f64) -> Option<(Ve
     // 1 / (2 (2 pi)^2 k^2 SNR) = 1 / (2 (2 pi)^2 weight), and the harmonics add
     let var = vec![1.0 / (2.0 * TAU * TAU * wsum); tb.len()];
     let s = phase_smoother::smooth(tb, &y, &var, hz)?;
+    let newest = |mut v: Vec<f64>| {
+        let last = *v.last()?;
+        v.push(last);
+        Some(v)
+    };
     let mut t = tb.to_vec();
-    let mut dev = s.hz;
     t.push(0.0);
-    dev.push(*dev.last()?);
-    Some((t, dev))
+    Some(SmoothedLaw {
+        t,
+        dev: newest(s.hz)?,
+        wander: s.wander,
+        wander_dev: newest(s.wander_hz)?,
+    })
 }
 
 /// Blocks of `len` samples of `x` demodulated at each harmonic of the reference shaft

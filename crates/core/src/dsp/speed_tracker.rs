@@ -269,11 +269,12 @@ pub struct JointParts {
     /// The speed over the history is read from the harmonics' phase ([`super::speed_phase`]),
     /// which also says whether the newest second still shows the line.
     pub phase: bool,
-    /// Where the phase shows the speed curving over the history (a fluctuation; very strong
-    /// evidence, [`PhaseFit::curved`]) and the newest second shows the line along it, the
-    /// window's speed and track are the phase's; its status and confidence stay the
-    /// spectrum's. Without [`Self::phase`] only.
-    pub phase_curved: bool,
+    /// Where the phase fit over the whole history curves (a fluctuation; very strong evidence,
+    /// [`PhaseFit::curved`]) and the newest second shows the line along it, the window's speed
+    /// law is the spectrum's (steady along its trend) and the phase smoother's wandering law
+    /// averaged by their posterior probabilities ([`PhaseFit::wander`]). Its status and
+    /// confidence stay the spectrum's. Without [`Self::phase`] only.
+    pub phase_wander: bool,
     /// Where the newest second's spectrum shows no line of the window's speed
     /// ([`RECENT_LINE`], one bin's bar), the matched filter along its harmonics' phase may
     /// ([`PhaseFit::newest_shows_line`]: P < 1e-3 on noise); and while acquiring, a line the
@@ -291,7 +292,7 @@ impl JointParts {
             line_speed: on,
             comb: on,
             phase: on,
-            phase_curved: on,
+            phase_wander: on,
             newest_in_phase: on,
         }
     }
@@ -299,7 +300,7 @@ impl JointParts {
     /// The tracker's default: every part but the phase reading, which is measured
     /// (`tests/fast/speed_joint.rs`) but not yet on (docs/speed.md: it made mains hum and one
     /// CWRU record confident at a wrong speed); its speed is used where it curves
-    /// ([`Self::phase_curved`]), which makes nothing confident.
+    /// ([`Self::phase_wander`]), which makes nothing confident.
     pub fn default_on() -> JointParts {
         JointParts {
             phase: false,
@@ -524,31 +525,42 @@ impl SpeedTracker {
         }
         if let Some(p) = phase.filter(|_| e.status == SpeedStatus::Tracking) {
             self.apply_phase(&mut e, &p, t_end);
-        } else if let Some(p) = self.curved_reading(&best, &e) {
+        } else if let Some(p) = self.wandering_reading(&best, &e) {
             self.apply_phase(&mut e, &p, t_end);
         }
         Ok(e)
     }
 
-    /// The phase fit over the whole history where the speed curves in it and the newest
-    /// second shows the line along it ([`JointParts::phase_curved`]), for a window that reads
-    /// the candidate's own line (tracking it, or not yet clear about it; not a hint, a jump or
-    /// the vibration off a hint) and whose mean the fit agrees with (within [`FOLLOW_BAND`]).
-    /// The curve is the phase's evidence, not the spectrum's: a line too weak for a clear
-    /// spectrum over the history may still show its curve there.
-    fn curved_reading(&mut self, c: &Candidate, e: &TrackedSpeed) -> Option<PhaseFit> {
+    /// The speed law where the phase fit over the whole history curves and the newest second
+    /// shows the line along it ([`JointParts::phase_wander`]), for a window that reads the candidate's own line
+    /// (tracking it, or not yet clear about it; not a hint, a jump or the vibration off a
+    /// hint) and whose mean the fit agrees with (within [`FOLLOW_BAND`]): at every knot of the
+    /// fit, the spectrum's steady law (the candidate's speed along its trend) and the
+    /// phase's wandering law weighed by the posterior probability of each. The curve is the
+    /// phase's evidence, not the spectrum's: a line too weak for a clear spectrum over the
+    /// history may still show it there. (Without the curve's gate, the posterior alone moved
+    /// the steady outer race of `tests/fast/speed_joint.rs` to p95 1.2 %: its phases wander
+    /// in a way a walk explains; docs/speed.md.)
+    fn wandering_reading(&mut self, c: &Candidate, e: &TrackedSpeed) -> Option<PhaseFit> {
         let own = matches!(
             e.status,
             SpeedStatus::Tracking | SpeedStatus::Unclear | SpeedStatus::Acquiring
         );
-        if self.joint.phase || !self.joint.phase_curved || !own || c.train_of.is_some() {
+        if self.joint.phase || !self.joint.phase_wander || !own || c.train_of.is_some() {
             return None;
         }
-        // the whole history: the longer the span, the clearer a curve
-        let p = self.phase_fit(self.cap, c.hz, c.trend)?;
+        // the whole history: the longer the span, the clearer a wander
+        let mut p = self.phase_fit(self.cap, c.hz, c.trend)?;
         let mean = p.hz.iter().sum::<f64>() / p.hz.len() as f64;
         let agrees = (mean * 60.0 / e.rpm - 1.0).abs() < FOLLOW_BAND;
-        (p.curved() && p.newest_shows_line() && agrees).then_some(p)
+        if !(p.curved() && p.newest_shows_line() && agrees) {
+            return None;
+        }
+        let w = p.wander;
+        for ((f, &t), &walk) in p.hz.iter_mut().zip(&p.t).zip(&p.wander_hz) {
+            *f = (1.0 - w) * c.hz * (1.0 + c.trend * t) + w * walk;
+        }
+        Some(p)
     }
 
     /// The phase of the candidate's harmonics over the span it was found in
