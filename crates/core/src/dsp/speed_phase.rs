@@ -6,8 +6,9 @@
 //! departure from that speed. A polynomial in time fitted to it (weighted least squares, the
 //! harmonics sharing the polynomial, each its own offset; the degree chosen by the Bayesian
 //! information criterion) unwraps the harmonics against each other and says whether the speed
-//! curves over the history (a fluctuation, not a steady speed or a linear trend). The speed at every time
-//! of the history is read by a Kalman smoother from the harmonics' phases combined per block
+//! curves over the history (a fluctuation, not a steady speed or a linear trend). The speed at
+//! every time of the history is read by a Kalman smoother from the harmonics' phases combined
+//! per block
 //! ([`super::phase_smoother`]: a steady speed and random walks of every freedom weighed by
 //! how well each explains the phases), so the newest second's speed comes from the newest
 //! blocks and the continuity of the ones before, not from the end of a polynomial, where its
@@ -70,6 +71,9 @@ pub struct PhaseFit {
     pub wander: f64,
     /// Shaft speeds (Hz) at `t` if it wanders: the wandering laws alone, averaged.
     pub wander_hz: Vec<f64>,
+    /// Shaft speeds (Hz) at `t` if it is steady: the reference the fit was made along (the
+    /// spectrum's speed along its trend).
+    pub steady_hz: Vec<f64>,
 }
 
 impl PhaseFit {
@@ -81,6 +85,17 @@ impl PhaseFit {
     /// The newest stretch shows the line along the fit.
     pub fn newest_shows_line(&self) -> bool {
         self.newest >= NEWEST_DETECT
+    }
+
+    /// The steady and the wandering law weighed by their posterior probabilities
+    /// ([`Self::wander`]), at `t`: a wander the phases barely support moves the reading little.
+    pub fn weighed_hz(&self) -> Vec<f64> {
+        let w = self.wander;
+        self.steady_hz
+            .iter()
+            .zip(&self.wander_hz)
+            .map(|(s, v)| (1.0 - w) * s + w * v)
+            .collect()
     }
 
     /// The polynomial says the speed curves over the history (a fluctuation, not a steady
@@ -163,6 +178,7 @@ pub fn fit(x: &[f32], fs: f64, hz: f64, r: f64, newest_s: f64) -> Option<PhaseFi
             .collect()
     };
     let (f, wander_hz) = (absolute(&dev), absolute(&law.wander_dev));
+    let steady_hz: Vec<f64> = t.iter().map(|t| hz * (1.0 + r * t)).collect();
     if f.iter()
         .chain(&wander_hz)
         .any(|v| !(v.is_finite() && *v > 0.0))
@@ -178,6 +194,7 @@ pub fn fit(x: &[f32], fs: f64, hz: f64, r: f64, newest_s: f64) -> Option<PhaseFi
         newest,
         wander: law.wander,
         wander_hz,
+        steady_hz,
     })
 }
 

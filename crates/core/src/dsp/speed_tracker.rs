@@ -532,11 +532,12 @@ impl SpeedTracker {
     }
 
     /// The speed law where the phase fit over the whole history curves and the newest second
-    /// shows the line along it ([`JointParts::phase_wander`]), for a window that reads the candidate's own line
-    /// (tracking it, or not yet clear about it; not a hint, a jump or the vibration off a
-    /// hint) and whose mean the fit agrees with (within [`FOLLOW_BAND`]): at every knot of the
-    /// fit, the spectrum's steady law (the candidate's speed along its trend) and the
-    /// phase's wandering law weighed by the posterior probability of each. The curve is the
+    /// shows the line along it ([`JointParts::phase_wander`]), for a window that reads the
+    /// candidate's own line (tracking it, or not yet clear about it; not a hint, a jump or the
+    /// vibration off a hint) and whose mean the fit agrees with (within [`FOLLOW_BAND`]): at
+    /// every knot of the fit, the spectrum's steady law (the candidate's speed along its trend,
+    /// the fit's reference) and the phase's wandering law weighed by the posterior probability
+    /// of each ([`PhaseFit::weighed_hz`]). The curve is the
     /// phase's evidence, not the spectrum's: a line too weak for a clear spectrum over the
     /// history may still show it there. (Without the curve's gate, the posterior alone moved
     /// the steady outer race of `tests/fast/speed_joint.rs` to p95 1.2 %: its phases wander
@@ -556,10 +557,7 @@ impl SpeedTracker {
         if !(p.curved() && p.newest_shows_line() && agrees) {
             return None;
         }
-        let w = p.wander;
-        for ((f, &t), &walk) in p.hz.iter_mut().zip(&p.t).zip(&p.wander_hz) {
-            *f = (1.0 - w) * c.hz * (1.0 + c.trend * t) + w * walk;
-        }
+        p.hz = p.weighed_hz();
         Some(p)
     }
 
