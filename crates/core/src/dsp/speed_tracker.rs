@@ -282,6 +282,12 @@ pub struct JointParts {
     /// stands, without searching halves and quarters of the history along trends (a steady
     /// line needs no trend, and the best of those 36 searches is often noise's).
     pub newest_in_phase: bool,
+    /// While acquiring, the line read in the last window, still the whole history's best line
+    /// above noise, is held as it stands (continuity over time) without searching halves and
+    /// quarters of the history along trends: the best of those 36 searches then is the same
+    /// line along a wrong trend (5 % off at 588 rpm) or a bearing's line taken for a shaft
+    /// (an outer race's 45 Hz read as 2,600 rpm), found by chance.
+    pub held_line: bool,
 }
 
 impl JointParts {
@@ -294,6 +300,7 @@ impl JointParts {
             phase: on,
             phase_wander: on,
             newest_in_phase: on,
+            held_line: on,
         }
     }
 
@@ -706,6 +713,12 @@ impl SpeedTracker {
         let last = self.hist.len();
         let mut best = self.search(last - n, last, 0.0);
         if best.confidence() >= MIN_CONFIDENCE {
+            return best;
+        }
+        // the last window's line is still the whole history's best line above noise: the
+        // speed holds along it, and trends searched over parts of the history would only add
+        // chances for a line read along a wrong trend ([`JointParts::held_line`])
+        if self.joint.held_line && best.score > SCORE_NOISE && self.near_lock(best.hz) {
             return best;
         }
         // a line above noise that the newest second shows in phase needs no trend
