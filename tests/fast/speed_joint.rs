@@ -195,6 +195,14 @@ fn healthy(rpm: f64) -> Machine {
     }
 }
 
+/// The healthy machine at 588 rpm with a damaged bearing whose impacts peak at 6x the noise.
+fn damaged_588(fault: Fault) -> Machine {
+    Machine {
+        fault: Some((fault, 6.0)),
+        ..healthy(588.0)
+    }
+}
+
 /// One case read three ways on the same samples: the errors (sorted) of the tracker's
 /// default reading (the joint reading), of the joint reading with the phase fit
 /// (`speed_phase`, measured but not on by default) and of the reading before issue 34; all
@@ -338,10 +346,7 @@ fn a_clean_line_is_read_without_bias() {
 #[test]
 fn a_bearing_comb_does_not_become_the_shaft() {
     let hz = |_: f64| 588.0 / 60.0;
-    let m = Machine {
-        fault: Some((Fault::Outer, 6.0)),
-        ..healthy(588.0)
-    };
+    let m = damaged_588(Fault::Outer);
     // a shaft read from the comb is 30 % or more off (1350, 1800 or 2700 rpm)
     let r = case("outer race 588", m, &hz, 9);
     assert!(r.p95() <= 0.005, "p95 {}", r.p95());
@@ -357,10 +362,7 @@ fn a_bearing_comb_does_not_become_the_shaft() {
 #[test]
 fn the_last_windows_line_is_held_against_chance_trends() {
     let hz = |_: f64| 588.0 / 60.0;
-    let outer = Machine {
-        fault: Some((Fault::Outer, 6.0)),
-        ..healthy(588.0)
-    };
+    let outer = damaged_588(Fault::Outer);
     for (name, m, seed) in [
         ("steady 588, draw 5", healthy(588.0), 5),
         ("outer race 588, draw 95028", outer, 95_028),
@@ -393,10 +395,7 @@ fn the_last_windows_line_is_held_against_chance_trends() {
 #[test]
 fn an_impulsive_inner_race_keeps_the_shaft() {
     let hz = |_: f64| 588.0 / 60.0;
-    let m = Machine {
-        fault: Some((Fault::Inner, 6.0)),
-        ..healthy(588.0)
-    };
+    let m = damaged_588(Fault::Inner);
     let r = case("inner race 588", m, &hz, 13);
     assert!(r.p95() <= 0.005, "p95 {}", r.p95());
 }
