@@ -544,9 +544,9 @@ impl SpeedTracker {
     /// vibration off a hint) and whose mean the fit agrees with (within [`FOLLOW_BAND`]): at
     /// every knot of the fit, the spectrum's steady law (the candidate's speed along its trend,
     /// the fit's reference) and the phase's wandering law weighed by the posterior probability
-    /// of each ([`PhaseFit::weighed_hz`]). The curve is the
-    /// phase's evidence, not the spectrum's: a line too weak for a clear spectrum over the
-    /// history may still show it there. (Without the curve's gate, the posterior alone moved
+    /// of each ([`PhaseFit::weighed_hz`]). The curve is the phase's evidence, not the
+    /// spectrum's: a line too weak for a clear spectrum over the history may still show it
+    /// there. (Without the curve's gate, the posterior alone moved
     /// the steady outer race of `tests/fast/speed_joint.rs` to p95 1.2 %: its phases wander
     /// in a way a walk explains; docs/speed.md.)
     fn wandering_reading(&mut self, c: &Candidate, e: &TrackedSpeed) -> Option<PhaseFit> {
