@@ -2,16 +2,20 @@
 //! from `tests/python/loose_housing.py`, a generator written for this issue from the physics
 //! of a loose joint (a 0.5x rocking clipped at the seat, a landing every other revolution
 //! whose half-sine contact force rings one mode of the joint), not from rigmon's simulator
-//! nor measured_like.py's looseness. Two of the cases from docs/calibration.md's sweep run
-//! here (strong landings ringing a high mode over a clipped rocking; weak landings at a low
-//! mode with no rocking at all); the sweep's other cases are rerun by the command there.
-//! Each calibrates as a user runs it, without `--looseness-impacts`: where the recordings show
-//! the landings (a half-order comb of the envelope against the model), `looseness_impacts` is
-//! searched anyway. Each: `looseness_impacts` accepted (or `subharmonics` first, then it), its
-//! mode and its landing peak within 20 % of the truth, no `noise` or `resonance` taken before
-//! it, and no unexplained residual where looseness shows (half orders, the impacts'
-//! envelope). The strong case meets it; the weak one does not (its landings are not located,
-//! so not searched), so it is ignored (docs/calibration.md).
+//! nor measured_like.py's looseness. Four of the cases from docs/calibration.md's sweep run
+//! here (strong landings ringing a high mode over a clipped rocking; medium landings lost in
+//! the broadband views, found by the band where they ring; medium landings over a rocking
+//! that is not clipped, where the band energies alone traded the damping for the strength;
+//! weak landings at a low mode with no rocking at all); the sweep's other cases are rerun by
+//! the command there. Each calibrates as a user runs it, without `--looseness-impacts`: where
+//! the recordings show the landings (a half-order comb of the envelope, or of the band where
+//! they ring, against the model), `looseness_impacts` is searched anyway. Each:
+//! `looseness_impacts` accepted (or `subharmonics` first, then it), its mode, damping and
+//! landing peak within 20 % of the truth, no `noise` or `resonance` taken before it, and no
+//! unexplained residual where looseness shows (half orders, the impacts' envelope). The
+//! strong and medium cases meet it; the weak one does not (searched, but its mode stands
+//! less than 10 dB above the floor on the fit part, so its damping cannot be read there and
+//! the views it is searched on do not show it), so it is ignored (docs/calibration.md).
 //! Two checks more: the simulator's own landings are fitted back, and the absolute `floor` is
 //! what tells the landing strength on the strong independent case.
 
@@ -170,6 +174,51 @@ fn strong_landings_at_a_high_mode_are_looseness() {
     });
 }
 
+/// Medium landings (5 m/s^2 at 1200 rpm) ringing a 1.8 kHz mode at 3 %, over a clipped
+/// rocking: lost in the broadband views (`impacts`, `env`), found by the half-order comb of the
+/// band where they ring (`landings`), and fitted once the search reads the mode's damping from
+/// its half-power width (before: not searched; with `--looseness-impacts` the damping and the
+/// peak came out 59 % high, each trading for the other).
+#[test]
+fn medium_landings_found_in_their_band_are_looseness() {
+    found(&Case {
+        name: "medium, 1.8 kHz, clipped rocking",
+        args: &[
+            "--impact",
+            "5",
+            "--mode-hz",
+            "1800",
+            "--damping",
+            "0.03",
+            "--seed",
+            "12",
+        ],
+    });
+}
+
+/// Medium landings (5 m/s^2 at 1200 rpm) ringing a 1 kHz mode at 4 % over a rocking that is
+/// not clipped (a pure 0.5x line): the band energies alone put the damping and the peak 38 %
+/// and 40 % high (docs/calibration.md, 2026-12-07); the ring's half-power width fixes the
+/// damping.
+#[test]
+fn landings_over_an_unclipped_rocking_are_looseness() {
+    found(&Case {
+        name: "medium, 1 kHz, unclipped rocking",
+        args: &[
+            "--impact",
+            "5",
+            "--mode-hz",
+            "1000",
+            "--damping",
+            "0.04",
+            "--clip",
+            "1",
+            "--seed",
+            "14",
+        ],
+    });
+}
+
 /// Weak landings: 1 m/s^2 at 1200 rpm ringing a 600 Hz mode, with no rocking line at all.
 const WEAK: &[&str] = &[
     "--impact",
@@ -186,7 +235,7 @@ const WEAK: &[&str] = &[
 
 /// Weak landings (1 m/s^2) ringing a 600 Hz mode with no rocking line at all.
 #[test]
-#[ignore = "issue 39 not done: the landings are located and named (`weak_landings_are_located_and_named`), but their search is refused; run with --ignored"]
+#[ignore = "issue 39 not done: the landings are located and named (`weak_landings_are_located_and_named`) and searched, but refused: on the fit part their mode stands < 10 dB above the floor; run with --ignored"]
 fn weak_landings_at_a_low_mode_without_rocking_are_looseness() {
     found(&Case {
         name: "weak, 600 Hz, no rocking",

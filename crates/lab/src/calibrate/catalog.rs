@@ -11,10 +11,11 @@
 //! | `speed_fluctuation` | `period_s` 0.2-5 (log), `fraction` 0.002-0.1 (log); around a measured speed line ([`Context::speed_line`]): `period_s` over its frequency +- one resolution step (1 / the shortest length), `fraction` over its depth / 2-x2 (log), within those bounds, starting there | `speed_fluctuation.period_s`, `.fraction` |
 //! | `looseness` | `harmonics_m_s2` 0.0005-3 (log), `slope` -2-3, `highest_order` {5, 10, 20, 30} | `shaft_lines` orders 3..highest: `harmonics_m_s2` (k / k_mid)^`slope`, k_mid the geometric mean order |
 //! | `subharmonics` | `half_order_m_s2` 0.0005-3 (log), `exponent` 0-6 (two speeds or more; else 2), `slope` -1-4 (searched from 4, so the 0.5x line is fitted first): the half-order lines of looseness or a rub, 0.5x at `half_order_m_s2`, order o at (2 o)^-`slope` of it, up to 3.5x (the highest half order the fractional view compares) | `subharmonics` at the highest measured speed, `highest_order` 3.5 |
-//! | `looseness_impacts` | `impact_m_s2` 0.01-300 (log, at the highest speed of the fit part's healthy recordings, where `floor` and `impacts` see it absolutely; else the highest measured speed), `mode_hz` 300-0.4 fs (log, starting in the band where the healthy recordings' landings ring, else where they exceed the uncalibrated model most), `damping` 0.005-0.3 (log), `exponent` 0-6 (two speeds or more; else 2); searched twice over (the impact's size and its mode's frequency pull on each other): a loose housing landing once every two revolutions, each landing ringing one mode | `loose_impacts` at that speed |
+//! | `looseness_impacts` | `impact_m_s2` 0.01-300 (log, at the highest speed of the fit part's healthy recordings, where `floor` and `impacts` see it absolutely; else the highest measured speed), `mode_hz` 300-0.4 fs (log, starting in the band where the healthy recordings' landings ring, else where they exceed the uncalibrated model most; within the half-power width of the peak they ring where that width is read, [`Context::ring`]), `damping` 0.005-0.3 (log; not searched where the fit part's healthy recordings show the mode's half-power width, [`Context::ring`]: read from it), `exponent` 0-6 (two speeds or more; else 2); searched twice over (the impact's size and its mode's frequency pull on each other): a loose housing landing once every two revolutions, each landing ringing one mode | `loose_impacts` at that speed |
 //! | `noise` | `noise_rms_m_s2` 0.003-3 (log) | `structure.noise_rms_m_s2` |
 
 use super::half_orders;
+use super::ring_width::RingWidth;
 use super::speed_line::SpeedLine;
 use crate::config::simulation::{
     LooseImpactsConfig, ShaftLinesConfig, SimulationConfig, SpeedFluctuationConfig,
@@ -108,6 +109,10 @@ pub struct Context {
     /// so `looseness_impacts` states its strength there (at another speed it is the speed
     /// law's extrapolation); `None` when the fit part has no healthy recording.
     pub healthy_fit_rpm: Option<f64>,
+    /// The damping of the mode the fit part's healthy recordings ring, read from its
+    /// half-power width ([`super::ring_width`]): `looseness_impacts` takes it rather than
+    /// searching it (its other views trade the damping against the landing strength).
+    pub ring: Option<RingWidth>,
 }
 
 impl Context {
@@ -156,6 +161,20 @@ pub fn fluctuation_ranges(cx: &Context) -> ((f64, f64), (f64, f64)) {
 /// Bounds of `looseness_impacts`' `impact_m_s2` (the peak of one landing at
 /// [`Context::landing_rpm`]): two decades either side of the 1-10 m/s^2 a loose housing gives.
 pub const IMPACT_M_S2: (f64, f64) = (0.01, 300.0);
+
+/// `looseness_impacts`' `mode_hz` range: within the half-power width of the peak the fit
+/// part's healthy recordings ring ([`Context::ring`]: the mode is where that peak is), else
+/// from [`IMPACT_MODE_MIN_HZ`] to 0.4 fs.
+fn landing_mode_range(cx: &Context) -> Range {
+    let whole = (IMPACT_MODE_MIN_HZ, 0.4 * cx.fs);
+    match cx.ring {
+        Some(r) => {
+            let (lo, hi) = log_within(r.hz * (1.0 - r.damping), r.hz * (1.0 + r.damping), whole);
+            Range::Log(lo, hi)
+        }
+        None => Range::Log(whole.0, whole.1),
+    }
+}
 
 /// Bounds of `looseness_impacts`' `damping`: a bolted joint's mode rings with 0.5-30 %.
 pub const IMPACT_DAMPING: (f64, f64) = (0.005, 0.3);
@@ -274,9 +293,11 @@ impl Effect {
             Effect::LoosenessImpacts => {
                 let mut v = vec![
                     p("impact_m_s2", Range::Log(IMPACT_M_S2.0, IMPACT_M_S2.1)),
-                    p("mode_hz", Range::Log(IMPACT_MODE_MIN_HZ, 0.4 * cx.fs)),
-                    p("damping", Range::Log(IMPACT_DAMPING.0, IMPACT_DAMPING.1)),
+                    p("mode_hz", landing_mode_range(cx)),
                 ];
+                if cx.ring.is_none() {
+                    v.push(p("damping", Range::Log(IMPACT_DAMPING.0, IMPACT_DAMPING.1)));
+                }
                 if cx.several_speeds {
                     v.push(p("exponent", Range::Linear(0.0, 6.0)));
                 }
@@ -328,11 +349,16 @@ impl Effect {
             }
             Effect::LoosenessImpacts => {
                 let mode = cx
-                    .ringing_hz
+                    .ring
+                    .map(|r| r.hz)
+                    .or(cx.ringing_hz)
                     .or(sim.structure.resonances.first().map(|r| r.hz))
                     .unwrap_or(0.1 * cx.fs)
                     .clamp(IMPACT_MODE_MIN_HZ, 0.4 * cx.fs);
-                let mut v = vec![1.0, mode, 0.05];
+                let mut v = vec![1.0, mode];
+                if cx.ring.is_none() {
+                    v.push(0.05);
+                }
                 if cx.several_speeds {
                     v.push(DEFAULT_EXPONENT);
                 }
@@ -393,12 +419,17 @@ impl Effect {
                 });
             }
             Effect::LoosenessImpacts => {
+                // [impact, mode, damping unless read from the ring's width, exponent?]
+                let (damping, rest) = match cx.ring {
+                    Some(r) => (r.damping, &values[2..]),
+                    None => (values[2], &values[3..]),
+                };
                 s.loose_impacts = Some(LooseImpactsConfig {
                     ref_rpm: cx.landing_rpm(),
-                    exponent: values.get(3).copied().unwrap_or(DEFAULT_EXPONENT),
+                    exponent: rest.first().copied().unwrap_or(DEFAULT_EXPONENT),
                     impact_m_s2: values[0],
                     mode_hz: values[1],
-                    damping: values[2],
+                    damping,
                     horizontal_ratio: 0.5,
                     phase_deg: 0.0,
                     timing_jitter: crate::config::simulation::DEFAULT_TIMING_JITTER,

@@ -141,6 +141,9 @@ pub struct Outcome {
     /// Wall seconds of the measured recordings' views, and of the whole calibration.
     pub measured_views_wall_s: f64,
     pub wall_s: f64,
+    /// The mode the fit part's healthy recordings ring, with the damping its half-power width
+    /// gives `looseness_impacts` ([`catalog::Context::ring`]), if it could be read.
+    pub ring: Option<super::ring_width::RingWidth>,
 }
 
 /// How the calibration runs. [`Options::default`] is the normal way; [`Options::baseline`]
@@ -641,6 +644,8 @@ fn derived(twin: &Twin, effect: Effect, sim: &SimulationConfig) -> Result<BTreeM
         if let Some(l) = &sim.loose_impacts {
             out.insert("at_rpm".into(), l.ref_rpm.round());
             out.insert("peak_m_s2".into(), round_sig(crate::sim::landing_peak(l)));
+            // searched, or read from the ring's half-power width (`Context::ring`)
+            out.insert("damping".into(), round_sig(l.damping));
         }
     }
     if effect == Effect::Unbalance {
@@ -898,14 +903,16 @@ pub fn calibrate_with(
         .iter()
         .map(|&i| twin.simulated(&base, i))
         .collect::<Result<Vec<_>>>()?;
+    let ringing = ringing_hz(&fit_views, &base_views);
     let cx = catalog::Context {
         speed_line: speed_line::find(&fit_views),
-        ringing_hz: ringing_hz(&fit_views, &base_views),
+        ringing_hz: ringing,
         healthy_fit_rpm: fit
             .iter()
             .filter(|&&i| twin.measured[i].healthy)
             .map(|&i| ops[i].rpm)
             .reduce(f64::max),
+        ring: ringing.and_then(|hz| ring_width(rig, ops, &fit, &twin.measured, hz)),
         ..context(ops)
     };
     if let Some(l) = cx.speed_line {
@@ -1029,6 +1036,7 @@ pub fn calibrate_with(
         round_times,
         measured_views_wall_s,
         wall_s: started.elapsed().as_secs_f64(),
+        ring: cx.ring,
     })
 }
 
@@ -1047,11 +1055,13 @@ pub fn context(ops: &[Measured]) -> catalog::Context {
         speed_line: None,
         ringing_hz: None,
         healthy_fit_rpm: None,
+        ring: None,
     }
 }
 
 /// The measured recordings `all` show a loose housing's landings against the model `base`
-/// ([`super::trace::shows_landings`]: a half-order comb of the envelope): only then is
+/// ([`super::trace::shows_landings`]: a half-order comb of the envelope, or of the band where
+/// they ring): only then is
 /// `looseness_impacts` searched without being asked for, so a calibration of a machine
 /// without them pays nothing for the effect.
 fn shows_landings(twin: &Twin, base: &SimulationConfig, all: &[usize]) -> Result<bool> {
@@ -1144,6 +1154,49 @@ fn ringing_hz(measured: &[&Views], base: &[Arc<Views>]) -> Option<f64> {
         .collect();
     hz.sort_by(f64::total_cmp);
     (!hz.is_empty()).then(|| hz[hz.len() / 2])
+}
+
+/// The damping of the mode ringing near `hz` on the fit part's (`fit`) healthy recordings,
+/// read from its half-power width ([`super::ring_width`]): the median over the recordings
+/// where it can be read, with their median frequency and stand above the floor; `None` where
+/// none shows it.
+fn ring_width(
+    rig: &RigConfig,
+    ops: &[Measured],
+    fit: &[usize],
+    measured: &[Views],
+    hz: f64,
+) -> Option<super::ring_width::RingWidth> {
+    let read: Vec<_> = fit
+        .iter()
+        .filter(|&&i| measured[i].healthy)
+        .filter_map(|&i| {
+            let rec = &ops[i].recording;
+            let ch = rig
+                .classifier_channel()
+                .and_then(|c| rec.channel(&c.name))
+                .or_else(|| rec.channels.first())?;
+            super::ring_width::measure(&ch.samples, rec.sample_rate, ops[i].rpm / 60.0, hz)
+        })
+        .collect();
+    let med = |f: fn(&super::ring_width::RingWidth) -> f64| {
+        let v: Vec<f64> = read.iter().map(f).collect();
+        super::stats::median(&v)
+    };
+    let ring = (!read.is_empty()).then(|| super::ring_width::RingWidth {
+        hz: med(|r| r.hz),
+        damping: med(|r| r.damping),
+        snr_db: med(|r| r.snr_db),
+    })?;
+    tracing::info!(
+        "the fit part's healthy recordings ring a mode at {:.0} Hz, {:.1} dB above the floor, \
+         half-power width {:.1} Hz: `looseness_impacts` takes its damping, {:.4}, from it",
+        ring.hz,
+        ring.snr_db,
+        2.0 * ring.damping * ring.hz,
+        ring.damping
+    );
+    Some(ring)
 }
 
 /// Round to 4 significant digits (reports).

@@ -2,7 +2,8 @@
 //! measured operating points ([`measured`], analysed at the simulator's output rate,
 //! [`rate`]), compare physically meaningful views
 //! ([`views`]: envelope and raw spectra, [`fault_peaks`], [`shaft_orders`],
-//! [`fractional_orders`] with its [`half_orders`], [`impacts`], [`modes`], with order
+//! [`fractional_orders`] with its [`half_orders`], [`impacts`], [`modes`] (a loose housing's
+//! landings: [`landing_comb`], their mode's damping [`ring_width`]), with order
 //! [`stats`]) with one scalar error of named components ([`error`]), locate the residual
 //! ([`locate`]) and name its usual causes ([`trace`]), attribute it greedily to catalog
 //! effects ([`catalog`], [`search`], [`fit`]; a speed fluctuation around the line the
@@ -23,6 +24,7 @@ pub mod modes;
 pub mod plots;
 pub mod rate;
 pub mod report;
+pub mod ring_width;
 pub mod search;
 pub mod shaft_orders;
 pub(crate) mod speed_line;

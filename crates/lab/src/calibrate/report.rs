@@ -4,7 +4,7 @@
 //! `{id, effects}`), and the calibration id (hash of the calibrated section and the inputs).
 
 use super::error::{min_cut, ErrorComponent, ErrorParts};
-use super::fit::{Outcome, FIT_CUT, HELD_CUT};
+use super::fit::{Outcome, Trial, FIT_CUT, HELD_CUT};
 use super::measured::Measured;
 use super::views::Views;
 use crate::config::RigConfig;
@@ -94,6 +94,20 @@ fn landings(m: &Views, before: &Views, after: &Views) -> Value {
     }
 }
 
+/// Where an accepted `looseness_impacts` took its damping from the ring's half-power width
+/// ([`super::ring_width`]), the line that says so.
+fn ring_note(o: &Outcome, t: &Trial) -> Option<String> {
+    let r = o.ring.filter(|_| t.name == "looseness_impacts")?;
+    Some(format!(
+        "  - damping {:.4} not searched: read from the half-power width ({:.1} Hz) of the mode \
+         the fit part's healthy recordings ring at {:.0} Hz, {:.1} dB above its floor",
+        r.damping,
+        2.0 * r.damping * r.hz,
+        r.hz,
+        r.snr_db
+    ))
+}
+
 /// The report object printed by `--json`.
 pub fn json(rig: &RigConfig, o: &Outcome, ops: &[Measured], id: &str) -> Value {
     let effects: Vec<Value> = o
@@ -129,6 +143,7 @@ pub fn json(rig: &RigConfig, o: &Outcome, ops: &[Measured], id: &str) -> Value {
     json!({
         "calibration_id": id,
         "recordings": per,
+        "ring_width": o.ring,
         "rig": rig.machine.id,
         "error_before": r3(o.before.total),
         "error_after": r3(o.after.total),
@@ -179,6 +194,9 @@ pub fn markdown(rig: &RigConfig, o: &Outcome, ops: &[Measured], id: &str) -> Str
         );
         if let Some(why) = &t.preferred_over {
             let _ = writeln!(s, "  - preferred over {why}");
+        }
+        if let Some(note) = ring_note(o, t) {
+            let _ = writeln!(s, "{note}");
         }
         if !t.at_bound.is_empty() {
             let _ = writeln!(

@@ -579,7 +579,7 @@ fn threshold(db: f64) -> f64 {
 }
 
 /// Welch estimate (Hann, 50 % overlap): per-bin peak amplitude and power, `nseg/2+1` bins.
-fn welch(x: &[f32], nseg: usize) -> (Vec<f64>, Vec<f64>) {
+pub(super) fn welch(x: &[f32], nseg: usize) -> (Vec<f64>, Vec<f64>) {
     let mut planner = RealFftPlanner::<f64>::new();
     let fft = planner.plan_fft_forward(nseg);
     let w: Vec<f64> = (0..nseg)
