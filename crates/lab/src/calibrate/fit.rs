@@ -1172,10 +1172,7 @@ fn ring_width(
         .filter(|&&i| measured[i].healthy)
         .filter_map(|&i| {
             let rec = &ops[i].recording;
-            let ch = rig
-                .classifier_channel()
-                .and_then(|c| rec.channel(&c.name))
-                .or_else(|| rec.channels.first())?;
+            let ch = views::classifier_channel(rec, rig)?;
             super::ring_width::measure(&ch.samples, rec.sample_rate, ops[i].rpm / 60.0, hz)
         })
         .collect();

@@ -422,6 +422,16 @@ fn segment_track(track: &SpeedTrack, t0: f64, seconds: f64) -> Result<SpeedTrack
     SpeedTrack::from_profile(&t, &hz, track.source())
 }
 
+/// The channel the views read: the rig's classifier channel, else the recording's first.
+pub(super) fn classifier_channel<'a>(
+    rec: &'a Recording,
+    rig: &RigConfig,
+) -> Option<&'a crate::recording::Channel> {
+    rig.classifier_channel()
+        .and_then(|c| rec.channel(&c.name))
+        .or_else(|| rec.channels.first())
+}
+
 /// [`compute_parts`] along a given speed track (None: the recording's own, read after the
 /// sample rate is checked).
 fn compute_parts_along(
@@ -431,11 +441,7 @@ fn compute_parts_along(
     parts: Parts,
     track: Option<&SpeedTrack>,
 ) -> Result<Views> {
-    let ch = rig
-        .classifier_channel()
-        .and_then(|c| rec.channel(&c.name))
-        .or_else(|| rec.channels.first())
-        .context("the recording has no acceleration channel")?;
+    let ch = classifier_channel(rec, rig).context("the recording has no acceleration channel")?;
     let fs = rec.sample_rate;
     if !(fs >= MIN_SAMPLE_RATE_HZ) {
         bail!(
