@@ -4,18 +4,19 @@
 //! whose half-sine contact force rings one mode of the joint), not from rigmon's simulator
 //! nor measured_like.py's looseness. Four of the cases from docs/calibration.md's sweep run
 //! here (strong landings ringing a high mode over a clipped rocking; medium landings lost in
-//! the broadband views, found by the band where they ring; medium landings over a rocking
-//! that is not clipped, where the band energies alone traded the damping for the strength;
-//! weak landings at a low mode with no rocking at all); the sweep's other cases are rerun by
-//! the command there. Each calibrates as a user runs it, without `--looseness-impacts`: where
-//! the recordings show the landings (a half-order comb of the envelope, or of the band where
-//! they ring, against the model), `looseness_impacts` is searched anyway. Each:
+//! the broadband views, searched on request; medium landings over a rocking that is not
+//! clipped, where the band energies alone traded the damping for the strength; weak landings
+//! at a low mode with no rocking at all); the sweep's other cases are rerun by the command
+//! there. Each calibrates as a user runs it, without `--looseness-impacts` but for the one
+//! lost in the broadband views: where the recordings show the landings (a half-order comb of
+//! the envelope against the model), `looseness_impacts` is searched anyway. Each:
 //! `looseness_impacts` accepted (or `subharmonics` first, then it), its mode, damping and
 //! landing peak within 20 % of the truth, no `noise` or `resonance` taken before it, and no
 //! unexplained residual where looseness shows (half orders, the impacts' envelope). The
-//! strong and medium cases meet it; the weak one does not (searched, but its mode stands
-//! less than 10 dB above the floor on the fit part, so its damping cannot be read there and
-//! the views it is searched on do not show it), so it is ignored (docs/calibration.md).
+//! strong and medium cases meet it; the weak one does not (located and named, not searched;
+//! with the flag, its mode stands less than 10 dB above the floor on the fit part, so its
+//! damping cannot be read there and the views it is searched on do not show it), so it is
+//! ignored (docs/calibration.md).
 //! Two checks more: the simulator's own landings are fitted back, and the absolute `floor` is
 //! what tells the landing strength on the strong independent case.
 
@@ -61,8 +62,8 @@ fn generate(out: &std::path::Path, args: &[&str]) {
     );
 }
 
-/// Generate with `args`, calibrate; (report, truth params).
-fn calibrate(case: &str, args: &[&str]) -> (Value, Value) {
+/// Generate with `args`, calibrate with `flags`; (report, truth params).
+fn calibrate(case: &str, args: &[&str], flags: &[&str]) -> (Value, Value) {
     let dir = tempfile::tempdir().unwrap();
     let data = dir.path().join("data");
     generate(&data, args);
@@ -80,6 +81,7 @@ fn calibrate(case: &str, args: &[&str]) -> (Value, Value) {
         .arg("--report")
         .arg(dir.path().join("report"))
         .arg("--json")
+        .args(flags)
         .output()
         .unwrap();
     assert!(
@@ -107,6 +109,8 @@ fn calibrate(case: &str, args: &[&str]) -> (Value, Value) {
 struct Case {
     name: &'static str,
     args: &'static [&'static str],
+    /// `rigmon calibrate`'s flags beyond the defaults.
+    flags: &'static [&'static str],
 }
 
 /// The checks every case shares: `looseness_impacts` accepted first (after `subharmonics` at
@@ -114,7 +118,7 @@ struct Case {
 /// within 20 % of the truth (the peak at the speed it is stated at); nothing left
 /// unexplained where looseness shows (half orders of any view, the impacts' envelope).
 fn found(case: &Case) {
-    let (r, truth) = calibrate(case.name, case.args);
+    let (r, truth) = calibrate(case.name, case.args, case.flags);
     let effects = r["effects"].as_array().unwrap();
     let names: Vec<&str> = effects
         .iter()
@@ -171,16 +175,19 @@ fn strong_landings_at_a_high_mode_are_looseness() {
     found(&Case {
         name: "strong, 2.5 kHz, clipped rocking",
         args: STRONG,
+        flags: &[],
     });
 }
 
 /// Medium landings (5 m/s^2 at 1200 rpm) ringing a 1.8 kHz mode at 3 %, over a clipped
-/// rocking: lost in the broadband views (`impacts`, `env`), found by the half-order comb of the
-/// band where they ring (`landings`), and fitted once the search reads the mode's damping from
-/// its half-power width (before: not searched; with `--looseness-impacts` the damping and the
-/// peak came out 59 % high, each trading for the other).
+/// rocking: lost in the broadband views (`impacts`, `env`), located by the half-order comb of
+/// the band where they ring (`landings`), which does not open the search (a real machine's
+/// healthy record shows such a comb: docs/calibration.md), so searched as a user asks for it
+/// (`--looseness-impacts`), and fitted once the search reads the mode's damping from its
+/// half-power width (before, with the flag: damping and peak 59 % high, each trading for the
+/// other).
 #[test]
-fn medium_landings_found_in_their_band_are_looseness() {
+fn medium_landings_searched_on_request_are_looseness() {
     found(&Case {
         name: "medium, 1.8 kHz, clipped rocking",
         args: &[
@@ -193,6 +200,7 @@ fn medium_landings_found_in_their_band_are_looseness() {
             "--seed",
             "12",
         ],
+        flags: &["--looseness-impacts"],
     });
 }
 
@@ -216,6 +224,7 @@ fn landings_over_an_unclipped_rocking_are_looseness() {
             "--seed",
             "14",
         ],
+        flags: &[],
     });
 }
 
@@ -235,11 +244,12 @@ const WEAK: &[&str] = &[
 
 /// Weak landings (1 m/s^2) ringing a 600 Hz mode with no rocking line at all.
 #[test]
-#[ignore = "issue 39 not done: the landings are located and named (`weak_landings_are_located_and_named`) and searched, but refused: on the fit part their mode stands < 10 dB above the floor; run with --ignored"]
+#[ignore = "issue 39 not done: the landings are located and named (`weak_landings_are_located_and_named`), but not searched (and refused with --looseness-impacts: on the fit part their mode stands < 10 dB above the floor); run with --ignored"]
 fn weak_landings_at_a_low_mode_without_rocking_are_looseness() {
     found(&Case {
         name: "weak, 600 Hz, no rocking",
         args: WEAK,
+        flags: &[],
     });
 }
 
@@ -253,7 +263,7 @@ fn weak_landings_are_located_and_named() {
         ("weak, 600 Hz, no rocking", WEAK, true),
         ("control: no landings", control, false),
     ] {
-        let (r, _) = calibrate(case, args);
+        let (r, _) = calibrate(case, args, &[]);
         let fitted = r["effects"]
             .as_array()
             .unwrap()

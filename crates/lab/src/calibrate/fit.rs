@@ -1060,8 +1060,7 @@ pub fn context(ops: &[Measured]) -> catalog::Context {
 }
 
 /// The measured recordings `all` show a loose housing's landings against the model `base`
-/// ([`super::trace::shows_landings`]: a half-order comb of the envelope, or of the band where
-/// they ring): only then is
+/// ([`super::trace::shows_landings`]: a half-order comb of the envelope): only then is
 /// `looseness_impacts` searched without being asked for, so a calibration of a machine
 /// without them pays nothing for the effect.
 fn shows_landings(twin: &Twin, base: &SimulationConfig, all: &[usize]) -> Result<bool> {

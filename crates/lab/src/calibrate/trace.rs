@@ -121,15 +121,17 @@ fn half_order(o: f64) -> bool {
     !integer && o < HALF_ORDERS_UP_TO && near_fraction(o, 2.0, &[1.0])
 }
 
-/// The residual is impacting once every two revolutions: a half order of the shaft in the
-/// broadband envelope views (`env`, `impacts`) or in the band where the landings ring
-/// (`landings`), not locked to a fixed frequency. Where the measured recordings show one, a
-/// calibration searches the landings of a loose housing (`looseness_impacts`) too. (Before
-/// the search read its mode's damping from the ring's half-power width, a search opened by
-/// the `landings` comb of a real machine's healthy record, CWRU 97, replaced its fitted
-/// resonance with landings at the damping bound; docs/calibration.md.)
+/// The residual is impacting once every two revolutions in the broadband envelope views: a
+/// half order of the shaft in `env` or `impacts`, not locked to a fixed frequency. Where the
+/// measured recordings show one, a calibration searches the landings of a loose housing
+/// (`looseness_impacts`) too. The `landings` view's comb (weak landings found in the band
+/// where they ring) is located and named, but does not open the search by itself: a real
+/// machine's healthy record (CWRU 97) shows such a comb, and a search opened by it took
+/// landings ringing the record's 4.1 kHz resonance instead of that resonance (on the fan-end
+/// rig file, 2026-12-08, with the damping read from the ring's width; at the damping bound on
+/// the drive-end rig file, 2026-12-07; docs/calibration.md).
 pub fn shows_landings(u: &Unexplained) -> bool {
-    matches!(u.view.as_str(), "env" | "impacts" | "landings")
+    matches!(u.view.as_str(), "env" | "impacts")
         && u.locked_to != "frequency"
         && u.order > 0.0
         && half_order(u.order)
