@@ -128,8 +128,8 @@ fn half_order(o: f64) -> bool {
 /// where they ring) is located and named, but does not open the search by itself: a real
 /// machine's healthy record (CWRU 97) shows such a comb, and a search opened by it took
 /// landings ringing the record's 4.1 kHz resonance instead of that resonance (on the fan-end
-/// rig file, 2026-12-08, with the damping read from the ring's width; at the damping bound on
-/// the drive-end rig file, 2026-12-07; docs/calibration.md).
+/// rig file, 2026-12-08, where the ring's width could not be read; at the damping bound on the
+/// drive-end rig file, 2026-12-07; docs/calibration.md).
 pub fn shows_landings(u: &Unexplained) -> bool {
     matches!(u.view.as_str(), "env" | "impacts")
         && u.locked_to != "frequency"
