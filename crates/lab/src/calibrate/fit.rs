@@ -938,6 +938,7 @@ pub fn calibrate_with(
     } else {
         &ALL
     };
+    log_ring(&cx, catalog);
     let mut current = base.clone();
     let mut accepted: Vec<Trial> = Vec::new();
     let mut rounds = Vec::new();
@@ -1179,20 +1180,29 @@ fn ring_width(
         let v: Vec<f64> = read.iter().map(f).collect();
         super::stats::median(&v)
     };
-    let ring = (!read.is_empty()).then(|| super::ring_width::RingWidth {
+    (!read.is_empty()).then(|| super::ring_width::RingWidth {
         hz: med(|r| r.hz),
         damping: med(|r| r.damping),
         snr_db: med(|r| r.snr_db),
-    })?;
-    tracing::info!(
-        "the fit part's healthy recordings ring a mode at {:.0} Hz, {:.1} dB above the floor, \
-         half-power width {:.1} Hz: `looseness_impacts` takes its damping, {:.4}, from it",
-        ring.hz,
-        ring.snr_db,
-        2.0 * ring.damping * ring.hz,
-        ring.damping
-    );
-    Some(ring)
+    })
+}
+
+/// Say where `looseness_impacts`, if the `catalog` searches it, takes its damping from.
+fn log_ring(cx: &catalog::Context, catalog: &[Effect]) {
+    if let Some(r) = cx
+        .ring
+        .filter(|_| catalog.contains(&Effect::LoosenessImpacts))
+    {
+        tracing::info!(
+            "the fit part's healthy recordings ring a mode at {:.0} Hz, {:.1} dB above the \
+             floor, half-power width {:.1} Hz: `looseness_impacts` takes its damping, {:.4}, \
+             from it",
+            r.hz,
+            r.snr_db,
+            2.0 * r.damping * r.hz,
+            r.damping
+        );
+    }
 }
 
 /// Round to 4 significant digits (reports).
