@@ -117,7 +117,7 @@ mod tests {
     use super::*;
 
     /// Ring-downs of a known mode landing once every two revolutions over white noise: the
-    /// damping comes back within 10 %, at two speeds and two modes; a train too weak to
+    /// damping comes back within 10 %, at two speeds and three modes; a train too weak to
     /// stand above the floor gives no reading, and so does noise alone.
     #[test]
     fn the_half_power_width_tells_the_damping() {
